@@ -1,0 +1,39 @@
+"""Console scripts of nodes that are not implemented yet.
+
+Each is a real rclpy node (it parses ``--ros-args``) that logs what it will be and exits with code 3,
+so ``air-hockey game`` and users see honestly what is missing. A node moves out of this table when
+it is built (and its entry point in setup.py moves to its own module).
+"""
+from __future__ import annotations
+
+from typing import Callable
+
+from air_hockey_agent.nodes.runtime import run_not_implemented
+
+PENDING = {
+    "tactics": "tactics state machine (thesis 4.6): Init/Home/Ready/Smash/Cut/Prepare/Repel -> HitCommand",
+    "trajectory_generator": "trajectory generator: pinocchio IK and task-space planning -> JointTrajectory",
+    "referee": "referee: goals, puck out or stuck, illegal robot states, score, start/stop/pause services",
+    "table_sim": "pybullet table simulation: puck, two iiwa arms, OptiTrack stand-in, /clock (issue #4)",
+    "bag_player": "bag player: replays rosbag2 OptiTrack recordings with their original timing (issue #5)",
+    "strategy_test": "strategy test: forces one tactic, sets puck states through the sim, scores each trial",
+    "prediction_optimizer": "prediction optimizer: HEBO system identification through the tracker services (issue #5)",
+    "puck_tracker": "puck tracker: EKF with the Routh wall-impact model (issue #3)",
+}
+
+
+def _entry(name: str) -> Callable[[list[str] | None], int]:
+    def main(argv: list[str] | None = None) -> int:
+        return run_not_implemented(name, PENDING[name], argv)
+    main.__name__ = name
+    return main
+
+
+tactics = _entry("tactics")
+trajectory_generator = _entry("trajectory_generator")
+referee = _entry("referee")
+table_sim = _entry("table_sim")
+bag_player = _entry("bag_player")
+strategy_test = _entry("strategy_test")
+prediction_optimizer = _entry("prediction_optimizer")
+puck_tracker = _entry("puck_tracker")

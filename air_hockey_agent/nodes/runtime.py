@@ -1,0 +1,133 @@
+"""Shared start-up of every air_hockey_agent node: parameters, ``--help``, clean shutdown.
+
+A node subclasses :class:`AirHockeyNode`, lists its default parameter files and its
+:class:`~air_hockey_agent.params.ParamSpec` declarations, and its console script calls :func:`run`.
+"""
+from __future__ import annotations
+
+import sys
+from typing import Any, ClassVar, Sequence
+
+import rclpy
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+
+from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_defaults
+from air_hockey_agent.paths import config_file
+
+EXIT_BAD_PARAMETERS = 2
+EXIT_NOT_IMPLEMENTED = 3
+READY_MARKER = "node ready:"  # logged once a node is constructed; the game launcher waits for it
+
+
+def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
+    descriptor = ParameterDescriptor(description=spec.description)
+    if spec.type is float and spec.low is not None and spec.high is not None:
+        descriptor.floating_point_range = [FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high))]
+    elif spec.type is int and spec.low is not None and spec.high is not None:
+        descriptor.integer_range = [IntegerRange(from_value=int(spec.low), to_value=int(spec.high), step=1)]
+    return descriptor
+
+
+class AirHockeyNode(Node):
+    """rclpy node whose parameters are declared from specs with defaults from ``config/``."""
+
+    NAME: ClassVar[str] = ""
+    DESCRIPTION: ClassVar[str] = ""
+    PARAM_FILES: ClassVar[Sequence[str]] = ()
+    PARAMS: ClassVar[Sequence[ParamSpec]] = ()
+
+    def __init__(self, **kwargs: Any) -> None:
+        super().__init__(self.NAME, **kwargs)
+        defaults = load_defaults([config_file(f) for f in self.PARAM_FILES],
+                                 self.get_fully_qualified_name(), self.PARAMS)
+        self.params: dict[str, Any] = {}
+        for spec in self.PARAMS:
+            value = self.declare_parameter(spec.name, defaults[spec.name], _descriptor(spec)).value
+            self.params[spec.name] = spec.check(value)
+        self._specs = {spec.name: spec for spec in self.PARAMS}
+        self.add_on_set_parameters_callback(self._check_parameter_update)
+
+    def _check_parameter_update(self, parameters: list) -> SetParametersResult:
+        """Refuse run-time parameter changes that fail their spec; apply the rest."""
+        checked = {}
+        for parameter in parameters:
+            spec = self._specs.get(parameter.name)
+            if spec is None:
+                continue
+            try:
+                checked[parameter.name] = spec.check(parameter.value)
+            except ParameterValueError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+        self.params.update(checked)
+        self.on_parameters_changed(checked)
+        return SetParametersResult(successful=True)
+
+    def on_parameters_changed(self, changed: dict[str, Any]) -> None:
+        """Hook for nodes that react to parameter changes at run time."""
+
+
+def format_help(node_cls: type[AirHockeyNode]) -> str:
+    """Usage text of a node: description and its parameters with defaults from ``config/``."""
+    lines = [f"usage: {node_cls.NAME} [-h] [--ros-args [--params-file FILE] [-p NAME:=VALUE] [-r FROM:=TO] ...]",
+             "", node_cls.DESCRIPTION.strip(), ""]
+    try:
+        defaults = load_defaults([config_file(f) for f in node_cls.PARAM_FILES], "/" + node_cls.NAME,
+                                 node_cls.PARAMS)
+    except (ParameterFileError, ParameterValueError) as exc:
+        defaults = {}
+        lines.append(f"(defaults unavailable: {exc})")
+    files = ", ".join(str(config_file(f)) for f in node_cls.PARAM_FILES)
+    lines.append(f"parameters (defaults from {files or 'none'}):")
+    for spec in node_cls.PARAMS:
+        bounds = f" [{spec.low}, {spec.high}]" if spec.low is not None or spec.high is not None else ""
+        lines.append(f"  {spec.name} ({spec.type.__name__}{bounds}) = {defaults.get(spec.name, '?')!r}")
+        lines.append(f"      {spec.description}")
+    return "\n".join(lines)
+
+
+def _user_args(argv: Sequence[str]) -> list[str]:
+    args = list(argv[1:])
+    return args[:args.index("--ros-args")] if "--ros-args" in args else args
+
+
+def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int:
+    """Run a node until shutdown (Ctrl-C, SIGTERM, or the node itself). Returns the exit code."""
+    argv = list(sys.argv if argv is None else argv)
+    if any(a in ("-h", "--help") for a in _user_args(argv)):
+        print(format_help(node_cls))
+        return 0
+    rclpy.init(args=argv)
+    node = None
+    try:
+        node = node_cls()
+        node.get_logger().info(f"{READY_MARKER} {node.get_fully_qualified_name()}")
+        rclpy.spin(node)
+    except (ParameterFileError, ParameterValueError) as exc:
+        print(f"[{node_cls.NAME}] error: {exc}", file=sys.stderr)
+        return EXIT_BAD_PARAMETERS
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return 0
+
+
+def run_not_implemented(name: str, what: str, argv: Sequence[str] | None = None) -> int:
+    """Start a real rclpy node that reports it is not implemented yet and exits with code 3."""
+    argv = list(sys.argv if argv is None else argv)
+    if any(a in ("-h", "--help") for a in _user_args(argv)):
+        print(f"usage: {name} [-h] [--ros-args ...]\n\n{what}\n\nNOT IMPLEMENTED YET: this node only says so and exits "
+              f"with code {EXIT_NOT_IMPLEMENTED}.")
+        return 0
+    rclpy.init(args=argv)
+    try:
+        node = Node(name)
+        node.get_logger().error(f"{name} is not implemented yet ({what}); exiting with code {EXIT_NOT_IMPLEMENTED}")
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown()
+    return EXIT_NOT_IMPLEMENTED

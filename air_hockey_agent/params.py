@@ -1,0 +1,138 @@
+"""Parameter declarations and default parameter files (ROS-free).
+
+Every tunable has its default in a ROS 2 parameter file under ``config/`` (with a comment giving its
+source); code declares only the name, type, meaning and valid range (:class:`ParamSpec`), in the
+spirit of generate_parameter_library. Nodes load the defaults, let ``--params-file``/``-p`` override
+them, and refuse out-of-range values at start-up with a one-line message.
+"""
+from __future__ import annotations
+
+import fnmatch
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Iterable, Mapping
+
+import yaml
+
+
+class ParameterFileError(ValueError):
+    """A parameter file is missing, unreadable or malformed."""
+
+
+class ParameterValueError(ValueError):
+    """A parameter value has the wrong type or is out of range."""
+
+
+@dataclass(frozen=True)
+class ParamSpec:
+    """Declaration of one parameter: its type, meaning (with unit) and valid closed range."""
+
+    name: str
+    type: type  # float, int, bool, str, or list (of floats)
+    description: str
+    low: float | None = None
+    high: float | None = None
+    length: int | None = None  # required length for list parameters
+
+    def check(self, value: Any) -> Any:
+        """Return ``value`` coerced to the declared type, or raise :class:`ParameterValueError`."""
+        value = self._coerce(value)
+        items = value if isinstance(value, list) else [value]
+        if self.length is not None and len(items) != self.length:
+            raise ParameterValueError(f"parameter '{self.name}' needs {self.length} values, got {len(items)}")
+        if self.type in (float, int, list):
+            for item in items:
+                if not math.isfinite(item):
+                    raise ParameterValueError(f"parameter '{self.name}' must be finite, got {item}")
+                if self.low is not None and item < self.low or self.high is not None and item > self.high:
+                    raise ParameterValueError(
+                        f"parameter '{self.name}' = {item} is outside [{self.low}, {self.high}] ({self.description})")
+        return value
+
+    def _coerce(self, value: Any) -> Any:
+        kind = self.type
+        if kind is float and isinstance(value, (int, float)) and not isinstance(value, bool):
+            return float(value)
+        if kind is int and isinstance(value, int) and not isinstance(value, bool):
+            return value
+        if kind is bool and isinstance(value, bool):
+            return value
+        if kind is str and isinstance(value, str):
+            return value
+        if kind is list and isinstance(value, (list, tuple)) and all(
+                isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
+            return [float(v) for v in value]
+        raise ParameterValueError(
+            f"parameter '{self.name}' must be of type {kind.__name__}, got {type(value).__name__} {value!r}")
+
+
+def _node_sections(document: Mapping[str, Any], fq_name: str) -> Iterable[Mapping[str, Any]]:
+    """Yield the ``ros__parameters`` blocks of a parameter document that apply to node ``fq_name``.
+
+    Keys follow the ROS 2 convention: ``/**`` (every node), ``/**/name`` (any namespace), an exact
+    fully qualified name, or a bare node name. Wildcards are applied first so that exact keys win.
+    """
+    def rank(key: str) -> int:
+        return 0 if "*" in key else 1
+
+    for key in sorted(document, key=rank):
+        block = document[key]
+        pattern = key if key.startswith("/") else "/" + key
+        name_only = fq_name.rsplit("/", 1)[-1]
+        if (fnmatch.fnmatchcase(fq_name, pattern.replace("/**", "*"))
+                or (not key.startswith("/") and key == name_only)):
+            if not isinstance(block, Mapping) or "ros__parameters" not in block:
+                raise ParameterFileError(f"section '{key}' has no 'ros__parameters' mapping")
+            yield block["ros__parameters"] or {}
+
+
+def _flatten(block: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
+    flat: dict[str, Any] = {}
+    for key, value in block.items():
+        name = f"{prefix}{key}"
+        if isinstance(value, Mapping):
+            flat.update(_flatten(value, name + "."))
+        else:
+            flat[name] = value
+    return flat
+
+
+def load_parameter_file(path: Path, fq_name: str) -> dict[str, Any]:
+    """Return the parameters in one ROS 2 parameter file that apply to node ``fq_name``."""
+    try:
+        document = yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise ParameterFileError(f"{path}: cannot read parameter file ({exc.strerror})") from exc
+    except yaml.YAMLError as exc:
+        raise ParameterFileError(f"{path}: not valid YAML ({exc.__class__.__name__})") from exc
+    if document is None:
+        return {}
+    if not isinstance(document, Mapping):
+        raise ParameterFileError(f"{path}: a parameter file must map node names to 'ros__parameters'")
+    values: dict[str, Any] = {}
+    try:
+        for block in _node_sections(document, fq_name):
+            values.update(_flatten(block))
+    except ParameterFileError as exc:
+        raise ParameterFileError(f"{path}: {exc}") from exc
+    return values
+
+
+def load_defaults(paths: Iterable[Path], fq_name: str, specs: Iterable[ParamSpec]) -> dict[str, Any]:
+    """Merge parameter files (later files win) and check every declared parameter has a valid default."""
+    values: dict[str, Any] = {}
+    for path in paths:
+        values.update(load_parameter_file(path, fq_name))
+    result = {}
+    for spec in specs:
+        if spec.name not in values:
+            raise ParameterFileError(
+                f"no default for parameter '{spec.name}' of {fq_name} in {', '.join(str(p) for p in paths)}")
+        result[spec.name] = spec.check(values[spec.name])
+    return result
+
+
+def validate(specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> dict[str, Any]:
+    """Check a complete set of values against their specs; raise on the first bad one."""
+    return {spec.name: spec.check(values[spec.name]) for spec in specs}

@@ -1,0 +1,1 @@
+"""pybullet table simulation (ROS-free)."""

@@ -1,0 +1,1 @@
+"""The ``air-hockey`` command line and its subcommands."""

@@ -1,0 +1,38 @@
+"""``air-hockey``: one command with a subcommand per tool (``air-hockey --help`` lists them)."""
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+# Subcommand modules; each provides add_parser(subparsers) that sets `run` as the handler.
+TOOL_MODULES = (
+    "air_hockey_agent.tools.game",
+)
+
+
+def build_parser() -> argparse.ArgumentParser:
+    parser = argparse.ArgumentParser(
+        prog="air-hockey",
+        description="Robot air hockey baseline agent: game launcher and tools for tracking, "
+                    "recorded data, system identification and benchmarks.")
+    subparsers = parser.add_subparsers(title="commands", metavar="COMMAND")
+    for module in TOOL_MODULES:
+        importlib.import_module(module).add_parser(subparsers)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    if not hasattr(args, "run"):
+        parser.print_help()
+        return 2
+    try:
+        return int(args.run(args) or 0)
+    except KeyboardInterrupt:
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,54 @@
+"""Shared fixtures: private ROS domain and ROS_HOME for every test run, rclpy contexts, launchers."""
+from __future__ import annotations
+
+import os
+import sys
+import tempfile
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+HELPERS = Path(__file__).resolve().parent / "helpers"
+
+# One private domain per test session (1..101 only; 0 is everyone's default). Set before rclpy loads.
+_SESSION_TMP = Path(tempfile.mkdtemp(prefix="air_hockey_tests_"))
+os.environ.setdefault("AIR_HOCKEY_TEST_DOMAIN", str(10 + os.getpid() % 90))
+os.environ["ROS_DOMAIN_ID"] = os.environ["AIR_HOCKEY_TEST_DOMAIN"]
+os.environ["ROS_HOME"] = str(_SESSION_TMP / "ros_home")
+os.environ["ROS_LOG_DIR"] = str(_SESSION_TMP / "ros_home" / "log")
+
+
+@pytest.fixture(scope="session")
+def domain_id() -> int:
+    return int(os.environ["ROS_DOMAIN_ID"])
+
+
+@pytest.fixture
+def ros_env(domain_id, tmp_path):
+    """Environment for node subprocesses: our Fast DDS profile, the private domain, a temp ROS_HOME."""
+    from air_hockey_agent.tools.ros_env import ros_environment
+    return ros_environment(domain_id=domain_id, ros_home=tmp_path / "ros_home")
+
+
+@pytest.fixture
+def rclpy_node(ros_env):
+    """An rclpy node in this test process (own context), destroyed afterwards."""
+    import rclpy
+    os.environ["FASTRTPS_DEFAULT_PROFILES_FILE"] = ros_env["FASTRTPS_DEFAULT_PROFILES_FILE"]
+    context = rclpy.Context()
+    rclpy.init(context=context, domain_id=int(ros_env["ROS_DOMAIN_ID"]))
+    node = rclpy.create_node("pytest_probe", context=context)
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def launcher(ros_env):
+    """A process launcher whose processes are always stopped at the end of the test."""
+    from air_hockey_agent.tools.launch import Launcher
+    with Launcher(ros_env, echo=sys.stderr) as launch:
+        yield launch

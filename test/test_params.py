@@ -1,0 +1,71 @@
+"""Parameter files and declarations: defaults load, overrides apply, bad values are refused clearly."""
+from pathlib import Path
+
+import pytest
+import yaml
+
+from air_hockey_agent.params import (ParameterFileError, ParameterValueError, ParamSpec, load_defaults,
+                                     load_parameter_file)
+from air_hockey_agent.paths import config_dir
+
+SPECS = (ParamSpec("rate", float, "[Hz] rate", 1.0, 1000.0), ParamSpec("name", str, "a name"))
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "p.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_wildcard_then_exact_node_section_wins(tmp_path):
+    path = write(tmp_path, "/**:\n  ros__parameters:\n    rate: 10.0\n    name: all\n"
+                           "/**/tracker:\n  ros__parameters:\n    rate: 120.0\n")
+    assert load_parameter_file(path, "/iiwa_front/tracker") == {"rate": 120.0, "name": "all"}
+    assert load_parameter_file(path, "/referee") == {"rate": 10.0, "name": "all"}
+
+
+def test_nested_parameters_are_flattened_with_dots(tmp_path):
+    path = write(tmp_path, "/**:\n  ros__parameters:\n    table:\n      length: 1.956\n")
+    assert load_parameter_file(path, "/x") == {"table.length": 1.956}
+
+
+def test_later_files_override_earlier(tmp_path):
+    a, b = tmp_path / "a.yaml", tmp_path / "b.yaml"
+    a.write_text("/**:\n  ros__parameters:\n    rate: 10.0\n    name: a\n")
+    b.write_text("/**:\n  ros__parameters:\n    rate: 20\n")
+    assert load_defaults([a, b], "/n", SPECS) == {"rate": 20.0, "name": "a"}
+
+
+def test_out_of_range_value_is_refused_with_name_and_range():
+    with pytest.raises(ParameterValueError, match=r"'rate' = 0.5 is outside \[1.0, 1000.0\]"):
+        SPECS[0].check(0.5)
+
+
+def test_wrong_type_is_refused():
+    with pytest.raises(ParameterValueError, match="'name' must be of type str"):
+        SPECS[1].check(3)
+    with pytest.raises(ParameterValueError, match="must be finite"):
+        SPECS[0].check(float("nan"))
+
+
+def test_missing_default_names_parameter_and_file(tmp_path):
+    path = write(tmp_path, "/**:\n  ros__parameters:\n    rate: 10.0\n")
+    with pytest.raises(ParameterFileError, match=r"no default for parameter 'name'.*p\.yaml"):
+        load_defaults([path], "/n", SPECS)
+
+
+def test_malformed_file_is_a_one_line_error_naming_the_file(tmp_path):
+    path = write(tmp_path, "/**: [unclosed\n")
+    with pytest.raises(ParameterFileError, match=r"p\.yaml: not valid YAML"):
+        load_parameter_file(path, "/n")
+    with pytest.raises(ParameterFileError, match=r"missing\.yaml: cannot read"):
+        load_parameter_file(tmp_path / "missing.yaml", "/n")
+
+
+@pytest.mark.parametrize("path", sorted(config_dir().glob("*.yaml")), ids=lambda p: p.name)
+def test_every_config_file_is_a_ros_parameter_file(path):
+    document = yaml.safe_load(path.read_text())
+    assert isinstance(document, dict) and document
+    for key, block in document.items():
+        assert key.startswith("/"), f"{path.name}: section '{key}' should be a /** or fully qualified pattern"
+        assert "ros__parameters" in block, f"{path.name}: section '{key}' lacks ros__parameters"
