@@ -1,0 +1,50 @@
+"""Puck-rim impact (Routh model), thesis eq. 3.2-3.4, in the impact frame of one rim.
+
+Impact frame: ``b`` along the rim, ``n`` the inward normal (into the table), right-handed with z up
+(``n = Rz(+90 deg) b``). A puck approaching the rim has ``vn < 0``. The puck is a uniform disc
+(I = m r^2 / 2); its contact point slips along the rim with ``c = vb + r * omega``.
+
+* Sticking (eq. 3.2), when ``|c| <= 3 mu (1 + e) |vn|``: the tangential impulse stops the slip,
+  ``P_b = -m c / 3``.
+* Sliding (eq. 3.3) otherwise: ``P_b = mu s (1 + e) m vn`` with ``s = sign(c)``, opposing the slip.
+* In both, ``P_n = -(1 + e) m vn`` and the post-impact velocities follow eq. 3.4:
+  ``vb' = vb + P_b/m``, ``vn' = vn + P_n/m``, ``omega' = omega + 2 P_b / (m r)``.
+
+The mass cancels. The two branches agree on the switching boundary (tested).
+"""
+from __future__ import annotations
+
+from typing import NamedTuple
+
+import numpy as np
+
+
+class ImpactResult(NamedTuple):
+    vb: float
+    vn: float
+    omega: float
+    sliding: bool
+    jacobian: np.ndarray  # 3x3: d(vb', vn', omega') / d(vb, vn, omega)
+
+
+def is_sliding(vb: float, vn: float, omega: float, radius: float, restitution: float, friction: float) -> bool:
+    """Branch selection: True for the sliding impact (eq. 3.3), False for sticking (eq. 3.2)."""
+    slip = vb + radius * omega
+    return abs(slip) > 3.0 * friction * (1.0 + restitution) * abs(vn)
+
+
+def rim_impact(vb: float, vn: float, omega: float, radius: float, restitution: float,
+               friction: float) -> ImpactResult:
+    """Post-impact (vb, vn, omega) [m/s, m/s, rad/s] and the branch's Jacobian S_j (thesis sec. 4.2)."""
+    e, mu, r = restitution, friction, radius
+    if is_sliding(vb, vn, omega, r, e, mu):
+        s = 1.0 if vb + r * omega > 0.0 else -1.0
+        k = mu * s * (1.0 + e)  # P_b / (m vn)
+        jac = np.array([[1.0, k, 0.0],
+                        [0.0, -e, 0.0],
+                        [0.0, 2.0 * k / r, 1.0]])
+        return ImpactResult(vb + k * vn, -e * vn, omega + 2.0 * k * vn / r, True, jac)
+    jac = np.array([[2.0 / 3.0, 0.0, -r / 3.0],
+                    [0.0, -e, 0.0],
+                    [-2.0 / (3.0 * r), 0.0, 1.0 / 3.0]])
+    return ImpactResult(2.0 / 3.0 * vb - r / 3.0 * omega, -e * vn, omega / 3.0 - 2.0 * vb / (3.0 * r), False, jac)

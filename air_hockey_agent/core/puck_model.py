@@ -1,0 +1,208 @@
+"""Discrete-time puck model: linear motion (eq. 3.1) with rim impacts (eq. 3.2-3.4) and its Jacobian.
+
+State ``s = (x, y, vx, vy, theta, omega)`` in the table frame [m, m, m/s, m/s, rad, rad/s].
+
+One step of length ``dt`` (thesis eq. 3.1, with the surface friction acting along the velocity):
+
+* flight: the puck moves with constant velocity for ``dt``; when its centre reaches a rim line within
+  the step it moves to the contact point, the Routh impact (:mod:`.impact`) changes (vx, vy, omega),
+  and it flies on with the new velocity for the rest of the step (several impacts per step allowed,
+  e.g. in a corner). Crossing a short rim inside the goal opening is no impact.
+* decay: ``v <- v - dt (d v + mu_s v/|v|)``, i.e. speed ``|v| <- max(a |v| - dt mu_s, 0)`` with
+  ``a = 1 - dt d``; the direction is kept. Spin has no decay (eq. 3.1).
+
+The Jacobian ``F = ds'/ds`` is exact for the whole step, including how the impact time moves with
+the state; on an impact it contains the thesis's ``A_i^-1 S_j A_i`` (sec. 4.2) as its velocity block.
+It is built from 7x7 Jacobians over the augmented state (s, remaining time).
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, replace
+from typing import Any, Mapping, NamedTuple
+
+import numpy as np
+
+from air_hockey_agent.core.impact import rim_impact
+from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
+
+TWO_PI = 2.0 * math.pi
+MAX_IMPACTS_PER_STEP = 4  # a corner gives two; more means a degenerate state
+_IDENTITY7 = np.eye(7)  # marker for "no event yet" (never modified)
+
+
+def wrap_angle(angle: float) -> float:
+    """Wrap an angle to (-pi, pi] [rad]."""
+    wrapped = math.remainder(angle, TWO_PI)
+    return math.pi if wrapped == -math.pi else wrapped
+
+
+@dataclass(frozen=True)
+class PuckParams:
+    """Physical parameters of the puck model (thesis sec. 4.3, table 4.1)."""
+
+    friction_surface: float  # mu_s [m/s^2]: constant deceleration along the velocity
+    damping: float           # d [1/s]: viscous damping
+    restitution: float       # e [-] in [0, 1]
+    friction_rim: float      # mu_rim [-]
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> "PuckParams":
+        return cls(params["friction_surface"], params["damping"], params["restitution"], params["friction_rim"])
+
+    def validate(self) -> None:
+        """Raise ValueError naming the first physically invalid parameter."""
+        checks = (("friction_surface", self.friction_surface >= 0.0, ">= 0"),
+                  ("damping", self.damping >= 0.0, ">= 0"),
+                  ("restitution", 0.0 <= self.restitution <= 1.0, "in [0, 1]"),
+                  ("friction_rim", self.friction_rim >= 0.0, ">= 0"))
+        for name, ok, rule in checks:
+            value = getattr(self, name)
+            if not ok or not math.isfinite(value):
+                raise ValueError(f"{name} must be {rule}, got {value}")
+
+    def with_values(self, **values: float) -> "PuckParams":
+        return replace(self, **values)
+
+
+class Impact(NamedTuple):
+    """A rim impact inside a step: time after the step's start [s], rim id, contact position [m]."""
+
+    time: float
+    wall: int
+    x: float
+    y: float
+    sliding: bool
+
+
+class StepResult(NamedTuple):
+    state: np.ndarray          # (6,)
+    jacobian: np.ndarray | None  # (6, 6) ds'/ds, or None when not requested
+    impacts: tuple[Impact, ...]
+
+
+class PuckModel:
+    """The puck's motion model on one table with one set of physical parameters."""
+
+    def __init__(self, table: TableGeometry, params: PuckParams) -> None:
+        params.validate()
+        self.table = table
+        self.params = params
+        self._offsets = tuple(table.wall_offset(w) for w in range(4))
+
+    def with_params(self, params: PuckParams) -> "PuckModel":
+        return PuckModel(self.table, params)
+
+    # --- flight -------------------------------------------------------------------------------
+    def first_impact(self, x: float, y: float, vx: float, vy: float, horizon: float) -> tuple[float, int] | None:
+        """Earliest rim contact of a puck flying straight for ``horizon`` seconds: (time, rim) or None."""
+        best = None
+        for wall, (nx, ny) in enumerate(WALL_NORMALS):
+            vn = nx * vx + ny * vy
+            if vn >= 0.0:
+                continue
+            distance = nx * x + ny * y + self._offsets[wall]
+            if wall in SHORT_WALLS and distance < 0.0:
+                continue  # behind a short rim line: the puck is in a goal, no short-rim impact
+            tau = 0.0 if distance <= 0.0 else distance / -vn
+            if tau > horizon or (best is not None and tau >= best[0]):
+                continue
+            if wall in SHORT_WALLS and self.table.in_goal_mouth(y + tau * vy):
+                continue
+            best = (tau, wall)
+        return best
+
+    def _impact_event(self, z: list[float], tau: float, wall: int, jac: np.ndarray | None):
+        """Fly to the contact point and apply the impact to augmented state z = (s, remaining time)."""
+        x, y, vx, vy, th, om, h = z
+        nx, ny = WALL_NORMALS[wall]
+        bx, by = ny, -nx
+        vb, vn = bx * vx + by * vy, nx * vx + ny * vy
+        p = self.params
+        res = rim_impact(vb, vn, om, self.table.puck_radius, p.restitution, p.friction_rim)
+        xc, yc = x + tau * vx, y + tau * vy
+        new_z = [xc, yc, bx * res.vb + nx * res.vn, by * res.vb + ny * res.vn, th + tau * om, res.omega, h - tau]
+        if jac is not None:
+            event = self._event_jacobian(z, tau, wall, res.jacobian)
+            jac = event if jac is _IDENTITY7 else event @ jac
+        return new_z, jac, Impact(0.0, wall, xc, yc, res.sliding)
+
+    def _event_jacobian(self, z: list[float], tau: float, wall: int, s_local: np.ndarray) -> np.ndarray:
+        """7x7 Jacobian of one impact event over the augmented state (x, y, vx, vy, theta, omega, h)."""
+        x, y, vx, vy, th, om, h = z
+        nx, ny = WALL_NORMALS[wall]
+        gx = gy = gvx = gvy = 0.0  # gradient of the impact time tau
+        distance = nx * x + ny * y + self._offsets[wall]
+        if distance > 0.0:
+            vn = nx * vx + ny * vy
+            gx, gy = -nx / vn, -ny / vn
+            gvx, gvy = distance * nx / vn ** 2, distance * ny / vn ** 2
+        bx, by = ny, -nx  # impact frame rows (b, n): A = [[bx, by], [nx, ny]]; velocity block A^T S A
+        (s00, s01, s02), (s10, s11, s12), (s20, s21, s22) = s_local.tolist()
+        cb, cn = s00 * bx + s01 * nx, s10 * bx + s11 * nx  # S A, first column
+        db, dn = s00 * by + s01 * ny, s10 * by + s11 * ny  # S A, second column
+        vel = ((bx * cb + nx * cn, bx * db + nx * dn), (by * cb + ny * cn, by * db + ny * dn))
+        vel_om = (bx * s02 + nx * s12, by * s02 + ny * s12)
+        om_vel = (s20 * bx + s21 * nx, s20 * by + s21 * ny)
+        return np.array([
+            [1.0 + vx * gx, vx * gy, tau + vx * gvx, vx * gvy, 0.0, 0.0, 0.0],
+            [vy * gx, 1.0 + vy * gy, vy * gvx, tau + vy * gvy, 0.0, 0.0, 0.0],
+            [0.0, 0.0, vel[0][0], vel[0][1], 0.0, vel_om[0], 0.0],
+            [0.0, 0.0, vel[1][0], vel[1][1], 0.0, vel_om[1], 0.0],
+            [om * gx, om * gy, om * gvx, om * gvy, 1.0, tau, 0.0],
+            [0.0, 0.0, om_vel[0], om_vel[1], 0.0, s22, 0.0],
+            [-gx, -gy, -gvx, -gvy, 0.0, 0.0, 1.0]])
+
+    # --- decay --------------------------------------------------------------------------------
+    def decay(self, vx: float, vy: float, dt: float) -> tuple[float, float, np.ndarray]:
+        """Velocity after the friction/damping part of a step, and its 2x2 Jacobian (eq. 3.1)."""
+        a = 1.0 - dt * self.params.damping
+        mu_dt = dt * self.params.friction_surface
+        speed = math.hypot(vx, vy)
+        if mu_dt == 0.0:
+            return a * vx, a * vy, np.array([[a, 0.0], [0.0, a]])
+        new_speed = a * speed - mu_dt
+        if speed == 0.0 or new_speed <= 0.0:
+            return 0.0, 0.0, np.zeros((2, 2))
+        ux, uy = vx / speed, vy / speed
+        k = mu_dt / speed
+        jac = np.array([[a - k + k * ux * ux, k * ux * uy], [k * ux * uy, a - k + k * uy * uy]])
+        return ux * new_speed, uy * new_speed, jac
+
+    # --- one step -----------------------------------------------------------------------------
+    def step(self, state: np.ndarray, dt: float, with_jacobian: bool = True) -> StepResult:
+        """Advance ``state`` by ``dt`` seconds (one model step, eq. 3.1-3.4)."""
+        x, y, vx, vy, th, om = (float(v) for v in state)
+        first = self.first_impact(x, y, vx, vy, dt)
+        if first is None:  # the common case: straight flight, cheap Jacobian
+            nvx, nvy, jd = self.decay(vx, vy, dt)
+            new = np.array([x + dt * vx, y + dt * vy, nvx, nvy, wrap_angle(th + dt * om), om])
+            if not with_jacobian:
+                return StepResult(new, None, ())
+            jac = np.array([[1.0, 0.0, dt, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, dt, 0.0, 0.0],
+                            [0.0, 0.0, jd[0, 0], jd[0, 1], 0.0, 0.0], [0.0, 0.0, jd[1, 0], jd[1, 1], 0.0, 0.0],
+                            [0.0, 0.0, 0.0, 0.0, 1.0, dt], [0.0, 0.0, 0.0, 0.0, 0.0, 1.0]])
+            return StepResult(new, jac, ())
+        return self._step_with_impacts([x, y, vx, vy, th, om, dt], first, dt, with_jacobian)
+
+    def _step_with_impacts(self, z: list[float], first: tuple[float, int], dt: float,
+                           with_jacobian: bool) -> StepResult:
+        jac = _IDENTITY7 if with_jacobian else None
+        impacts = []
+        hit: tuple[float, int] | None = first
+        for _ in range(MAX_IMPACTS_PER_STEP):
+            if hit is None:
+                break
+            tau, wall = hit
+            z, jac, impact = self._impact_event(z, tau, wall, jac)
+            impacts.append(impact._replace(time=dt - z[6]))
+            hit = self.first_impact(z[0], z[1], z[2], z[3], z[6])
+        x, y, vx, vy, th, om, h = z
+        nvx, nvy, jd = self.decay(vx, vy, dt)
+        new = np.array([x + h * vx, y + h * vy, nvx, nvy, wrap_angle(th + h * om), om])
+        if jac is None:
+            return StepResult(new, None, tuple(impacts))
+        flight = np.array([[1.0, 0.0, h, 0.0, 0.0, 0.0, vx], [0.0, 1.0, 0.0, h, 0.0, 0.0, vy],
+                           [0.0, 0.0, jd[0, 0], jd[0, 1], 0.0, 0.0, 0.0], [0.0, 0.0, jd[1, 0], jd[1, 1], 0.0, 0.0, 0.0],
+                           [0.0, 0.0, 0.0, 0.0, 1.0, h, om], [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]])
+        return StepResult(new, (flight @ jac)[:, :6], tuple(impacts))
