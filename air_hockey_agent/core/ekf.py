@@ -1,0 +1,232 @@
+"""Extended Kalman filter for the puck (thesis sec. 3.2, 4.2) on irregular mocap frames.
+
+* predict: the model (:mod:`.puck_model`) over the actual time since the last frame; a normal frame is
+  one step of that length (process noise scaled by its length), a longer gap uses the fast predictor
+  in model steps (:func:`.prediction.predict_fast`).
+* update: measurement (x, y, theta), angle innovation wrapped to (-pi, pi] (eq. 3.7-3.11).
+* lost frames: predict without update. Repeated timestamps and frozen positions (a mocap frame whose
+  position equals the previous one within ``frozen_threshold``, thesis sec. 4.5.1) are not fused.
+* outliers: squared Mahalanobis distance of the innovation above ``gate_threshold`` rejects the frame;
+  after ``max_consecutive_rejections`` rejected frames in a row the filter re-initialises from the
+  latest two measurements (the puck was hit by something the model does not know, or the track was
+  lost), instead of drifting forever. Frames beyond the table by more than ``outside_table_margin``
+  are dropped before gating.
+* initialisation: from two measurements (finite-difference velocity and spin), covariance ``P0``.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from air_hockey_agent.core.prediction import Prediction, predict_fast
+from air_hockey_agent.core.puck_model import PuckModel, wrap_angle
+
+MEASURED = (0, 1, 4)  # state indices of the measurement (x, y, theta)
+
+FLAG_PREDICTED = 1          # same values as air_hockey_msgs/PuckState.FLAG_*
+FLAG_MEASUREMENT_USED = 2
+FLAG_OUTLIER_REJECTED = 4
+FLAG_REINITIALISED = 8
+
+SINGLE_STEP_LIMIT = 1.5  # frames up to 1.5 model steps long are predicted as one step of their length
+
+
+@dataclass
+class FilterSettings:
+    """Noise and robustness settings; defaults and sources in ``config/tracker.yaml``."""
+
+    dt: float                        # [s] model step
+    q: np.ndarray                    # 6x6 process noise per model step
+    r: np.ndarray                    # 3x3 measurement noise
+    p0: np.ndarray                   # 6x6 covariance after (re)initialisation
+    gate_threshold: float            # squared Mahalanobis distance
+    max_consecutive_rejections: int
+    outside_table_margin: float      # [m]
+    max_prediction_gap: float        # [s]
+    frozen_threshold: float = 1e-6   # [m] thesis sec. 4.5.1
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> "FilterSettings":
+        return cls(dt=1.0 / params["frequency"], q=np.diag(params["process_noise"]),
+                   r=np.diag(params["measurement_noise"]), p0=np.diag(params["initial_covariance"]),
+                   gate_threshold=params["gate_threshold"],
+                   max_consecutive_rejections=params["max_consecutive_rejections"],
+                   outside_table_margin=params["outside_table_margin"],
+                   max_prediction_gap=params["max_prediction_gap"])
+
+
+@dataclass
+class FilterStats:
+    frames: int = 0
+    lost_frames: int = 0
+    outliers_rejected: int = 0
+    reinitialisations: int = 0
+    repeated_frames: int = 0
+
+
+@dataclass
+class _Measurement:
+    t: float
+    z: np.ndarray
+
+
+def check_covariance(matrix: np.ndarray, size: int, name: str) -> np.ndarray:
+    """Return ``matrix`` as a float array if it is a finite symmetric positive definite size x size matrix."""
+    matrix = np.asarray(matrix, float)
+    if matrix.shape != (size, size):
+        raise ValueError(f"{name} must be {size}x{size}, got shape {matrix.shape}")
+    if not np.all(np.isfinite(matrix)):
+        raise ValueError(f"{name} has non-finite entries")
+    if not np.allclose(matrix, matrix.T, rtol=1e-9, atol=1e-15):
+        raise ValueError(f"{name} is not symmetric")
+    if np.linalg.eigvalsh(matrix).min() <= 0.0:
+        raise ValueError(f"{name} is not positive definite")
+    return matrix
+
+
+def _inverse3(m: np.ndarray) -> np.ndarray:
+    """Inverse of a 3x3 matrix by cofactors (faster than numpy.linalg for this size)."""
+    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
+    co = (e * i - f * h, f * g - d * i, d * h - e * g)
+    det = a * co[0] + b * co[1] + c * co[2]
+    return np.array([[co[0], c * h - b * i, b * f - c * e],
+                     [co[1], a * i - c * g, c * d - a * f],
+                     [co[2], b * g - a * h, a * e - b * d]]) / det
+
+
+@dataclass
+class PuckEKF:
+    """EKF state (mean ``x``, covariance ``P`` at ``stamp`` [s]) with its model and settings."""
+
+    model: PuckModel
+    settings: FilterSettings
+    x: np.ndarray = field(default_factory=lambda: np.zeros(6))
+    P: np.ndarray = field(default_factory=lambda: np.eye(6))
+    stamp: float | None = None
+    initialised: bool = False
+    stats: FilterStats = field(default_factory=FilterStats)
+    _pending: list = field(default_factory=list)      # measurements awaiting (re)initialisation
+    _last_z: np.ndarray | None = None
+
+    # --- state management -------------------------------------------------------------------------
+    def reset(self, state: Sequence[float] | None = None, stamp: float | None = None) -> None:
+        """Forget everything; with ``state``, restart there with covariance P0."""
+        self._pending.clear()
+        self._last_z = None
+        if state is None:
+            self.initialised, self.stamp = False, None
+            return
+        self.x, self.P = np.asarray(state, float).copy(), self.settings.p0.copy()
+        self.x[4] = wrap_angle(self.x[4])
+        self.initialised, self.stamp = True, stamp
+
+    def _initialise_from(self, first: _Measurement, second: _Measurement) -> None:
+        dt = second.t - first.t
+        velocity = (second.z[:2] - first.z[:2]) / dt
+        spin = wrap_angle(second.z[2] - first.z[2]) / dt
+        self.reset([second.z[0], second.z[1], velocity[0], velocity[1], second.z[2], spin], second.t)
+        self._last_z = second.z
+        self.stats.reinitialisations += 1
+
+    # --- filter steps -----------------------------------------------------------------------------
+    def predict_to(self, t: float) -> None:
+        """Propagate mean and covariance to time ``t`` [s] (t >= stamp)."""
+        dt = t - self.stamp
+        if dt <= 0.0:
+            return
+        if dt <= SINGLE_STEP_LIMIT * self.settings.dt:
+            res = self.model.step(self.x, dt)
+            self.x = res.state
+            self.P = res.jacobian @ self.P @ res.jacobian.T + self.settings.q * (dt / self.settings.dt)
+        else:
+            pred = predict_fast(self.model, self.x, self.P, dt, self.settings.dt, self.settings.q)
+            self.x, self.P = pred.state, pred.covariance
+        self.stamp = t
+
+    def innovation(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+        """Innovation y (angle wrapped), its covariance S and squared Mahalanobis distance."""
+        y = z - self.x[list(MEASURED)]
+        y[2] = wrap_angle(y[2])
+        s = self.P[np.ix_(MEASURED, MEASURED)] + self.settings.r
+        s_inv = _inverse3(s)
+        return y, s_inv, float(y @ s_inv @ y)
+
+    def update(self, z: np.ndarray) -> float:
+        """Fuse measurement z = (x, y, theta) unconditionally (eq. 3.7-3.11); returns its distance."""
+        y, s_inv, d2 = self.innovation(z)
+        p_ht = self.P[:, MEASURED]
+        gain = p_ht @ s_inv
+        self.x = self.x + gain @ y
+        self.x[4] = wrap_angle(self.x[4])
+        p = self.P - gain @ p_ht.T
+        self.P = 0.5 * (p + p.T)
+        return d2
+
+    def process(self, t: float, z: Sequence[float] | None) -> int:
+        """Handle one mocap frame at time ``t`` [s]: measurement ``z`` (x, y, theta) or None (lost).
+
+        Returns ``FLAG_*`` bits describing what was done.
+        """
+        self.stats.frames += 1
+        flags = 0
+        if z is not None:
+            z = np.asarray(z, float)
+            if not np.all(np.isfinite(z)) or not self.model.table.contains(
+                    z[0], z[1], self.settings.outside_table_margin):
+                self.stats.outliers_rejected += 1
+                z, flags = None, FLAG_OUTLIER_REJECTED
+        if not self.initialised:
+            return flags | self._collect_for_initialisation(t, z)
+        if t <= self.stamp:
+            self.stats.repeated_frames += 1
+            return flags
+        if t - self.stamp > self.settings.max_prediction_gap:
+            self.reset()
+            return flags | self._collect_for_initialisation(t, z)
+        self.predict_to(t)
+        if z is None or self._is_frozen(z):
+            self.stats.lost_frames += 1
+            return flags | FLAG_PREDICTED
+        return flags | self._gate_and_update(t, z)
+
+    def _is_frozen(self, z: np.ndarray) -> bool:
+        frozen = self._last_z is not None and math.hypot(*(z[:2] - self._last_z[:2])) < self.settings.frozen_threshold
+        self._last_z = z
+        return frozen
+
+    def _gate_and_update(self, t: float, z: np.ndarray) -> int:
+        _, _, d2 = self.innovation(z)
+        if d2 <= self.settings.gate_threshold:
+            self._pending.clear()
+            self.update(z)
+            return FLAG_MEASUREMENT_USED
+        self.stats.outliers_rejected += 1
+        self._pending.append(_Measurement(t, z))
+        if len(self._pending) >= self.settings.max_consecutive_rejections:
+            first, second = self._pending[-2], self._pending[-1]
+            self._pending.clear()
+            self._initialise_from(first, second)
+            return FLAG_OUTLIER_REJECTED | FLAG_REINITIALISED | FLAG_MEASUREMENT_USED
+        return FLAG_OUTLIER_REJECTED | FLAG_PREDICTED
+
+    def _collect_for_initialisation(self, t: float, z: np.ndarray | None) -> int:
+        if z is None:
+            return 0
+        if self._pending and not 0.0 < t - self._pending[-1].t <= self.settings.max_prediction_gap:
+            self._pending.clear()
+        self._pending.append(_Measurement(t, z))
+        if len(self._pending) < 2:
+            return 0
+        first, second = self._pending[-2], self._pending[-1]
+        self._pending.clear()
+        self._initialise_from(first, second)
+        return FLAG_REINITIALISED | FLAG_MEASUREMENT_USED
+
+    # --- prediction -------------------------------------------------------------------------------
+    def predict(self, horizon: float, lines: Sequence[float] = (), sample_every: int = 0) -> Prediction:
+        """Prediction from the current estimate over ``horizon`` [s] (filter state unchanged)."""
+        return predict_fast(self.model, self.x, self.P, horizon, self.settings.dt, self.settings.q,
+                            lines=lines, sample_every=sample_every)

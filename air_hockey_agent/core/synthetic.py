@@ -1,0 +1,68 @@
+"""Synthetic puck trajectories and mocap streams from the puck model (ground truth for tests and demos).
+
+The true trajectory is the model integrated with a fine step; the mocap stream samples it at a nominal
+rate with timestamp jitter, Gaussian noise, lost frames, repeated frames and one-frame glitches
+(the imperfections of real OptiTrack recordings, issue #3).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from air_hockey_agent.core.puck_model import PuckModel, wrap_angle
+
+
+@dataclass(frozen=True)
+class MocapImperfections:
+    """Rates and sizes of the measurement imperfections (all may be zero)."""
+
+    position_std: float = 1e-4       # [m] per axis
+    angle_std: float = 1e-2          # [rad]
+    jitter_std: float = 2e-4         # [s] timestamp jitter
+    lost_rate: float = 0.0           # probability that a frame is missing
+    repeat_rate: float = 0.0         # probability that a frame repeats the previous pose (frozen)
+    glitch_rate: float = 0.0         # probability of a one-frame glitch
+    glitch_size: float = 0.1         # [m] glitch displacement
+
+
+def simulate_truth(model: PuckModel, state: np.ndarray, duration: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
+    """True states every ``dt`` [s] for ``duration`` [s]: times (n,), states (n, 6)."""
+    n = int(round(duration / dt)) + 1
+    states = np.empty((n, 6))
+    states[0] = state
+    for i in range(1, n):
+        states[i] = model.step(states[i - 1], dt, with_jacobian=False).state
+    return np.arange(n) * dt, states
+
+
+def true_state_at(model: PuckModel, times: np.ndarray, states: np.ndarray, t: float) -> np.ndarray:
+    """True state at any time t [s] within the trajectory: the model stepped from the sample before t."""
+    fine_dt = times[1] - times[0]
+    index = min(int(np.clip(t, 0.0, times[-1]) / fine_dt), len(times) - 1)
+    rest = t - times[index]
+    return states[index] if rest <= 0.0 else model.step(states[index], rest, with_jacobian=False).state
+
+
+def mocap_stream(model: PuckModel, times: np.ndarray, states: np.ndarray, rate: float,
+                 noise: MocapImperfections, rng: np.random.Generator) -> list[tuple[float, np.ndarray | None]]:
+    """Sample a true trajectory as a mocap stream: list of (stamp [s], (x, y, theta) or None if lost)."""
+    frames: list[tuple[float, np.ndarray | None]] = []
+    previous = None
+    for k in range(int(times[-1] * rate)):
+        stamp = k / rate + (rng.normal(0.0, noise.jitter_std) if noise.jitter_std else 0.0)
+        stamp = float(np.clip(stamp, 0.0, times[-1]))
+        if rng.random() < noise.lost_rate:
+            frames.append((stamp, None))
+            continue
+        x, y, _, _, theta, _ = true_state_at(model, times, states, stamp)
+        z = np.array([x + rng.normal(0.0, noise.position_std), y + rng.normal(0.0, noise.position_std),
+                      wrap_angle(theta + rng.normal(0.0, noise.angle_std))])
+        if previous is not None and rng.random() < noise.repeat_rate:
+            z = previous.copy()
+        elif rng.random() < noise.glitch_rate:
+            direction = rng.uniform(0.0, 2.0 * np.pi)
+            z[:2] += noise.glitch_size * np.array([np.cos(direction), np.sin(direction)])
+        frames.append((stamp, z))
+        previous = z
+    return frames

@@ -1,0 +1,68 @@
+"""Routh wall impact (thesis eq. 3.2-3.4) against closed forms and physics."""
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.impact import is_sliding, rim_impact
+
+R, E, MU = 0.03165, 0.9, 0.1
+
+
+def test_straight_in_impact_keeps_tangential_velocity_and_scales_normal_by_minus_e():
+    res = rim_impact(vb=0.0, vn=-2.0, omega=0.0, radius=R, restitution=E, friction=MU)
+    assert (res.vb, res.vn, res.omega) == pytest.approx((0.0, 1.8, 0.0))
+
+
+def test_sticking_impact_ends_with_zero_slip():
+    res = rim_impact(vb=0.3, vn=-2.0, omega=1.0, radius=R, restitution=E, friction=MU)
+    assert not res.sliding
+    assert res.vb + R * res.omega == pytest.approx(0.0, abs=1e-12)
+
+
+def test_sliding_impact_uses_coulomb_impulse_against_the_slip():
+    vb, vn, om = 2.0, -1.0, 0.0
+    res = rim_impact(vb, vn, om, R, E, MU)
+    assert res.sliding
+    impulse_b = MU * (1 + E) * abs(vn)  # |P_b| / m = mu |P_n| / m
+    assert res.vb == pytest.approx(vb - impulse_b)
+    assert res.omega == pytest.approx(om - 2 * impulse_b / R)
+    assert res.vn == pytest.approx(-E * vn)
+
+
+def test_branches_agree_on_the_switching_boundary():
+    vn, om = -1.5, 0.0
+    boundary = 3 * MU * (1 + E) * abs(vn)  # |c| at the switch
+    below = rim_impact(boundary * (1 - 1e-9), vn, om, R, E, MU)
+    above = rim_impact(boundary * (1 + 1e-9), vn, om, R, E, MU)
+    assert not below.sliding and above.sliding
+    assert np.allclose([below.vb, below.vn, below.omega], [above.vb, above.vn, above.omega], atol=1e-7)
+
+
+def test_energy_never_increases():
+    rng = np.random.default_rng(3)
+    for _ in range(500):
+        vb, om = rng.uniform(-3, 3), rng.uniform(-50, 50)
+        vn = -rng.uniform(0.01, 3)
+        e, mu = rng.uniform(0, 1), rng.uniform(0, 0.6)
+        res = rim_impact(vb, vn, om, R, e, mu)
+        before = vb ** 2 + vn ** 2 + 0.5 * R ** 2 * om ** 2  # 2 KE / m with I = m r^2 / 2
+        after = res.vb ** 2 + res.vn ** 2 + 0.5 * R ** 2 * res.omega ** 2
+        assert after <= before * (1 + 1e-12)
+
+
+@pytest.mark.parametrize("state", [(0.3, -2.0, 1.0), (2.0, -1.0, 5.0), (-2.0, -1.0, -5.0)],
+                         ids=["sticking", "sliding+", "sliding-"])
+def test_branch_jacobian_matches_finite_differences(state):
+    h = 1e-7
+    res = rim_impact(*state, R, E, MU)
+    fd = np.zeros((3, 3))
+    for i in range(3):
+        d = np.zeros(3)
+        d[i] = h
+        plus, minus = rim_impact(*(np.add(state, d)), R, E, MU), rim_impact(*(np.subtract(state, d)), R, E, MU)
+        fd[:, i] = (np.array(plus[:3]) - np.array(minus[:3])) / (2 * h)
+    assert np.allclose(res.jacobian, fd, atol=1e-6)
+
+
+def test_branch_condition_is_the_friction_cone():
+    assert is_sliding(1.0, -0.1, 0.0, R, E, MU)
+    assert not is_sliding(0.01, -3.0, 0.0, R, E, MU)

@@ -1,0 +1,48 @@
+"""The fast (impact-to-impact) prediction agrees with the step-by-step reference."""
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.prediction import predict_fast, predict_stepwise
+from model_fixtures import DT, Q, model
+
+P0 = np.diag([1e-7, 1e-7, 1e-3, 1e-3, 1e-4, 1e-2])
+LINES = [-0.778, 0.778]
+
+
+def random_states(n, seed):
+    rng = np.random.default_rng(seed)
+    for _ in range(n):
+        yield np.array([rng.uniform(-0.9, 0.9), rng.uniform(-0.48, 0.48), *rng.uniform(-3, 3, 2),
+                        rng.uniform(-3, 3), rng.uniform(-20, 20)]), float(rng.choice([0.5, 1.0, 1.5, 1.2345]))
+
+
+@pytest.mark.parametrize("friction, cov_rtol", [(0.0, 1e-10), (2.28e-4, 1e-5), (0.05, 1e-3)])
+def test_fast_prediction_agrees_with_stepwise(friction, cov_rtol):
+    m = model(friction_surface=friction)
+    for state, horizon in random_states(60, seed=int(friction * 1e6)):
+        a = predict_stepwise(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6)
+        b = predict_fast(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6)
+        diff = a.state - b.state
+        diff[4] = (diff[4] + np.pi) % (2 * np.pi) - np.pi
+        assert np.abs(diff).max() < 1e-10
+        assert np.abs(a.covariance - b.covariance).max() <= cov_rtol * np.abs(a.covariance).max()
+        assert [i[1] for i in a.impacts] == [i[1] for i in b.impacts]
+        assert np.allclose([i[0] for i in a.impacts], [i[0] for i in b.impacts], atol=1e-10)
+        assert len(a.samples) == len(b.samples)
+        assert a.crossings.keys() == b.crossings.keys()
+        for line, crossing in a.crossings.items():
+            assert crossing.time == pytest.approx(b.crossings[line].time, abs=1e-9)
+            assert crossing.y == pytest.approx(b.crossings[line].y, abs=1e-9)
+
+
+def test_predicted_covariance_grows_with_the_horizon():
+    m = model()
+    state = np.array([0.0, 0.0, 0.5, 0.1, 0.0, 1.0])
+    traces = [np.trace(predict_fast(m, state, P0, h, DT, Q).covariance[:2, :2]) for h in (0.1, 0.5, 1.0)]
+    assert traces[0] < traces[1] < traces[2]
+
+
+def test_prediction_stops_the_puck_and_keeps_it_still():
+    m = model(friction_surface=0.5)
+    a = predict_fast(m, np.array([0.0, 0.0, 0.2, 0.0, 0.0, 0.0]), P0, 1.5, DT, Q)
+    assert a.state[2] == 0.0 and a.state[0] < 0.2

@@ -1,0 +1,87 @@
+"""Puck model step (eq. 3.1-3.4): closed forms, impacts on every rim, goals, exact Jacobians."""
+import math
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.puck_model import PuckParams, wrap_angle
+from air_hockey_agent.core.table import WALL_FAR, WALL_LEFT, WALL_NEAR, WALL_RIGHT
+from model_fixtures import DT, TABLE, finite_difference_jacobian, model
+
+X, Y = TABLE.x_limit, TABLE.y_limit
+# One state per rim and branch: puck 4 mm from the rim, hitting it within the step.
+IMPACT_CASES = {
+    "left-sticking": (np.array([0.3, -Y + 0.004, 0.2, -1.5, 0.1, 1.0]), WALL_LEFT, False),
+    "left-sliding": (np.array([0.3, -Y + 0.004, 2.5, -1.2, 0.1, 40.0]), WALL_LEFT, True),
+    "far-sticking": (np.array([X - 0.004, 0.3, 1.5, 0.3, 0.1, -3.0]), WALL_FAR, False),
+    "far-sliding": (np.array([X - 0.004, 0.3, 1.0, -2.0, 0.1, -3.0]), WALL_FAR, True),
+    "right-sticking": (np.array([0.3, Y - 0.005, 0.5, 1.5, 0.1, 1.0]), WALL_RIGHT, False),
+    "right-sliding": (np.array([0.3, Y - 0.005, -2.5, 1.0, 0.1, 10.0]), WALL_RIGHT, True),
+    "near-sticking": (np.array([-X + 0.004, -0.3, -1.5, 0.3, 0.1, -3.0]), WALL_NEAR, False),
+    "near-sliding": (np.array([-X + 0.004, -0.3, -1.0, 2.5, 0.1, 0.0]), WALL_NEAR, True),
+}
+
+
+def test_free_motion_matches_closed_form_without_friction():
+    m = model(friction_surface=0.0)
+    s = np.array([-0.5, 0.0, 1.0, 0.2, 0.0, 3.0])
+    n = 30
+    for _ in range(n):
+        s = m.step(s, DT).state
+    a = 1 - DT * 0.5
+    travelled = DT * (1 - a ** n) / (1 - a)
+    assert s[0] == pytest.approx(-0.5 + 1.0 * travelled, abs=1e-12)
+    assert s[2] == pytest.approx(a ** n * 1.0, abs=1e-12)
+    assert s[4] == pytest.approx(wrap_angle(3.0 * n * DT))
+
+
+def test_surface_friction_decelerates_along_the_velocity_and_stops_the_puck():
+    m = model(damping=0.0, friction_surface=0.5)
+    s = np.array([0.0, 0.0, 0.03, 0.04, 0.0, 0.0])  # 0.05 m/s
+    s1 = m.step(s, DT).state
+    assert math.hypot(s1[2], s1[3]) == pytest.approx(0.05 - 0.5 * DT)
+    assert s1[3] / s1[2] == pytest.approx(0.04 / 0.03)  # direction kept (isotropic friction)
+    for _ in range(40):
+        s1 = m.step(s1, DT).state
+    assert s1[2] == 0.0 and s1[3] == 0.0
+
+
+@pytest.mark.parametrize("name", list(IMPACT_CASES))
+def test_impact_on_each_rim_with_each_branch(name):
+    state, wall, sliding = IMPACT_CASES[name]
+    res = model().step(state, DT)
+    assert [(i.wall, i.sliding) for i in res.impacts] == [(wall, sliding)]
+    nx, ny = [(0, 1), (-1, 0), (0, -1), (1, 0)][wall]
+    assert nx * res.state[2] + ny * res.state[3] > 0  # moving away from the rim afterwards
+
+
+@pytest.mark.parametrize("name", list(IMPACT_CASES) + ["free", "corner", "goal"])
+def test_step_jacobian_matches_central_finite_differences(name):
+    states = {"free": np.array([0.1, 0.2, 1.0, 0.5, 0.3, 2.0]),
+              "corner": np.array([X - 0.004, Y - 0.007, 1.0, 1.3, 0.1, 5.0]),
+              "goal": np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0])}
+    state = states.get(name, IMPACT_CASES.get(name, (None,))[0])
+    m = model()
+    assert np.allclose(m.step(state, DT).jacobian, finite_difference_jacobian(m, state, DT), atol=2e-6)
+
+
+def test_corner_gives_two_impacts_in_one_step():
+    res = model().step(np.array([X - 0.004, Y - 0.007, 1.0, 1.3, 0.1, 5.0]), DT)
+    assert [i.wall for i in res.impacts] == [WALL_FAR, WALL_RIGHT]
+
+
+def test_goal_opening_has_no_rim():
+    m = model()
+    s = np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0])
+    for _ in range(10):
+        res = m.step(s, DT)
+        assert not res.impacts
+        s = res.state
+    assert s[0] > TABLE.length / 2  # left the table through the goal
+
+
+def test_invalid_parameters_are_refused_with_the_name():
+    with pytest.raises(ValueError, match="restitution must be in"):
+        PuckParams(0.0, 0.5, 1.2, 0.1).validate()
+    with pytest.raises(ValueError, match="friction_rim must be >= 0"):
+        model(friction_rim=-0.1)
