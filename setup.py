@@ -7,7 +7,7 @@ PACKAGE = "air_hockey_agent"
 
 # One console script per node, named as the node (`ros2 run air_hockey_agent <node>`).
 NODES = {
-    "puck_tracker": "air_hockey_agent.nodes.not_implemented:puck_tracker",
+    "puck_tracker": "air_hockey_agent.nodes.puck_tracker:main",
     "tactics": "air_hockey_agent.nodes.not_implemented:tactics",
     "trajectory_generator": "air_hockey_agent.nodes.not_implemented:trajectory_generator",
     "referee": "air_hockey_agent.nodes.not_implemented:referee",

@@ -18,7 +18,6 @@ PENDING = {
     "bag_player": "bag player: replays rosbag2 OptiTrack recordings with their original timing (issue #5)",
     "strategy_test": "strategy test: forces one tactic, sets puck states through the sim, scores each trial",
     "prediction_optimizer": "prediction optimizer: HEBO system identification through the tracker services (issue #5)",
-    "puck_tracker": "puck tracker: EKF with the Routh wall-impact model (issue #3)",
 }
 
 
@@ -36,4 +35,3 @@ table_sim = _entry("table_sim")
 bag_player = _entry("bag_player")
 strategy_test = _entry("strategy_test")
 prediction_optimizer = _entry("prediction_optimizer")
-puck_tracker = _entry("puck_tracker")

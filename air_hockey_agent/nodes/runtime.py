@@ -10,6 +10,7 @@ from typing import Any, ClassVar, Sequence
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
+from rclpy.exceptions import ParameterException
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
@@ -104,7 +105,7 @@ def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int
         node = node_cls()
         node.get_logger().info(f"{READY_MARKER} {node.get_fully_qualified_name()}")
         rclpy.spin(node)
-    except (ParameterFileError, ParameterValueError) as exc:
+    except (ParameterFileError, ParameterValueError, ParameterException) as exc:
         print(f"[{node_cls.NAME}] error: {exc}", file=sys.stderr)
         return EXIT_BAD_PARAMETERS
     except (KeyboardInterrupt, ExternalShutdownException):

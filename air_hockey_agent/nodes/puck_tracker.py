@@ -1,0 +1,195 @@
+"""``puck_tracker`` node: EKF puck state and prediction from the mocap stream (thesis sec. 4.1.1, 4.2).
+
+Subscribes ``/optitrack/puck`` (geometry_msgs/PoseStamped, mocap frame); publishes ``puck/state``
+(PuckState, table frame) at every frame and ``puck/prediction`` (PuckPrediction). Services (thesis
+4.1.1): ``set_physical_params``, ``set_noise_covariance``, ``kalman_step``, ``reset``. All filtering and
+prediction is :class:`air_hockey_agent.core.ekf.PuckEKF`; this module only translates.
+"""
+from __future__ import annotations
+
+import math
+import sys
+
+import numpy as np
+from air_hockey_msgs.msg import LineCrossing, PuckPrediction, PuckState, WallImpact
+from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, SetPhysicalParams
+from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PoseStamped
+
+from air_hockey_agent.core.ekf import FilterSettings, PuckEKF, check_covariance
+from air_hockey_agent.core.frames import mocap_to_table, yaw_from_quaternion
+from air_hockey_agent.core.puck_model import PuckModel, PuckParams
+from air_hockey_agent.core.table import TableGeometry
+from air_hockey_agent.nodes.runtime import AirHockeyNode, run
+from air_hockey_agent.params import ParamSpec
+
+TABLE_PARAMS = (
+    ParamSpec("table.length", float, "[m] playing surface length", 0.5, 5.0),
+    ParamSpec("table.width", float, "[m] playing surface width", 0.3, 3.0),
+    ParamSpec("table.goal_width", float, "[m] goal opening", 0.0, 1.0),
+    ParamSpec("puck.radius", float, "[m] puck radius", 0.005, 0.2),
+)
+TRACKER_PARAMS = (
+    ParamSpec("frequency", float, "[Hz] model step rate (mocap frame rate)", 1.0, 2000.0),
+    ParamSpec("friction_surface", float, "[m/s^2] surface friction deceleration mu_s", 0.0, 10.0),
+    ParamSpec("damping", float, "[1/s] viscous damping d", 0.0, 10.0),
+    ParamSpec("restitution", float, "[-] rim restitution e", 0.0, 1.0),
+    ParamSpec("friction_rim", float, "[-] rim friction mu_rim", 0.0, 2.0),
+    ParamSpec("measurement_noise", list, "R diagonal (x, y, theta) [m^2, m^2, rad^2]", 1e-15, 1.0, 3),
+    ParamSpec("process_noise", list, "Q diagonal per step (x, y, vx, vy, theta, omega)", 1e-18, 1e3, 6),
+    ParamSpec("initial_covariance", list, "P0 diagonal after (re)initialisation", 1e-15, 1e4, 6),
+    ParamSpec("gate_threshold", float, "squared Mahalanobis gate on the innovation", 0.1, 1e6),
+    ParamSpec("max_consecutive_rejections", int, "rejected frames in a row before re-initialising", 1, 1000),
+    ParamSpec("outside_table_margin", float, "[m] drop measurements this far beyond the rims", 0.0, 10.0),
+    ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),
+    ParamSpec("prediction_horizon", float, "[s] horizon of puck/prediction", 0.0, 10.0),
+    ParamSpec("prediction_sample_period", float, "[s] spacing of predicted states", 0.001, 1.0),
+    ParamSpec("defend_line_offset", float, "[m] defend line distance from each short rim", 0.0, 1.0),
+    ParamSpec("mocap_table_pose", list, "table pose in the mocap frame: x, y, z [m], yaw [rad]", -100.0, 100.0, 4),
+)
+
+
+def to_seconds(stamp: Time) -> float:
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def to_stamp(seconds: float) -> Time:
+    sec = math.floor(seconds)
+    return Time(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+
+
+def state_msg(state: np.ndarray, cov: np.ndarray, seconds: float, flags: int = 0) -> PuckState:
+    msg = PuckState(x=float(state[0]), y=float(state[1]), vx=float(state[2]), vy=float(state[3]),
+                    theta=float(state[4]), omega=float(state[5]), flags=flags)
+    msg.header.stamp = to_stamp(seconds)
+    msg.header.frame_id = "table"
+    msg.covariance = np.asarray(cov, float).reshape(36)
+    return msg
+
+
+class PuckTrackerNode(AirHockeyNode):
+    NAME = "puck_tracker"
+    DESCRIPTION = __doc__
+    PARAM_FILES = ("table.yaml", "tracker.yaml")
+    PARAMS = TABLE_PARAMS + TRACKER_PARAMS
+
+    def __init__(self) -> None:
+        super().__init__()
+        p = self.params
+        self.table = TableGeometry.from_params(p)
+        self.ekf = PuckEKF(PuckModel(self.table, PuckParams.from_params(p)), FilterSettings.from_params(p))
+        self.state_pub = self.create_publisher(PuckState, "puck/state", 10)
+        self.prediction_pub = self.create_publisher(PuckPrediction, "puck/prediction", 10)
+        self.create_subscription(PoseStamped, "/optitrack/puck", self.on_pose, 10)
+        self.create_service(SetPhysicalParams, "set_physical_params", self.on_set_physical_params)
+        self.create_service(SetNoiseCovariance, "set_noise_covariance", self.on_set_noise)
+        self.create_service(KalmanStep, "kalman_step", self.on_kalman_step)
+        self.create_service(ResetFilter, "reset", self.on_reset)
+
+    # --- stream -----------------------------------------------------------------------------------
+    def on_pose(self, msg: PoseStamped) -> None:
+        try:
+            p, q = msg.pose.position, msg.pose.orientation
+            values = (p.x, p.y, q.x, q.y, q.z, q.w)
+            if not all(math.isfinite(v) for v in values) or q.x ** 2 + q.y ** 2 + q.z ** 2 + q.w ** 2 < 0.5:
+                self.get_logger().warn("/optitrack/puck: pose has a non-finite position or invalid quaternion; "
+                                       "treated as a lost frame", throttle_duration_sec=1.0)
+                z = None
+            else:
+                z = mocap_to_table(p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w), self.params["mocap_table_pose"])
+            t = to_seconds(msg.header.stamp)
+            flags = self.ekf.process(t, z)
+            if self.ekf.initialised:
+                self.state_pub.publish(state_msg(self.ekf.x, self.ekf.P, self.ekf.stamp, flags))
+                self.publish_prediction()
+        except Exception as exc:  # a malformed message must never stop the tracker
+            self.get_logger().error(f"/optitrack/puck: frame dropped ({type(exc).__name__}: {exc})",
+                                    throttle_duration_sec=1.0)
+
+    def defend_lines(self) -> dict[str, float]:
+        half = self.table.length / 2
+        off = self.params["defend_line_offset"]
+        return {"iiwa_front": -half + off, "iiwa_back": half - off}
+
+    def publish_prediction(self) -> None:
+        period = self.params["prediction_sample_period"]
+        every = max(1, round(period * self.params["frequency"]))
+        lines = self.defend_lines()
+        goal_lines = (-self.table.length / 2, self.table.length / 2)
+        pred = self.ekf.predict(self.params["prediction_horizon"], list(lines.values()) + list(goal_lines), every)
+        t0 = self.ekf.stamp
+        msg = PuckPrediction(sample_period=every * self.ekf.settings.dt)
+        msg.header.stamp, msg.header.frame_id = to_stamp(t0), "table"
+        msg.initial = state_msg(self.ekf.x, self.ekf.P, t0)
+        msg.states = [state_msg(s, c, t0 + t, PuckState.FLAG_PREDICTED) for t, s, c in pred.samples]
+        msg.impacts = [WallImpact(time_from_start=t, wall=w, x=x, y=y, sliding=sl) for t, w, x, y, sl in pred.impacts]
+        for robot, line in lines.items():
+            c = pred.crossings.get(line)
+            msg.defend_lines.append(LineCrossing(robot=robot, line_x=line, crosses=c is not None,
+                                                 **({} if c is None else dict(time_from_start=c.time, y=c.y,
+                                                                              vx=c.vx, vy=c.vy))))
+        goals = [pred.crossings[g] for g in goal_lines if g in pred.crossings]
+        if goals:
+            msg.enters_goal, msg.goal_time_from_start = True, min(g.time for g in goals)
+        self.prediction_pub.publish(msg)
+
+    # --- services (thesis 4.1.1) -------------------------------------------------------------------
+    def on_set_physical_params(self, request, response):
+        params = PuckParams(request.friction_surface, request.damping, request.restitution, request.friction_rim)
+        try:
+            self.ekf.model = self.ekf.model.with_params(params)
+        except ValueError as exc:
+            response.success, response.message = False, f"refused, filter unchanged: {exc}"
+            return response
+        response.success, response.message = True, f"physical parameters set: {params}"
+        return response
+
+    def on_set_noise(self, request, response):
+        try:
+            q = check_covariance(np.reshape(request.process_covariance, (6, 6)), 6, "process_covariance") \
+                if len(request.process_covariance) else self.ekf.settings.q
+            r = check_covariance(np.reshape(request.measurement_covariance, (3, 3)), 3, "measurement_covariance") \
+                if len(request.measurement_covariance) else self.ekf.settings.r
+        except ValueError as exc:
+            response.success, response.message = False, f"refused, filter unchanged: {exc}"
+            return response
+        self.ekf.settings.q, self.ekf.settings.r = q, r
+        response.success, response.message = True, "noise covariances set"
+        return response
+
+    def on_kalman_step(self, request, response):
+        z = (request.x, request.y, request.theta) if request.has_measurement else None
+        flags = self.ekf.process(to_seconds(request.stamp), z)
+        if not self.ekf.initialised:
+            response.success, response.message = False, "filter not initialised yet (needs two measurements)"
+            return response
+        horizon = request.prediction_horizon if request.prediction_horizon > 0.0 else self.ekf.settings.dt
+        pred = self.ekf.predict(horizon)
+        response.success, response.message = True, ""
+        response.estimate = state_msg(self.ekf.x, self.ekf.P, self.ekf.stamp, flags)
+        response.prediction = state_msg(pred.state, pred.covariance, self.ekf.stamp + horizon, PuckState.FLAG_PREDICTED)
+        response.measurement_rejected = bool(flags & PuckState.FLAG_OUTLIER_REJECTED)
+        return response
+
+    def on_reset(self, request, response):
+        if request.has_initial_state:
+            s = request.initial_state
+            state = [s.x, s.y, s.vx, s.vy, s.theta, s.omega]
+            if not all(math.isfinite(v) for v in state):
+                response.success, response.message = False, "refused: initial_state has non-finite values"
+                return response
+            self.ekf.reset(state, to_seconds(s.header.stamp))
+            response.message = "filter reset to the given state"
+        else:
+            self.ekf.reset()
+            response.message = "filter reset; waiting for measurements"
+        response.success = True
+        return response
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run(PuckTrackerNode, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

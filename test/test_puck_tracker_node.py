@@ -1,0 +1,88 @@
+"""The puck_tracker node (separate process): stream in, state and prediction out, the four services."""
+import math
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.tools.launch import ProcessSpec
+from helpers.ros_wait import call_service, spin_until
+
+pytestmark = pytest.mark.integration
+DT = 1.0 / 120.0
+TABLE_X = 1.504  # mocap_table_pose x in config/tracker.yaml
+
+
+@pytest.fixture
+def tracker(launcher):
+    exe = Path(sys.executable).parent / "puck_tracker"
+    return launcher.start(ProcessSpec("puck_tracker", [str(exe), "--ros-args", "-p", "prediction_horizon:=0.5"]))
+
+
+def pose(t, x, y, yaw=0.0):
+    from geometry_msgs.msg import PoseStamped
+    msg = PoseStamped()
+    msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(round((t - int(t)) * 1e9))
+    msg.header.frame_id = "mocap"
+    msg.pose.position.x, msg.pose.position.y = x + TABLE_X, y
+    msg.pose.orientation.z, msg.pose.orientation.w = math.sin(yaw / 2), math.cos(yaw / 2)
+    return msg
+
+
+def test_stream_gives_state_and_prediction_and_survives_bad_frames(tracker, rclpy_node):
+    from air_hockey_msgs.msg import PuckPrediction, PuckState
+    from geometry_msgs.msg import PoseStamped
+
+    states, predictions = [], []
+    pub = rclpy_node.create_publisher(PoseStamped, "/optitrack/puck", 10)
+    rclpy_node.create_subscription(PuckState, "/puck/state", states.append, 50)
+    rclpy_node.create_subscription(PuckPrediction, "/puck/prediction", predictions.append, 50)
+    assert spin_until(rclpy_node, lambda: pub.get_subscription_count() > 0, 30.0), "tracker not discovered"
+    assert spin_until(rclpy_node, lambda: rclpy_node.count_publishers("/puck/state") > 0, 30.0)
+    bad = pose(0.0, 0.0, 0.0)
+    bad.pose.position.x = float("nan")
+    frame = [0]
+
+    def feed() -> bool:
+        k = frame[0]
+        frame[0] += 1
+        pub.publish(bad if k == 5 else pose(1.0 + k * DT, -0.5 + 1.0 * k * DT, 0.1))
+        return len(states) > 20 and len(predictions) > 5
+
+    assert spin_until(rclpy_node, feed, 30.0), f"got {len(states)} states, {len(predictions)} predictions"
+    last = states[-1]
+    # constant 1 m/s input, while the model expects damping: the estimate sits a little below 1 m/s
+    assert last.header.frame_id == "table" and last.vx == pytest.approx(1.0, abs=0.1)
+    assert last.y == pytest.approx(0.1, abs=1e-3)
+    pred = predictions[-1]
+    assert pred.states and pred.states[-1].x > last.x
+    assert tracker.returncode is None, "tracker died on a malformed frame"
+
+
+def test_services_answer_and_refuse_bad_requests(tracker, rclpy_node):
+    from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, SetPhysicalParams
+
+    def call(kind, name, **fields):
+        return call_service(rclpy_node, rclpy_node.create_client(kind, name), kind.Request(**fields), 30.0)
+
+    bad = call(SetPhysicalParams, "/set_physical_params", friction_surface=-0.1, damping=0.5, restitution=0.9,
+               friction_rim=0.1)
+    assert bad is not None and not bad.success and "friction_surface" in bad.message
+    assert not call(SetPhysicalParams, "/set_physical_params", friction_surface=0.0, damping=0.5,
+                    restitution=1.5, friction_rim=0.1).success
+    assert call(SetPhysicalParams, "/set_physical_params", friction_surface=0.0, damping=0.5, restitution=0.9,
+                friction_rim=0.1).success
+    not_pd = call(SetNoiseCovariance, "/set_noise_covariance", measurement_covariance=list(np.diag([1.0, -1.0, 1.0]).ravel()))
+    assert not not_pd.success and "positive definite" in not_pd.message
+    assert call(SetNoiseCovariance, "/set_noise_covariance", measurement_covariance=list(np.diag([1e-8, 1e-8, 1e-4]).ravel())).success
+    assert call(ResetFilter, "/reset").success
+    from builtin_interfaces.msg import Time
+    responses = [call(KalmanStep, "/kalman_step", stamp=Time(sec=10, nanosec=int(k * DT * 1e9)), has_measurement=True,
+                      x=0.01 * k, y=0.0, theta=0.0, prediction_horizon=0.5) for k in range(6)]
+    assert not responses[0].success and all(r.success for r in responses[1:])
+    last = responses[-1]
+    assert last.estimate.vx == pytest.approx(1.2, abs=0.1)
+    a = 1.0 - DT * 0.5  # damping 0.5 1/s set above, no surface friction: 60 free steps in closed form
+    travel = last.estimate.vx * DT * (1.0 - a ** 60) / (1.0 - a)
+    assert last.prediction.x == pytest.approx(last.estimate.x + travel, abs=1e-6)
