@@ -8,6 +8,7 @@ import sys
 # Subcommand modules; each provides add_parser(subparsers) that sets `run` as the handler.
 TOOL_MODULES = (
     "air_hockey_agent.tools.game",
+    "air_hockey_agent.tools.bench",
 )
 
 

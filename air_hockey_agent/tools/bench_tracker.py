@@ -1,0 +1,85 @@
+"""``air-hockey bench tracker``: EKF update time and prediction time (stepwise vs fast), in microseconds.
+
+Random puck states on the table (speeds up to 3 m/s, spins up to 20 rad/s), parameters and noise from
+``config/tracker.yaml``; the same states go through both predictors in one run. Thesis table 5.1: one
+180-step prediction took 75.7 us mean (C++, without covariance).
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+
+import numpy as np
+
+from air_hockey_agent.core.ekf import FilterSettings, PuckEKF
+from air_hockey_agent.core.prediction import predict_fast, predict_stepwise
+from air_hockey_agent.core.puck_model import PuckModel, PuckParams
+from air_hockey_agent.core.table import TableGeometry
+from air_hockey_agent.nodes.puck_tracker import TABLE_PARAMS, TRACKER_PARAMS
+from air_hockey_agent.params import load_defaults
+from air_hockey_agent.paths import config_file
+
+HORIZONS = (0.5, 1.0, 1.5)
+
+
+def _stats(samples_s: list[float]) -> dict[str, float]:
+    us = np.array(samples_s) * 1e6
+    return {"mean": round(float(us.mean()), 2), "p99": round(float(np.percentile(us, 99)), 2)}
+
+
+def _timed(fn, *args) -> float:
+    start = time.perf_counter()
+    fn(*args)
+    return time.perf_counter() - start
+
+
+def run_benchmark(n: int, seed: int) -> dict:
+    params = load_defaults([config_file("table.yaml"), config_file("tracker.yaml")], "/puck_tracker",
+                           TABLE_PARAMS + TRACKER_PARAMS)
+    table = TableGeometry.from_params(params)
+    model = PuckModel(table, PuckParams.from_params(params))
+    settings = FilterSettings.from_params(params)
+    rng = np.random.default_rng(seed)
+    states = [np.array([rng.uniform(-table.x_limit, table.x_limit), rng.uniform(-table.y_limit, table.y_limit),
+                        *rng.uniform(-3.0, 3.0, 2), rng.uniform(-np.pi, np.pi), rng.uniform(-20, 20)])
+              for _ in range(n)]
+    p0 = settings.p0 * 1e-2
+    ekf = PuckEKF(model, settings)
+    update = []
+    for s in states:
+        ekf.reset(s, 0.0)
+        z = s[[0, 1, 4]] + rng.normal(0.0, 1e-4, 3)
+        update.append(_timed(ekf.update, z))
+    result = {"update_us": _stats(update), "predict_us": {"stepwise": {}, "fast": {}}, "ratio_stepwise_over_fast": {}}
+    for h in HORIZONS:
+        step = [_timed(predict_stepwise, model, s, p0, h, settings.dt, settings.q) for s in states[: max(50, n // 10)]]
+        fast = [_timed(predict_fast, model, s, p0, h, settings.dt, settings.q) for s in states]
+        result["predict_us"]["stepwise"][str(h)] = _stats(step)
+        result["predict_us"]["fast"][str(h)] = _stats(fast)
+        result["ratio_stepwise_over_fast"][str(h)] = round(
+            result["predict_us"]["stepwise"][str(h)]["mean"] / result["predict_us"]["fast"][str(h)]["mean"], 1)
+    return result
+
+
+def add_parser(bench_subparsers: argparse._SubParsersAction) -> None:
+    parser = bench_subparsers.add_parser("tracker", help="EKF update and prediction timing", description=__doc__,
+                                         formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--samples", type=int, default=2000, help="random states (default 2000)")
+    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--json", action="store_true", help="print one JSON object")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    result = run_benchmark(args.samples, args.seed)
+    if args.json:
+        print(json.dumps(result))
+        return 0
+    print(f"EKF update: mean {result['update_us']['mean']} us, p99 {result['update_us']['p99']} us")
+    print(f"{'horizon':>8} {'stepwise mean/p99 [us]':>24} {'fast mean/p99 [us]':>20} {'ratio':>6}")
+    for h in HORIZONS:
+        sw, fa = result["predict_us"]["stepwise"][str(h)], result["predict_us"]["fast"][str(h)]
+        print(f"{h:>7.1f}s {sw['mean']:>12.1f} / {sw['p99']:<9.1f} {fa['mean']:>9.1f} / {fa['p99']:<8.1f} "
+              f"{result['ratio_stepwise_over_fast'][str(h)]:>6.1f}")
+    return 0

@@ -1,0 +1,17 @@
+"""`air-hockey bench tracker --json` prints one JSON object with the documented keys (figures not asserted)."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+
+def test_bench_tracker_json_shape():
+    exe = Path(sys.executable).parent / "air-hockey"
+    out = subprocess.run([str(exe), "bench", "tracker", "--samples", "60", "--json"], capture_output=True,
+                         text=True, timeout=300)
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout)
+    assert set(result["update_us"]) == {"mean", "p99"}
+    for method in ("stepwise", "fast"):
+        assert set(result["predict_us"][method]) == {"0.5", "1.0", "1.5"}
+        assert all(v["mean"] > 0 for v in result["predict_us"][method].values())
