@@ -86,6 +86,17 @@ class _Recorder:
             self.result.samples.append((t, state.copy(), cov.copy()))
 
 
+def _finish(model: PuckModel, rec: _Recorder, s: np.ndarray, p: np.ndarray, t: float, remainder: float,
+            dt: float, q: np.ndarray) -> Prediction:
+    """Last, shorter step of the horizon (noise scaled by its length); store the final state."""
+    if remainder:
+        res = model.step(s, remainder)
+        rec.step(t, remainder, s, res.state, res.impacts)
+        s, p = res.state, res.jacobian @ p @ res.jacobian.T + q * (remainder / dt)
+    rec.result.state, rec.result.covariance = s, p
+    return rec.result
+
+
 def predict_stepwise(model: PuckModel, state: np.ndarray, cov: np.ndarray, horizon: float, dt: float,
                      q: np.ndarray, lines: Sequence[float] = (), sample_every: int = 0) -> Prediction:
     """Reference prediction: ``horizon`` [s] in model steps of ``dt`` [s] with per-step noise ``q``."""
@@ -97,12 +108,7 @@ def predict_stepwise(model: PuckModel, state: np.ndarray, cov: np.ndarray, horiz
         rec.step(i * dt, dt, s, res.state, res.impacts)
         s, p = res.state, res.jacobian @ p @ res.jacobian.T + q
         rec.sample(i + 1, (i + 1) * dt, s, p)
-    if remainder:
-        res = model.step(s, remainder)
-        rec.step(steps * dt, remainder, s, res.state, res.impacts)
-        s, p = res.state, res.jacobian @ p @ res.jacobian.T + q * (remainder / dt)
-    rec.result.state, rec.result.covariance = s, p
-    return rec.result
+    return _finish(model, rec, s, p, steps * dt, remainder, dt, q)
 
 
 class _FreeMotion:
@@ -268,12 +274,7 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray, horizon: 
             s, p = res.state, res.jacobian @ p @ res.jacobian.T + q
             done += 1
             rec.sample(done, done * dt, s, p)
-    if remainder:
-        res = model.step(s, remainder)
-        rec.step(steps * dt, remainder, s, res.state, res.impacts)
-        s, p = res.state, res.jacobian @ p @ res.jacobian.T + q * (remainder / dt)
-    rec.result.state, rec.result.covariance = s, p
-    return rec.result
+    return _finish(model, rec, s, p, steps * dt, remainder, dt, q)
 
 
 def _record_free_crossings(rec: _Recorder, free: _FreeMotion, s: np.ndarray, t0: float, n: int) -> None:
