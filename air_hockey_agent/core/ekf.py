@@ -123,7 +123,9 @@ class PuckEKF:
         self.x[4] = wrap_angle(self.x[4])
         self.initialised, self.stamp = True, stamp
 
-    def _initialise_from(self, first: _Measurement, second: _Measurement) -> None:
+    def _initialise_from_pending(self) -> None:
+        """Restart from the latest two collected measurements (finite differences) and forget the rest."""
+        first, second = self._pending[-2], self._pending[-1]
         dt = second.t - first.t
         velocity = (second.z[:2] - first.z[:2]) / dt
         spin = wrap_angle(second.z[2] - first.z[2]) / dt
@@ -157,13 +159,17 @@ class PuckEKF:
     def update(self, z: np.ndarray) -> float:
         """Fuse measurement z = (x, y, theta) unconditionally (eq. 3.7-3.11); returns its distance."""
         y, s_inv, d2 = self.innovation(z)
+        self._apply_update(y, s_inv)
+        return d2
+
+    def _apply_update(self, y: np.ndarray, s_inv: np.ndarray) -> None:
+        """Kalman gain, mean and covariance update from innovation y and S^-1 (eq. 3.9-3.11)."""
         p_ht = self.P[:, MEASURED]
         gain = p_ht @ s_inv
         self.x = self.x + gain @ y
         self.x[4] = wrap_angle(self.x[4])
         p = self.P - gain @ p_ht.T
         self.P = 0.5 * (p + p.T)
-        return d2
 
     def process(self, t: float, z: Sequence[float] | None) -> int:
         """Handle one mocap frame at time ``t`` [s]: measurement ``z`` (x, y, theta) or None (lost).
@@ -198,17 +204,15 @@ class PuckEKF:
         return frozen
 
     def _gate_and_update(self, t: float, z: np.ndarray) -> int:
-        _, _, d2 = self.innovation(z)
+        y, s_inv, d2 = self.innovation(z)
         if d2 <= self.settings.gate_threshold:
             self._pending.clear()
-            self.update(z)
+            self._apply_update(y, s_inv)
             return FLAG_MEASUREMENT_USED
         self.stats.outliers_rejected += 1
         self._pending.append(_Measurement(t, z))
         if len(self._pending) >= self.settings.max_consecutive_rejections:
-            first, second = self._pending[-2], self._pending[-1]
-            self._pending.clear()
-            self._initialise_from(first, second)
+            self._initialise_from_pending()
             return FLAG_OUTLIER_REJECTED | FLAG_REINITIALISED | FLAG_MEASUREMENT_USED
         return FLAG_OUTLIER_REJECTED | FLAG_PREDICTED
 
@@ -220,9 +224,7 @@ class PuckEKF:
         self._pending.append(_Measurement(t, z))
         if len(self._pending) < 2:
             return 0
-        first, second = self._pending[-2], self._pending[-1]
-        self._pending.clear()
-        self._initialise_from(first, second)
+        self._initialise_from_pending()
         return FLAG_REINITIALISED | FLAG_MEASUREMENT_USED
 
     # --- prediction -------------------------------------------------------------------------------

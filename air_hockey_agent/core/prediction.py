@@ -75,9 +75,9 @@ class _Recorder:
             if x0 == 0.0 or x0 * x1 < 0.0 or (x1 == 0.0 and x0 != 0.0):
                 frac = 0.0 if x0 == 0.0 else x0 / (x0 - x1)
                 y = before[1] + frac * (after[1] - before[1])
-                self._cross(line, t0 + frac * dt, y, before[2], before[3])
+                self.cross(line, t0 + frac * dt, y, before[2], before[3])
 
-    def _cross(self, line: float, time: float, y: float, vx: float, vy: float) -> None:
+    def cross(self, line: float, time: float, y: float, vx: float, vy: float) -> None:
         self.result.crossings[line] = Crossing(line, time, y, vx, vy)
         self.pending.remove(line)
 
@@ -262,7 +262,7 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray, horizon: 
         reach = free.first_step_reaching(hit[0], budget) if hit is not None else None
         jump = budget if reach is None else reach - 1
         if jump > 0:
-            _record_free_crossings(rec, free, s, done * dt, jump)
+            _record_free_crossings(rec, free, done * dt, jump)
             new_s = free.state_after(s, jump)
             phi = free.jacobian(jump)
             p = phi @ p @ phi.T + table.get(jump)
@@ -277,7 +277,7 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray, horizon: 
     return _finish(model, rec, s, p, steps * dt, remainder, dt, q)
 
 
-def _record_free_crossings(rec: _Recorder, free: _FreeMotion, s: np.ndarray, t0: float, n: int) -> None:
+def _record_free_crossings(rec: _Recorder, free: _FreeMotion, t0: float, n: int) -> None:
     """Crossings of pending lines during n free steps, interpolated inside the crossing step."""
     for line in list(rec.pending):
         if free.ux == 0.0:
@@ -291,5 +291,5 @@ def _record_free_crossings(rec: _Recorder, free: _FreeMotion, s: np.ndarray, t0:
         before, after = free.distance(i - 1), free.distance(i)
         frac = 0.0 if after == before else (target - before) / (after - before)
         speed = free.speed(i - 1)
-        rec._cross(line, t0 + (i - 1 + frac) * free.dt, free.y0 + free.uy * target, free.ux * speed,
+        rec.cross(line, t0 + (i - 1 + frac) * free.dt, free.y0 + free.uy * target, free.ux * speed,
                    free.uy * speed)

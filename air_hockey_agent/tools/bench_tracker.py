@@ -16,7 +16,7 @@ from air_hockey_agent.core.ekf import FilterSettings, PuckEKF
 from air_hockey_agent.core.prediction import predict_fast, predict_stepwise
 from air_hockey_agent.core.puck_model import PuckModel, PuckParams
 from air_hockey_agent.core.table import TableGeometry
-from air_hockey_agent.nodes.puck_tracker import TABLE_PARAMS, TRACKER_PARAMS
+from air_hockey_agent.nodes.puck_tracker import PuckTrackerNode
 from air_hockey_agent.params import load_defaults
 from air_hockey_agent.paths import config_file
 
@@ -35,8 +35,8 @@ def _timed(fn, *args) -> float:
 
 
 def run_benchmark(n: int, seed: int) -> dict:
-    params = load_defaults([config_file("table.yaml"), config_file("tracker.yaml")], "/puck_tracker",
-                           TABLE_PARAMS + TRACKER_PARAMS)
+    params = load_defaults([config_file(f) for f in PuckTrackerNode.PARAM_FILES], "/puck_tracker",
+                           PuckTrackerNode.PARAMS)
     table = TableGeometry.from_params(params)
     model = PuckModel(table, PuckParams.from_params(params))
     settings = FilterSettings.from_params(params)
