@@ -1,7 +1,9 @@
 """Shared fixtures: private ROS domain and ROS_HOME for every test run, rclpy contexts, launchers."""
 from __future__ import annotations
 
+import atexit
 import os
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -13,6 +15,7 @@ HELPERS = Path(__file__).resolve().parent / "helpers"
 
 # One private domain per test session (1..101 only; 0 is everyone's default). Set before rclpy loads.
 _SESSION_TMP = Path(tempfile.mkdtemp(prefix="air_hockey_tests_"))
+atexit.register(shutil.rmtree, _SESSION_TMP, ignore_errors=True)
 os.environ.setdefault("AIR_HOCKEY_TEST_DOMAIN", str(10 + os.getpid() % 90))
 os.environ["ROS_DOMAIN_ID"] = os.environ["AIR_HOCKEY_TEST_DOMAIN"]
 os.environ["ROS_HOME"] = str(_SESSION_TMP / "ros_home")

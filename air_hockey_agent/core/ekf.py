@@ -22,7 +22,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from air_hockey_agent.core.prediction import Prediction, predict_fast
-from air_hockey_agent.core.puck_model import PuckModel, wrap_angle
+from air_hockey_agent.core.puck_model import PuckModel, PuckParams, wrap_angle
+from air_hockey_agent.core.table import TableGeometry
 
 MEASURED = (0, 1, 4)  # state indices of the measurement (x, y, theta)
 
@@ -110,6 +111,12 @@ class PuckEKF:
     stats: FilterStats = field(default_factory=FilterStats)
     _pending: list = field(default_factory=list)      # measurements awaiting (re)initialisation
     _last_z: np.ndarray | None = None
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> "PuckEKF":
+        """Filter on the table, model and noise settings of a tracker parameter set (``tracker_params``)."""
+        model = PuckModel(TableGeometry.from_params(params), PuckParams.from_params(params))
+        return cls(model, FilterSettings.from_params(params))
 
     # --- state management -------------------------------------------------------------------------
     def reset(self, state: Sequence[float] | None = None, stamp: float | None = None) -> None:

@@ -12,6 +12,7 @@ from typing import Sequence
 from air_hockey_agent.core.puck_model import wrap_angle
 
 ROBOT_YAW = {"iiwa_front": 0.0, "iiwa_back": math.pi}
+MIN_QUATERNION_NORM2 = 0.5  # squared norm below which a mocap quaternion is invalid (unit: 1; zero: lost body)
 
 
 def yaw_from_quaternion(qx: float, qy: float, qz: float, qw: float) -> float:
@@ -37,6 +38,20 @@ def table_to_mocap(x: float, y: float, yaw: float, table_pose: Sequence[float]) 
     tx, ty, _, tyaw = table_pose
     c, s = math.cos(tyaw), math.sin(tyaw)
     return tx + c * x - s * y, ty + s * x + c * y, wrap_angle(yaw + tyaw)
+
+
+def pose_to_measurement(position: Sequence[float], quaternion: Sequence[float],
+                        table_pose: Sequence[float]) -> tuple[float, float, float] | None:
+    """Mocap pose (position x, y, z [m]; quaternion x, y, z, w) -> table-frame measurement (x, y, theta).
+
+    Returns None for a pose that cannot be a measurement (non-finite values or a quaternion far from
+    unit length, as OptiTrack sends for a lost rigid body); the filter treats it as a lost frame.
+    """
+    values = (*position, *quaternion)
+    if not all(math.isfinite(v) for v in values) or sum(q * q for q in quaternion) < MIN_QUATERNION_NORM2:
+        return None
+    qx, qy, qz, qw = quaternion
+    return mocap_to_table(position[0], position[1], yaw_from_quaternion(qx, qy, qz, qw), table_pose)
 
 
 def table_to_robot(x: float, y: float, yaw: float, robot: str) -> tuple[float, float, float]:

@@ -47,7 +47,7 @@ class Prediction:
     """Predicted state and covariance at the horizon, with what happened on the way."""
 
     state: np.ndarray
-    covariance: np.ndarray
+    covariance: np.ndarray | None  # None when predicted without covariance
     impacts: list = field(default_factory=list)      # (time [s], wall, x, y, sliding)
     samples: list = field(default_factory=list)      # (time [s], state, covariance) every sample period
     crossings: dict = field(default_factory=dict)    # line_x -> Crossing (first crossing only)
@@ -81,18 +81,20 @@ class _Recorder:
         self.result.crossings[line] = Crossing(line, time, y, vx, vy)
         self.pending.remove(line)
 
-    def sample(self, step_index: int, t: float, state: np.ndarray, cov: np.ndarray) -> None:
+    def sample(self, step_index: int, t: float, state: np.ndarray, cov: np.ndarray | None) -> None:
         if self.sample_every and step_index % self.sample_every == 0:
-            self.result.samples.append((t, state.copy(), cov.copy()))
+            self.result.samples.append((t, state.copy(), None if cov is None else cov.copy()))
 
 
-def _finish(model: PuckModel, rec: _Recorder, s: np.ndarray, p: np.ndarray, t: float, remainder: float,
+def _finish(model: PuckModel, rec: _Recorder, s: np.ndarray, p: np.ndarray | None, t: float, remainder: float,
             dt: float, q: np.ndarray) -> Prediction:
     """Last, shorter step of the horizon (noise scaled by its length); store the final state."""
     if remainder:
-        res = model.step(s, remainder)
+        res = model.step(s, remainder, with_jacobian=p is not None)
         rec.step(t, remainder, s, res.state, res.impacts)
-        s, p = res.state, res.jacobian @ p @ res.jacobian.T + q * (remainder / dt)
+        s = res.state
+        if p is not None:
+            p = res.jacobian @ p @ res.jacobian.T + q * (remainder / dt)
     rec.result.state, rec.result.covariance = s, p
     return rec.result
 
@@ -245,13 +247,18 @@ def noise_table(dt: float, damping: float, q: np.ndarray) -> NoiseTable:
     return table
 
 
-def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray, horizon: float, dt: float,
+def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horizon: float, dt: float,
                  q: np.ndarray, lines: Sequence[float] = (), sample_every: int = 0) -> Prediction:
-    """Prediction by closed-form jumps between impacts; agrees with :func:`predict_stepwise`."""
-    table = noise_table(dt, model.params.damping, q)
+    """Prediction by closed-form jumps between impacts; agrees with :func:`predict_stepwise`.
+
+    With ``cov=None`` only the mean is propagated (``Prediction.covariance`` is None): the offline
+    evaluation and system identification need no covariance.
+    """
+    with_cov = cov is not None
+    table = noise_table(dt, model.params.damping, q) if with_cov else None
     steps, remainder = _split_horizon(horizon, dt)
     rec = _Recorder(lines, sample_every)
-    s, p = np.asarray(state, float), np.asarray(cov, float)
+    s, p = np.asarray(state, float), (np.asarray(cov, float) if with_cov else None)
     done = 0
     while done < steps:
         budget = steps - done
@@ -263,15 +270,17 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray, horizon: 
         jump = budget if reach is None else reach - 1
         if jump > 0:
             _record_free_crossings(rec, free, done * dt, jump)
-            new_s = free.state_after(s, jump)
-            phi = free.jacobian(jump)
-            p = phi @ p @ phi.T + table.get(jump)
-            s, done = new_s, done + jump
+            if with_cov:
+                phi = free.jacobian(jump)
+                p = phi @ p @ phi.T + table.get(jump)
+            s, done = free.state_after(s, jump), done + jump
             rec.sample(done, done * dt, s, p)
         if reach is not None:
-            res = model.step(s, dt)
+            res = model.step(s, dt, with_jacobian=with_cov)
             rec.step(done * dt, dt, s, res.state, res.impacts)
-            s, p = res.state, res.jacobian @ p @ res.jacobian.T + q
+            s = res.state
+            if with_cov:
+                p = res.jacobian @ p @ res.jacobian.T + q
             done += 1
             rec.sample(done, done * dt, s, p)
     return _finish(model, rec, s, p, steps * dt, remainder, dt, q)

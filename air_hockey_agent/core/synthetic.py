@@ -6,7 +6,8 @@ rate with timestamp jitter, Gaussian noise, lost frames, repeated frames and one
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
+from typing import Any, Mapping
 
 import numpy as np
 
@@ -24,6 +25,23 @@ class MocapImperfections:
     repeat_rate: float = 0.0         # probability that a frame repeats the previous pose (frozen)
     glitch_rate: float = 0.0         # probability of a one-frame glitch
     glitch_size: float = 0.1         # [m] glitch displacement
+    gap_rate: float = 0.0            # probability per frame that a longer dropout starts
+    gap_max: float = 0.0             # [s] dropout length, uniform in (0, gap_max]
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], prefix: str = "mocap.") -> "MocapImperfections":
+        """From parameters named ``<prefix><field>`` (e.g. ``mocap.lost_rate``)."""
+        return cls(**{f.name: float(params[prefix + f.name]) for f in fields(cls)})
+
+
+@dataclass(frozen=True)
+class ShotRanges:
+    """Ranges of the random shots of a synthetic session (uniform draws)."""
+
+    speed: tuple[float, float]       # [m/s]
+    spin: tuple[float, float]        # [rad/s]
+    duration: float                  # [s] recorded time per shot
+    pause: float                     # [s] time without frames between shots (puck carried back)
 
 
 def simulate_truth(model: PuckModel, state: np.ndarray, duration: float, dt: float) -> tuple[np.ndarray, np.ndarray]:
@@ -49,7 +67,13 @@ def mocap_stream(model: PuckModel, times: np.ndarray, states: np.ndarray, rate: 
     """Sample a true trajectory as a mocap stream: list of (stamp [s], (x, y, theta) or None if lost)."""
     frames: list[tuple[float, np.ndarray | None]] = []
     previous = None
+    gap_until = -1.0
     for k in range(int(times[-1] * rate)):
+        if k / rate < gap_until:
+            continue
+        if rng.random() < noise.gap_rate:
+            gap_until = k / rate + rng.uniform(0.0, noise.gap_max)
+            continue
         stamp = k / rate + (rng.normal(0.0, noise.jitter_std) if noise.jitter_std else 0.0)
         stamp = float(np.clip(stamp, 0.0, times[-1]))
         if rng.random() < noise.lost_rate:
@@ -66,3 +90,43 @@ def mocap_stream(model: PuckModel, times: np.ndarray, states: np.ndarray, rate: 
         frames.append((stamp, z))
         previous = z
     return frames
+
+
+def random_shot(model: PuckModel, shots: ShotRanges, rng: np.random.Generator) -> np.ndarray:
+    """A puck state anywhere on the table, moving in a random direction at a random speed and spin."""
+    table = model.table
+    margin = table.puck_radius
+    heading = rng.uniform(-np.pi, np.pi)
+    speed = rng.uniform(*shots.speed)
+    return np.array([rng.uniform(-table.x_limit + margin, table.x_limit - margin),
+                     rng.uniform(-table.y_limit + margin, table.y_limit - margin),
+                     speed * np.cos(heading), speed * np.sin(heading),
+                     rng.uniform(-np.pi, np.pi), rng.uniform(*shots.spin)])
+
+
+@dataclass
+class SyntheticFrame:
+    stamp: float                     # [s] session time
+    measurement: np.ndarray | None   # table frame (x, y, theta); None = lost
+    truth: np.ndarray                # true state at the stamp
+
+
+def synthetic_session(model: PuckModel, shots: ShotRanges, n_shots: int, rate: float,
+                      noise: MocapImperfections, rng: np.random.Generator,
+                      fine_dt: float) -> list[SyntheticFrame]:
+    """Consecutive random shots recorded like a mocap session (a bag generator for tests and tools).
+
+    Each shot is integrated with ``fine_dt`` [s] and sampled by :func:`mocap_stream`; a pause without
+    frames separates shots. Shots that leave the table through a goal end there.
+    """
+    session: list[SyntheticFrame] = []
+    offset = 0.0
+    for _ in range(n_shots):
+        times, states = simulate_truth(model, random_shot(model, shots, rng), shots.duration, fine_dt)
+        for stamp, z in mocap_stream(model, times, states, rate, noise, rng):
+            truth = true_state_at(model, times, states, stamp)
+            if not model.table.contains(truth[0], truth[1], model.table.puck_radius):
+                break  # scored: the recording of this shot ends
+            session.append(SyntheticFrame(offset + stamp, z, truth))
+        offset += shots.duration + shots.pause
+    return session

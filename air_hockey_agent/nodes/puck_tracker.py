@@ -16,37 +16,11 @@ from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, Set
 from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 
-from air_hockey_agent.core.ekf import FilterSettings, PuckEKF, check_covariance
-from air_hockey_agent.core.frames import mocap_to_table, yaw_from_quaternion
-from air_hockey_agent.core.puck_model import PuckModel, PuckParams
-from air_hockey_agent.core.table import TableGeometry
+from air_hockey_agent.core.ekf import PuckEKF, check_covariance
+from air_hockey_agent.core.frames import pose_to_measurement
+from air_hockey_agent.core.puck_model import PuckParams
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
-from air_hockey_agent.params import ParamSpec
-
-TABLE_PARAMS = (
-    ParamSpec("table.length", float, "[m] playing surface length", 0.5, 5.0),
-    ParamSpec("table.width", float, "[m] playing surface width", 0.3, 3.0),
-    ParamSpec("table.goal_width", float, "[m] goal opening", 0.0, 1.0),
-    ParamSpec("puck.radius", float, "[m] puck radius", 0.005, 0.2),
-)
-TRACKER_PARAMS = (
-    ParamSpec("frequency", float, "[Hz] model step rate (mocap frame rate)", 1.0, 2000.0),
-    ParamSpec("friction_surface", float, "[m/s^2] surface friction deceleration mu_s", 0.0, 10.0),
-    ParamSpec("damping", float, "[1/s] viscous damping d", 0.0, 10.0),
-    ParamSpec("restitution", float, "[-] rim restitution e", 0.0, 1.0),
-    ParamSpec("friction_rim", float, "[-] rim friction mu_rim", 0.0, 2.0),
-    ParamSpec("measurement_noise", list, "R diagonal (x, y, theta) [m^2, m^2, rad^2]", 1e-15, 1.0, 3),
-    ParamSpec("process_noise", list, "Q diagonal per step (x, y, vx, vy, theta, omega)", 1e-18, 1e3, 6),
-    ParamSpec("initial_covariance", list, "P0 diagonal after (re)initialisation", 1e-15, 1e4, 6),
-    ParamSpec("gate_threshold", float, "squared Mahalanobis gate on the innovation", 0.1, 1e6),
-    ParamSpec("max_consecutive_rejections", int, "rejected frames in a row before re-initialising", 1, 1000),
-    ParamSpec("outside_table_margin", float, "[m] drop measurements this far beyond the rims", 0.0, 10.0),
-    ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),
-    ParamSpec("prediction_horizon", float, "[s] horizon of puck/prediction", 0.0, 10.0),
-    ParamSpec("prediction_sample_period", float, "[s] spacing of predicted states", 0.001, 1.0),
-    ParamSpec("defend_line_offset", float, "[m] defend line distance from each short rim", 0.0, 1.0),
-    ParamSpec("mocap_table_pose", list, "table pose in the mocap frame: x, y, z [m], yaw [rad]", -100.0, 100.0, 4),
-)
+from air_hockey_agent.tracker_params import PARAM_FILES, TRACKER_NODE_PARAMS
 
 
 def to_seconds(stamp: Time) -> float:
@@ -70,14 +44,13 @@ def state_msg(state: np.ndarray, cov: np.ndarray, seconds: float, flags: int = 0
 class PuckTrackerNode(AirHockeyNode):
     NAME = "puck_tracker"
     DESCRIPTION = __doc__
-    PARAM_FILES = ("table.yaml", "tracker.yaml")
-    PARAMS = TABLE_PARAMS + TRACKER_PARAMS
+    PARAM_FILES = PARAM_FILES
+    PARAMS = TRACKER_NODE_PARAMS
 
     def __init__(self) -> None:
         super().__init__()
-        p = self.params
-        self.table = TableGeometry.from_params(p)
-        self.ekf = PuckEKF(PuckModel(self.table, PuckParams.from_params(p)), FilterSettings.from_params(p))
+        self.ekf = PuckEKF.from_params(self.params)
+        self.table = self.ekf.model.table
         self.state_pub = self.create_publisher(PuckState, "puck/state", 10)
         self.prediction_pub = self.create_publisher(PuckPrediction, "puck/prediction", 10)
         self.create_subscription(PoseStamped, "/optitrack/puck", self.on_pose, 10)
@@ -90,13 +63,10 @@ class PuckTrackerNode(AirHockeyNode):
     def on_pose(self, msg: PoseStamped) -> None:
         try:
             p, q = msg.pose.position, msg.pose.orientation
-            values = (p.x, p.y, q.x, q.y, q.z, q.w)
-            if not all(math.isfinite(v) for v in values) or q.x ** 2 + q.y ** 2 + q.z ** 2 + q.w ** 2 < 0.5:
+            z = pose_to_measurement((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), self.params["mocap_table_pose"])
+            if z is None:
                 self.get_logger().warn("/optitrack/puck: pose has a non-finite position or invalid quaternion; "
                                        "treated as a lost frame", throttle_duration_sec=1.0)
-                z = None
-            else:
-                z = mocap_to_table(p.x, p.y, yaw_from_quaternion(q.x, q.y, q.z, q.w), self.params["mocap_table_pose"])
             t = to_seconds(msg.header.stamp)
             flags = self.ekf.process(t, z)
             if self.ekf.initialised:

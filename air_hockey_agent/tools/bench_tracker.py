@@ -12,13 +12,9 @@ import time
 
 import numpy as np
 
-from air_hockey_agent.core.ekf import FilterSettings, PuckEKF
+from air_hockey_agent.core.ekf import PuckEKF
 from air_hockey_agent.core.prediction import predict_fast, predict_stepwise
-from air_hockey_agent.core.puck_model import PuckModel, PuckParams
-from air_hockey_agent.core.table import TableGeometry
-from air_hockey_agent.nodes.puck_tracker import PuckTrackerNode
-from air_hockey_agent.params import load_defaults
-from air_hockey_agent.paths import config_file
+from air_hockey_agent.tracker_params import load_tracker_params
 
 HORIZONS = (0.5, 1.0, 1.5)
 
@@ -35,17 +31,13 @@ def _timed(fn, *args) -> float:
 
 
 def run_benchmark(n: int, seed: int) -> dict:
-    params = load_defaults([config_file(f) for f in PuckTrackerNode.PARAM_FILES], "/puck_tracker",
-                           PuckTrackerNode.PARAMS)
-    table = TableGeometry.from_params(params)
-    model = PuckModel(table, PuckParams.from_params(params))
-    settings = FilterSettings.from_params(params)
+    ekf = PuckEKF.from_params(load_tracker_params())
+    model, settings, table = ekf.model, ekf.settings, ekf.model.table
     rng = np.random.default_rng(seed)
     states = [np.array([rng.uniform(-table.x_limit, table.x_limit), rng.uniform(-table.y_limit, table.y_limit),
                         *rng.uniform(-3.0, 3.0, 2), rng.uniform(-np.pi, np.pi), rng.uniform(-20, 20)])
               for _ in range(n)]
     p0 = settings.p0 * 1e-2
-    ekf = PuckEKF(model, settings)
     update = []
     for s in states:
         ekf.reset(s, 0.0)

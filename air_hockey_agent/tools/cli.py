@@ -9,6 +9,8 @@ import sys
 TOOL_MODULES = (
     "air_hockey_agent.tools.game",
     "air_hockey_agent.tools.bench",
+    "air_hockey_agent.tools.eval_prediction",
+    "air_hockey_agent.tools.synth_bag",
 )
 
 

@@ -1,0 +1,102 @@
+"""Offline prediction accuracy of the puck tracker on a recorded mocap stream (thesis sec. 4.3).
+
+The stream goes through the same :class:`~air_hockey_agent.core.ekf.PuckEKF` as the live node, frame
+by frame. From every frame whose measurement the filter fused (not a re-initialisation), the mean is
+predicted ``h`` seconds ahead and compared with the measurement of the frame nearest to ``t + h``
+(within half a frame period; the prediction runs to that frame's exact stamp). Frames the filter
+rejected as outliers are not used as ground truth. The error is the planar distance [m].
+"""
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass, field
+from typing import Iterable, Sequence
+
+import numpy as np
+
+from air_hockey_agent.core.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED, FilterStats, PuckEKF
+from air_hockey_agent.core.prediction import predict_fast
+
+Frame = tuple[float, "Sequence[float] | None"]  # (stamp [s], table-frame (x, y, theta) or None if lost)
+
+
+def horizon_key(horizon: float) -> str:
+    """Key of a horizon in reports: ``0.5 -> "0.5"``, ``1 -> "1.0"``."""
+    return str(float(horizon))
+
+
+def count_lost_frames(stamps: Sequence[float], frame_period: float, max_gap: float) -> int:
+    """Nominal frames missing from a stream: each interval of ``k`` periods hides ``k - 1`` frames.
+
+    Intervals longer than ``max_gap`` [s] end a track (the filter restarts) and are not counted.
+    """
+    intervals = np.diff(np.asarray(stamps, float))
+    intervals = intervals[(intervals > 0.0) & (intervals <= max_gap)]
+    return int(np.maximum(np.rint(intervals / frame_period) - 1.0, 0.0).sum())
+
+
+@dataclass
+class EvaluationTotals:
+    """Errors per horizon and stream counts, summed over any number of recordings."""
+
+    horizons: tuple[float, ...]
+    errors: dict = field(default_factory=dict)  # horizon key -> list of errors [m]
+    frames: int = 0
+    lost_frames: int = 0
+    outliers_rejected: int = 0
+    recordings: int = 0
+
+    def __post_init__(self) -> None:
+        for h in self.horizons:
+            self.errors.setdefault(horizon_key(h), [])
+
+    def summary(self) -> dict:
+        """Per horizon mean / median / p95 [m] and count, plus the stream counts (JSON-ready)."""
+        table = {}
+        for key, values in self.errors.items():
+            v = np.asarray(values, float)
+            stats = (float(v.mean()), float(np.median(v)), float(np.percentile(v, 95))) if v.size else (None,) * 3
+            table[key] = {"mean_m": stats[0], "median_m": stats[1], "p95_m": stats[2], "n": int(v.size)}
+        return {"horizons": table, "bags": self.recordings, "frames": self.frames,
+                "lost_frames": self.lost_frames, "outliers_rejected": self.outliers_rejected}
+
+
+def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTotals) -> None:
+    """Filter one recording with ``ekf`` (reset first) and add its prediction errors to ``totals``."""
+    ekf.reset()
+    ekf.stats = FilterStats()
+    invalid = 0
+    starts: list[tuple[float, np.ndarray]] = []
+    truth_t: list[float] = []
+    truth_xy: list[tuple[float, float]] = []
+    stamps = []
+    for t, z in frames:
+        stamps.append(t)
+        invalid += z is None
+        flags = ekf.process(t, z)
+        if flags & FLAG_MEASUREMENT_USED:
+            truth_t.append(t)
+            truth_xy.append((z[0], z[1]))
+            if not flags & FLAG_REINITIALISED:
+                starts.append((t, ekf.x.copy()))
+    tolerance = 0.5 * ekf.settings.dt
+    for h in totals.horizons:
+        errors = totals.errors[horizon_key(h)]
+        for t, state in starts:
+            j = _nearest(truth_t, t + h)
+            if j is None or abs(truth_t[j] - (t + h)) > tolerance or truth_t[j] <= t:
+                continue
+            pred = predict_fast(ekf.model, state, None, truth_t[j] - t, ekf.settings.dt, ekf.settings.q)
+            errors.append(float(np.hypot(pred.state[0] - truth_xy[j][0], pred.state[1] - truth_xy[j][1])))
+    totals.frames += ekf.stats.frames  # lost = missing from the stream + arrived without a usable pose
+    totals.lost_frames += count_lost_frames(sorted(stamps), ekf.settings.dt, ekf.settings.max_prediction_gap) + invalid
+    totals.outliers_rejected += ekf.stats.outliers_rejected
+    totals.recordings += 1
+
+
+def _nearest(times: list[float], t: float) -> int | None:
+    if not times:
+        return None
+    i = bisect.bisect_left(times, t)
+    candidates = [k for k in (i - 1, i) if 0 <= k < len(times)]
+    return min(candidates, key=lambda k: abs(times[k] - t))

@@ -1,0 +1,82 @@
+"""``air-hockey eval-prediction BAG...``: prediction accuracy of the puck tracker on recorded bags.
+
+Each rosbag2 bag (sqlite3 or MCAP, read with rosbags; no ROS needed) is replayed through the tracker's
+own filter code offline (:mod:`air_hockey_agent.core.evaluation`, thesis sec. 4.3): from every fused
+frame the position is predicted ``h`` seconds ahead and compared with the measurement at ``t + h``.
+Reported per horizon: mean, median and 95th percentile of the error [m] and the number of comparisons,
+plus frames, lost frames and rejected outliers. A bag that cannot be used gives a one-line error on
+stderr and exit code 2; the other bags are still evaluated.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from air_hockey_agent.bags.reader import BagError, read_poses
+from air_hockey_agent.core.ekf import PuckEKF
+from air_hockey_agent.core.evaluation import EvaluationTotals, evaluate_stream
+from air_hockey_agent.core.frames import pose_to_measurement
+from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.tracker_params import load_tracker_params
+
+PROG = "air-hockey eval-prediction"
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("eval-prediction", help="prediction error of the puck tracker on bags",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG", help="rosbag2 directories (sqlite3 or MCAP)")
+    parser.add_argument("--topic", default="/optitrack/puck", help="PoseStamped topic (default /optitrack/puck)")
+    parser.add_argument("--horizons", type=float, nargs="+", default=[0.5, 1.0, 1.5], metavar="SECONDS",
+                        help="prediction horizons [s] (default 0.5 1.0 1.5)")
+    parser.add_argument("--params-file", type=Path, action="append", default=[],
+                        help="tracker parameter YAML (as for puck_tracker --params-file); may be repeated")
+    parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    if any(h <= 0.0 for h in args.horizons):
+        print(f"{PROG}: error: --horizons must be positive, got {args.horizons}", file=sys.stderr)
+        return 2
+    try:
+        params = load_tracker_params(args.params_file)
+    except (ParameterFileError, ParameterValueError) as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    ekf = PuckEKF.from_params(params)
+    totals = EvaluationTotals(tuple(args.horizons))
+    failed = 0
+    for bag in args.bags:
+        try:
+            records = read_poses(bag, args.topic)
+        except BagError as exc:
+            print(f"{PROG}: error: {exc}", file=sys.stderr)
+            failed += 1
+            continue
+        frames = [(r.stamp, pose_to_measurement(r.position, r.orientation, params["mocap_table_pose"]))
+                  for r in records]
+        evaluate_stream(ekf, frames, totals)
+        if not args.json:
+            print(f"{bag}: {len(frames)} frames", file=sys.stderr)
+    summary = totals.summary()
+    print(json.dumps(summary) if args.json else format_table(summary))
+    return 2 if failed else 0
+
+
+def format_table(summary: dict) -> str:
+    """Human-readable report (thesis table 5.3 layout: error per horizon in millimetres)."""
+    lines = [f"bags: {summary['bags']}, frames: {summary['frames']}, lost frames: {summary['lost_frames']}, "
+             f"outliers rejected: {summary['outliers_rejected']}",
+             f"{'horizon [s]':>11} {'mean [mm]':>10} {'median [mm]':>12} {'p95 [mm]':>9} {'n':>8}"]
+    for key, s in summary["horizons"].items():
+        if s["n"]:
+            lines.append(f"{key:>11} {s['mean_m'] * 1e3:>10.2f} {s['median_m'] * 1e3:>12.2f} "
+                         f"{s['p95_m'] * 1e3:>9.2f} {s['n']:>8}")
+        else:
+            lines.append(f"{key:>11} {'-':>10} {'-':>12} {'-':>9} {0:>8}")
+    return "\n".join(lines)
+
+

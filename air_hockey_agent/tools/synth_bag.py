@@ -1,0 +1,101 @@
+"""``air-hockey synth-bag OUT``: a rosbag2 bag of synthetic puck shots recorded like OptiTrack.
+
+Random shots (``config/synthetic.yaml``) are integrated with the tracker's puck model at 1 kHz and
+sampled as a 120 Hz mocap stream with noise, jitter, lost and frozen frames, glitches and dropouts.
+Topics: ``/optitrack/puck`` (geometry_msgs/PoseStamped, mocap frame; lost frames are absent) and
+``/puck/true_state`` (air_hockey_msgs/PuckState, table frame, the true state at each frame's stamp).
+The model's parameters come from ``config/tracker.yaml`` unless ``--params-file`` overrides them, so a
+bag with known parameters can test system identification.
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+from pathlib import Path
+
+import numpy as np
+
+from air_hockey_agent.bags.types import typestore
+from air_hockey_agent.bags.writer import STORAGES, BagExistsError, write_bag
+from air_hockey_agent.core.ekf import PuckEKF
+from air_hockey_agent.core.frames import quaternion_from_yaw, table_to_mocap
+from air_hockey_agent.core.synthetic import MocapImperfections, ShotRanges, synthetic_session
+from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_defaults
+from air_hockey_agent.paths import config_file
+from air_hockey_agent.tracker_params import load_tracker_params
+
+POSE_TOPIC, TRUTH_TOPIC = "/optitrack/puck", "/puck/true_state"
+SESSION_PARAMS = (
+    ParamSpec("shots", int, "trajectories per bag", 1, 100000),
+    ParamSpec("shot_duration", float, "[s] recorded time per shot", 0.1, 600.0),
+    ParamSpec("pause", float, "[s] time without frames between shots", 0.0, 600.0),
+    ParamSpec("speed", list, "[m/s] initial speed range", 0.0, 20.0, 2),
+    ParamSpec("spin", list, "[rad/s] initial spin range", -200.0, 200.0, 2),
+    ParamSpec("rate", float, "[Hz] mocap frame rate", 1.0, 2000.0),
+    ParamSpec("fine_dt", float, "[s] integration step of the truth", 1e-5, 0.1),
+    ParamSpec("start_time", float, "[s] stamp of the first frame", 0.0, 1e10),
+) + tuple(ParamSpec(f"mocap.{name}", float, "measurement imperfection (config/synthetic.yaml)", 0.0, 10.0)
+          for name in ("position_std", "angle_std", "jitter_std", "lost_rate", "repeat_rate", "glitch_rate",
+                       "glitch_size", "gap_rate", "gap_max"))
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("synth-bag", help="write a bag of synthetic puck shots (mocap stream + truth)",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("out", type=Path, help="bag directory to create (must not exist)")
+    parser.add_argument("--shots", type=int, help="number of shots (default: config/synthetic.yaml)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="bag storage (default mcap)")
+    parser.add_argument("--params-file", type=Path, action="append", default=[],
+                        help="parameter YAML overriding the tracker's model parameters and/or the session "
+                             "(synth_bag node); may be repeated")
+    parser.set_defaults(run=run)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        tracker = load_tracker_params(args.params_file)
+        session = load_defaults([config_file("synthetic.yaml"), *args.params_file], "/synth_bag", SESSION_PARAMS)
+    except (ParameterFileError, ParameterValueError) as exc:
+        print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
+        return 2
+    if args.shots is not None:
+        session["shots"] = SESSION_PARAMS[0].check(args.shots)
+    model = PuckEKF.from_params(tracker).model
+    shots = ShotRanges(tuple(session["speed"]), tuple(session["spin"]), session["shot_duration"], session["pause"])
+    frames = synthetic_session(model, shots, session["shots"], session["rate"],
+                               MocapImperfections.from_params(session), np.random.default_rng(args.seed),
+                               session["fine_dt"])
+    messages = _messages(frames, session["start_time"], tracker["mocap_table_pose"])
+    try:
+        count = write_bag(args.out, {POSE_TOPIC: "geometry_msgs/msg/PoseStamped",
+                                     TRUTH_TOPIC: "air_hockey_msgs/msg/PuckState"}, messages, args.storage)
+    except BagExistsError as exc:
+        print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
+        return 2
+    poses = sum(f.measurement is not None for f in frames)
+    print(f"wrote {args.out} ({args.storage}): {session['shots']} shots, {poses} poses on {POSE_TOPIC} "
+          f"({len(frames) - poses} lost), {len(frames)} true states on {TRUTH_TOPIC}, {count} messages")
+    return 0
+
+
+def _messages(frames, start_time: float, table_pose):
+    """(topic, log time [ns], message) in stamp order: the pose in the mocap frame and the truth."""
+    types = typestore().types
+    pose_cls, state_cls = types["geometry_msgs/msg/PoseStamped"], types["air_hockey_msgs/msg/PuckState"]
+    header_cls, time_cls = types["std_msgs/msg/Header"], types["builtin_interfaces/msg/Time"]
+    point_cls, quat_cls, pose3_cls = (types["geometry_msgs/msg/Point"], types["geometry_msgs/msg/Quaternion"],
+                                      types["geometry_msgs/msg/Pose"])
+    for f in frames:
+        stamp_ns = int(round((start_time + f.stamp) * 1e9))
+        stamp = time_cls(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
+        x, y, vx, vy, theta, omega = (float(v) for v in f.truth)
+        yield TRUTH_TOPIC, stamp_ns, state_cls(header=header_cls(stamp=stamp, frame_id="table"), x=x, y=y, vx=vx,
+                                               vy=vy, theta=theta, omega=omega, covariance=np.zeros(36), flags=0)
+        if f.measurement is None:
+            continue
+        mx, my, myaw = table_to_mocap(*(float(v) for v in f.measurement), table_pose)
+        qx, qy, qz, qw = quaternion_from_yaw(myaw)
+        pose = pose3_cls(position=point_cls(x=mx, y=my, z=float(table_pose[2])),
+                         orientation=quat_cls(x=qx, y=qy, z=qz, w=qw))
+        yield POSE_TOPIC, stamp_ns, pose_cls(header=header_cls(stamp=stamp, frame_id="optitrack"), pose=pose)

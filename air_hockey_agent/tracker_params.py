@@ -1,0 +1,51 @@
+"""Parameters of the puck tracker, shared by the node and the offline tools (ROS-free).
+
+Declarations only (name, type, meaning with unit, valid range); the defaults and their sources are
+in ``config/table.yaml`` and ``config/tracker.yaml``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterable
+
+from air_hockey_agent.params import ParamSpec, load_defaults
+from air_hockey_agent.paths import config_file
+
+NODE_NAME = "/puck_tracker"
+PARAM_FILES = ("table.yaml", "tracker.yaml")
+
+TABLE_PARAMS = (
+    ParamSpec("table.length", float, "[m] playing surface length", 0.5, 5.0),
+    ParamSpec("table.width", float, "[m] playing surface width", 0.3, 3.0),
+    ParamSpec("table.goal_width", float, "[m] goal opening", 0.0, 1.0),
+    ParamSpec("puck.radius", float, "[m] puck radius", 0.005, 0.2),
+)
+TRACKER_PARAMS = (
+    ParamSpec("frequency", float, "[Hz] model step rate (mocap frame rate)", 1.0, 2000.0),
+    ParamSpec("friction_surface", float, "[m/s^2] surface friction deceleration mu_s", 0.0, 10.0),
+    ParamSpec("damping", float, "[1/s] viscous damping d", 0.0, 10.0),
+    ParamSpec("restitution", float, "[-] rim restitution e", 0.0, 1.0),
+    ParamSpec("friction_rim", float, "[-] rim friction mu_rim", 0.0, 2.0),
+    ParamSpec("measurement_noise", list, "R diagonal (x, y, theta) [m^2, m^2, rad^2]", 1e-15, 1.0, 3),
+    ParamSpec("process_noise", list, "Q diagonal per step (x, y, vx, vy, theta, omega)", 1e-18, 1e3, 6),
+    ParamSpec("initial_covariance", list, "P0 diagonal after (re)initialisation", 1e-15, 1e4, 6),
+    ParamSpec("gate_threshold", float, "squared Mahalanobis gate on the innovation", 0.1, 1e6),
+    ParamSpec("max_consecutive_rejections", int, "rejected frames in a row before re-initialising", 1, 1000),
+    ParamSpec("outside_table_margin", float, "[m] drop measurements this far beyond the rims", 0.0, 10.0),
+    ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),
+    ParamSpec("prediction_horizon", float, "[s] horizon of puck/prediction", 0.0, 10.0),
+    ParamSpec("prediction_sample_period", float, "[s] spacing of predicted states", 0.001, 1.0),
+    ParamSpec("defend_line_offset", float, "[m] defend line distance from each short rim", 0.0, 1.0),
+    ParamSpec("mocap_table_pose", list, "table pose in the mocap frame: x, y, z [m], yaw [rad]", -100.0, 100.0, 4),
+)
+TRACKER_NODE_PARAMS = TABLE_PARAMS + TRACKER_PARAMS
+
+
+def load_tracker_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
+    """Tracker parameters: the defaults, overridden by ``extra_files`` (ROS 2 parameter YAML, in order).
+
+    Raises :class:`air_hockey_agent.params.ParameterFileError` / ``ParameterValueError`` with a
+    one-line message naming the file or parameter.
+    """
+    files = [config_file(name) for name in PARAM_FILES] + [Path(f) for f in extra_files]
+    return load_defaults(files, NODE_NAME, TRACKER_NODE_PARAMS)

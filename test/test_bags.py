@@ -1,0 +1,117 @@
+"""rosbag2 reading and writing with rosbags: round trips in both storages, and one-line errors for bad bags."""
+import sqlite3
+
+import pytest
+
+from air_hockey_agent.bags.reader import BagError, read_poses
+from air_hockey_agent.bags.types import typestore
+from air_hockey_agent.bags.writer import BagExistsError, write_bag
+
+POSE = "geometry_msgs/msg/PoseStamped"
+
+
+def pose(t_ns, x, y=0.0, qw=1.0, header=True):
+    types = typestore().types
+    stamp = types["builtin_interfaces/msg/Time"](sec=t_ns // 10**9, nanosec=t_ns % 10**9) if header else \
+        types["builtin_interfaces/msg/Time"](sec=0, nanosec=0)
+    return types[POSE](header=types["std_msgs/msg/Header"](stamp=stamp, frame_id="optitrack"),
+                       pose=types["geometry_msgs/msg/Pose"](
+                           position=types["geometry_msgs/msg/Point"](x=x, y=y, z=0.0),
+                           orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=0.0, w=qw)))
+
+
+def write_poses(path, n=5, storage="mcap", topic="/optitrack/puck", header=True):
+    msgs = [(topic, 10**9 + k * 8_333_333, pose(10**9 + k * 8_333_333, 0.1 * k, header=header)) for k in range(n)]
+    write_bag(path, {topic: POSE}, msgs, storage)
+    return path
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_pose_round_trip(tmp_path, storage):
+    bag = write_poses(tmp_path / "bag", storage=storage)
+    records = read_poses(bag, "/optitrack/puck")
+    assert [round(r.position[0], 9) for r in records] == [0.0, 0.1, 0.2, 0.3, 0.4]
+    assert records[1].stamp == pytest.approx(1.008333333)
+    assert records[0].orientation == (0.0, 0.0, 0.0, 1.0)
+    assert sorted(p.name for p in bag.iterdir())[0] in ("bag.db3", "bag.mcap")  # no staging names inside
+
+
+def test_a_data_file_path_is_accepted_for_its_bag(tmp_path):
+    bag = write_poses(tmp_path / "bag")
+    assert len(read_poses(bag / "bag.mcap", "/optitrack/puck")) == 5
+
+
+def test_log_times_stand_in_when_no_message_has_a_header_stamp(tmp_path):
+    records = read_poses(write_poses(tmp_path / "bag", header=False), "/optitrack/puck")
+    assert records[2].stamp == pytest.approx(1.016666666)
+
+
+def test_our_message_types_are_registered():
+    assert "air_hockey_msgs/msg/PuckState" in typestore().types
+
+
+def test_writer_never_overwrites_and_leaves_nothing_behind(tmp_path):
+    bag = write_poses(tmp_path / "bag")
+    before = sorted(p.name for p in bag.iterdir())
+    with pytest.raises(BagExistsError):
+        write_poses(bag)
+    assert sorted(p.name for p in bag.iterdir()) == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["bag"]
+
+
+def test_interrupted_write_leaves_no_bag(tmp_path):
+    def failing():
+        yield "/optitrack/puck", 10**9, pose(10**9, 0.0)
+        raise RuntimeError("recorder stopped")
+    with pytest.raises(RuntimeError):
+        write_bag(tmp_path / "bag", {"/optitrack/puck": POSE}, failing())
+    assert list(tmp_path.iterdir()) == []
+
+
+def error_of(path, topic="/optitrack/puck"):
+    with pytest.raises(BagError) as info:
+        read_poses(path, topic)
+    message = str(info.value)
+    assert "\n" not in message and str(path) in message
+    return message
+
+
+def test_missing_bag(tmp_path):
+    assert "does not exist" in error_of(tmp_path / "nope")
+
+
+def test_directory_that_is_not_a_bag(tmp_path):
+    assert "not a rosbag2 bag" in error_of(tmp_path)
+
+
+def test_missing_topic_names_the_topics_present(tmp_path):
+    bag = write_poses(tmp_path / "bag", topic="/other")
+    assert "no topic /optitrack/puck (topics: /other)" in error_of(bag)
+
+
+def test_wrong_message_type(tmp_path):
+    types = typestore().types
+    msg = types["std_msgs/msg/String"](data="hi")
+    write_bag(tmp_path / "bag", {"/optitrack/puck": "std_msgs/msg/String"}, [("/optitrack/puck", 1, msg)])
+    assert "has type std_msgs/msg/String, expected geometry_msgs/msg/PoseStamped" in error_of(tmp_path / "bag")
+
+
+def test_empty_topic(tmp_path):
+    write_bag(tmp_path / "bag", {"/optitrack/puck": POSE}, [])
+    assert "no messages on /optitrack/puck" in error_of(tmp_path / "bag")
+
+
+@pytest.mark.parametrize("storage", ["mcap", "sqlite3"])
+def test_truncated_data_file(tmp_path, storage):
+    bag = write_poses(tmp_path / "bag", n=200, storage=storage)
+    data = next(p for p in bag.iterdir() if p.suffix in (".mcap", ".db3"))
+    data.write_bytes(data.read_bytes()[: data.stat().st_size // 3])
+    assert "cannot read" in error_of(bag)
+
+
+def test_garbage_database(tmp_path):
+    bag = write_poses(tmp_path / "bag", storage="sqlite3")
+    (bag / "bag.db3").write_bytes(b"this is not sqlite" * 100)
+    assert "cannot read" in error_of(bag)
+    with pytest.raises(sqlite3.DatabaseError):  # the reader did not repair or replace the input
+        sqlite3.connect(bag / "bag.db3").execute("select * from messages").fetchall()

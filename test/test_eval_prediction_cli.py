@@ -1,0 +1,79 @@
+"""`air-hockey synth-bag` and `air-hockey eval-prediction` as a user runs them (console script)."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+EXE = Path(sys.executable).parent / "air-hockey"
+
+
+def cli(*args, timeout=120):
+    return subprocess.run([str(EXE), *map(str, args)], capture_output=True, text=True, timeout=timeout)
+
+
+@pytest.fixture(scope="module")
+def bags(tmp_path_factory):
+    root = tmp_path_factory.mktemp("bags")
+    for name, storage, seed in (("a", "mcap", 1), ("b", "sqlite3", 2)):
+        out = cli("synth-bag", root / name, "--shots", 3, "--storage", storage, "--seed", seed)
+        assert out.returncode == 0, out.stderr
+        assert "3 shots" in out.stdout
+    return root
+
+
+def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
+    out = cli("eval-prediction", bags / "a", bags / "b", "--json")
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout)  # the whole of stdout is one JSON document
+    assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected"}
+    assert set(report["horizons"]) == {"0.5", "1.0", "1.5"}
+    assert set(report["horizons"]["1.0"]) == {"mean_m", "median_m", "p95_m", "n"}
+    assert report["bags"] == 2 and report["frames"] > 1000
+    assert report["horizons"]["0.5"]["median_m"] <= 3e-3 and report["horizons"]["1.0"]["median_m"] <= 8e-3
+
+
+def test_bad_bags_give_one_line_errors_and_exit_2_while_good_bags_count(bags, tmp_path):
+    (tmp_path / "empty_dir").mkdir()
+    out = cli("eval-prediction", bags / "a", tmp_path / "missing", tmp_path / "empty_dir",
+              bags / "b", "--topic", "/optitrack/puck", "--json")
+    assert out.returncode == 2
+    errors = out.stderr.strip().splitlines()
+    assert len(errors) == 2 and "missing: does not exist" in errors[0] and "not a rosbag2 bag" in errors[1]
+    assert json.loads(out.stdout)["bags"] == 2
+
+
+def test_wrong_topic_type_is_reported(bags):
+    out = cli("eval-prediction", bags / "a", "--topic", "/puck/true_state")
+    assert out.returncode == 2
+    assert "/puck/true_state has type air_hockey_msgs/msg/PuckState" in out.stderr
+
+
+def test_params_file_changes_the_model_and_the_error(bags, tmp_path):
+    wrong = tmp_path / "wrong.yaml"
+    wrong.write_text("/**/puck_tracker:\n  ros__parameters:\n    restitution: 0.6\n")
+    right = json.loads(cli("eval-prediction", bags / "a", "--horizons", "1.0", "--json").stdout)
+    worse = json.loads(cli("eval-prediction", bags / "a", "--horizons", "1.0", "--json",
+                           "--params-file", wrong).stdout)
+    assert set(right["horizons"]) == {"1.0"}
+    assert worse["horizons"]["1.0"]["median_m"] > 3 * right["horizons"]["1.0"]["median_m"]
+
+
+def test_bad_params_file_is_a_one_line_error(bags, tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("/**/puck_tracker:\n  ros__parameters:\n    restitution: 1.5\n")
+    out = cli("eval-prediction", bags / "a", "--params-file", bad)
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+    assert "restitution" in out.stderr
+
+
+def test_human_readable_table(bags):
+    out = cli("eval-prediction", bags / "a")
+    assert out.returncode == 0
+    assert "median [mm]" in out.stdout and "outliers rejected" in out.stdout
+
+
+def test_synth_bag_refuses_to_overwrite(bags):
+    out = cli("synth-bag", bags / "a", "--shots", 1)
+    assert out.returncode == 2 and "exists already" in out.stderr
