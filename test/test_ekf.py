@@ -2,8 +2,8 @@
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.ekf import (FLAG_OUTLIER_REJECTED, FLAG_PREDICTED, FLAG_REINITIALISED, FilterSettings,
-                                       PuckEKF, check_covariance)
+from air_hockey_agent.core.ekf import (FLAG_MEASUREMENT_USED, FLAG_OUTLIER_REJECTED, FLAG_PREDICTED,
+                                       FLAG_REINITIALISED, FilterSettings, PuckEKF, check_covariance)
 from air_hockey_agent.core.synthetic import MocapImperfections, mocap_stream, simulate_truth, true_state_at
 from model_fixtures import DT, Q, model
 
@@ -105,3 +105,13 @@ def test_measurement_far_outside_the_table_is_dropped():
 def test_invalid_covariances_are_refused(matrix, message):
     with pytest.raises(ValueError, match=message):
         check_covariance(matrix, 3, "R")
+
+
+def test_state_set_without_a_time_holds_at_the_next_frame():
+    """Reset to a given state with no stamp (the node's reset service with a zero header stamp): the
+    next live frame, however late its stamp, is fused into that state instead of restarting the filter."""
+    ekf = PuckEKF(model(), SETTINGS)
+    ekf.reset([0.1, 0.2, 0.0, 0.0, 0.0, 0.0])
+    flags = ekf.process(1234.5, [0.1001, 0.2, 0.0])
+    assert flags == FLAG_MEASUREMENT_USED and ekf.stamp == 1234.5
+    assert ekf.stats.reinitialisations == 0 and ekf.x[0] == pytest.approx(0.1001, abs=5e-5)

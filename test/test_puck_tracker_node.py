@@ -86,3 +86,10 @@ def test_services_answer_and_refuse_bad_requests(tracker, rclpy_node):
     a = 1.0 - DT * 0.5  # damping 0.5 1/s set above, no surface friction: 60 free steps in closed form
     travel = last.estimate.vx * DT * (1.0 - a ** 60) / (1.0 - a)
     assert last.prediction.x == pytest.approx(last.estimate.x + travel, abs=1e-6)
+    # A state set by hand with a zero stamp holds at the next frame: that frame is fused, not a restart.
+    from air_hockey_msgs.msg import PuckState
+    reset = call(ResetFilter, "/reset", has_initial_state=True, initial_state=PuckState(x=0.3, y=-0.1))
+    assert reset.success
+    step = call(KalmanStep, "/kalman_step", stamp=Time(sec=20), has_measurement=True, x=0.3002, y=-0.1, theta=0.0)
+    assert step.success and step.estimate.flags == PuckState.FLAG_MEASUREMENT_USED
+    assert step.estimate.header.stamp.sec == 20

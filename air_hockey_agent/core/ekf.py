@@ -120,7 +120,11 @@ class PuckEKF:
 
     # --- state management -------------------------------------------------------------------------
     def reset(self, state: Sequence[float] | None = None, stamp: float | None = None) -> None:
-        """Forget everything; with ``state``, restart there with covariance P0."""
+        """Forget everything; with ``state``, restart there with covariance P0.
+
+        ``state`` holds at ``stamp`` [s]; without a stamp it holds at the next frame's time (a state set
+        by hand, e.g. through the node's ``reset`` service with a zero header stamp).
+        """
         self._pending.clear()
         self._last_z = None
         if state is None:
@@ -193,7 +197,9 @@ class PuckEKF:
                 z, flags = None, FLAG_OUTLIER_REJECTED
         if not self.initialised:
             return flags | self._collect_for_initialisation(t, z)
-        if t <= self.stamp:
+        if self.stamp is None:
+            self.stamp = t  # a state set without a time holds at the first frame after it
+        elif t <= self.stamp:
             self.stats.repeated_frames += 1
             return flags
         if t - self.stamp > self.settings.max_prediction_gap:

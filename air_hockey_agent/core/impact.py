@@ -16,15 +16,13 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
-import numpy as np
-
-
 class ImpactResult(NamedTuple):
     vb: float
     vn: float
     omega: float
     sliding: bool
-    jacobian: np.ndarray  # 3x3: d(vb', vn', omega') / d(vb, vn, omega)
+    jacobian: tuple  # 3x3 as row tuples: d(vb', vn', omega') / d(vb, vn, omega) (tuples: cheaper than an array
+    #                  for the caller, which only reads the nine entries)
 
 
 def is_sliding(vb: float, vn: float, omega: float, radius: float, restitution: float, friction: float) -> bool:
@@ -40,11 +38,11 @@ def rim_impact(vb: float, vn: float, omega: float, radius: float, restitution: f
     if is_sliding(vb, vn, omega, r, e, mu):
         s = 1.0 if vb + r * omega > 0.0 else -1.0
         k = mu * s * (1.0 + e)  # P_b / (m vn)
-        jac = np.array([[1.0, k, 0.0],
-                        [0.0, -e, 0.0],
-                        [0.0, 2.0 * k / r, 1.0]])
+        jac = ((1.0, k, 0.0),
+               (0.0, -e, 0.0),
+               (0.0, 2.0 * k / r, 1.0))
         return ImpactResult(vb + k * vn, -e * vn, omega + 2.0 * k * vn / r, True, jac)
-    jac = np.array([[2.0 / 3.0, 0.0, -r / 3.0],
-                    [0.0, -e, 0.0],
-                    [-2.0 / (3.0 * r), 0.0, 1.0 / 3.0]])
+    jac = ((2.0 / 3.0, 0.0, -r / 3.0),
+           (0.0, -e, 0.0),
+           (-2.0 / (3.0 * r), 0.0, 1.0 / 3.0))
     return ImpactResult(2.0 / 3.0 * vb - r / 3.0 * omega, -e * vn, omega / 3.0 - 2.0 * vb / (3.0 * r), False, jac)

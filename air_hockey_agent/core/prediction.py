@@ -26,7 +26,7 @@ from typing import Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.puck_model import PuckModel, wrap_angle
+from air_hockey_agent.core.puck_model import PuckModel, as_floats, wrap_angle
 
 STEP_EPS = 1e-9  # [-] fraction of a step below which a horizon remainder is dropped (float rounding)
 
@@ -118,7 +118,7 @@ class _FreeMotion:
 
     def __init__(self, model: PuckModel, state: np.ndarray, dt: float) -> None:
         self.dt = dt
-        self.x0, self.y0, vx, vy = (float(v) for v in state[:4])
+        self.x0, self.y0, vx, vy, self.theta0, self.omega = as_floats(state)
         self.a = 1.0 - dt * model.params.damping
         self.mu_dt = dt * model.params.friction_surface
         self.s0 = math.hypot(vx, vy)
@@ -185,10 +185,10 @@ class _FreeMotion:
             return None
         return max(1, math.ceil(math.log(rest) / math.log(self.a) - 1e-9))
 
-    def state_after(self, state: np.ndarray, n: int) -> np.ndarray:
+    def state_after(self, n: int) -> np.ndarray:
         ell, speed = self.distance(n), self.speed(n)
         return np.array([self.x0 + self.ux * ell, self.y0 + self.uy * ell, self.ux * speed, self.uy * speed,
-                         wrap_angle(state[4] + n * self.dt * state[5]), state[5]])
+                         wrap_angle(self.theta0 + n * self.dt * self.omega), self.omega])
 
     def jacobian(self, n: int) -> np.ndarray:
         """Exact Jacobian of n free steps."""
@@ -265,7 +265,7 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, ho
         if sample_every:
             budget = min(budget, sample_every - done % sample_every)
         free = _FreeMotion(model, s, dt)
-        hit = model.first_impact(s[0], s[1], free.ux, free.uy, math.inf) if free.s0 > 0.0 else None
+        hit = model.first_impact(free.x0, free.y0, free.ux, free.uy, math.inf) if free.s0 > 0.0 else None
         reach = free.first_step_reaching(hit[0], budget) if hit is not None else None
         jump = budget if reach is None else reach - 1
         if jump > 0:
@@ -273,7 +273,7 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, ho
             if with_cov:
                 phi = free.jacobian(jump)
                 p = phi @ p @ phi.T + table.get(jump)
-            s, done = free.state_after(s, jump), done + jump
+            s, done = free.state_after(jump), done + jump
             rec.sample(done, done * dt, s, p)
         if reach is not None:
             res = model.step(s, dt, with_jacobian=with_cov)

@@ -37,6 +37,11 @@ def wrap_angle(angle: float) -> float:
     return math.pi if wrapped == -math.pi else wrapped
 
 
+def as_floats(state: np.ndarray | list) -> list[float]:
+    """A state vector as a list of Python floats (scalar math on floats is faster than on numpy items)."""
+    return state.tolist() if isinstance(state, np.ndarray) else [float(v) for v in state]
+
+
 @dataclass(frozen=True)
 class PuckParams:
     """Physical parameters of the puck model (thesis sec. 4.3, table 4.1)."""
@@ -127,7 +132,7 @@ class PuckModel:
             jac = event if jac is _IDENTITY7 else event @ jac
         return new_z, jac, Impact(0.0, wall, xc, yc, res.sliding)
 
-    def _event_jacobian(self, z: list[float], tau: float, wall: int, s_local: np.ndarray) -> np.ndarray:
+    def _event_jacobian(self, z: list[float], tau: float, wall: int, s_local: tuple) -> np.ndarray:
         """7x7 Jacobian of one impact event over the augmented state (x, y, vx, vy, theta, omega, h)."""
         x, y, vx, vy, th, om, h = z
         nx, ny = WALL_NORMALS[wall]
@@ -138,7 +143,7 @@ class PuckModel:
             gx, gy = -nx / vn, -ny / vn
             gvx, gvy = distance * nx / vn ** 2, distance * ny / vn ** 2
         bx, by = ny, -nx  # impact frame rows (b, n): A = [[bx, by], [nx, ny]]; velocity block A^T S A
-        (s00, s01, s02), (s10, s11, s12), (s20, s21, s22) = s_local.tolist()
+        (s00, s01, s02), (s10, s11, s12), (s20, s21, s22) = s_local
         cb, cn = s00 * bx + s01 * nx, s10 * bx + s11 * nx  # S A, first column
         db, dn = s00 * by + s01 * ny, s10 * by + s11 * ny  # S A, second column
         vel = ((bx * cb + nx * cn, bx * db + nx * dn), (by * cb + ny * cn, by * db + ny * dn))
@@ -154,25 +159,25 @@ class PuckModel:
             [-gx, -gy, -gvx, -gvy, 0.0, 0.0, 1.0]])
 
     # --- decay --------------------------------------------------------------------------------
-    def decay(self, vx: float, vy: float, dt: float) -> tuple[float, float, np.ndarray]:
-        """Velocity after the friction/damping part of a step, and its 2x2 Jacobian (eq. 3.1)."""
+    def decay(self, vx: float, vy: float, dt: float) -> tuple[float, float, tuple]:
+        """Velocity after the friction/damping part of a step, and its 2x2 Jacobian as row tuples (eq. 3.1)."""
         a = 1.0 - dt * self.params.damping
         mu_dt = dt * self.params.friction_surface
         speed = math.hypot(vx, vy)
         if mu_dt == 0.0:
-            return a * vx, a * vy, np.array([[a, 0.0], [0.0, a]])
+            return a * vx, a * vy, ((a, 0.0), (0.0, a))
         new_speed = a * speed - mu_dt
         if speed == 0.0 or new_speed <= 0.0:
-            return 0.0, 0.0, np.zeros((2, 2))
+            return 0.0, 0.0, ((0.0, 0.0), (0.0, 0.0))
         ux, uy = vx / speed, vy / speed
         k = mu_dt / speed
-        jac = np.array([[a - k + k * ux * ux, k * ux * uy], [k * ux * uy, a - k + k * uy * uy]])
-        return ux * new_speed, uy * new_speed, jac
+        cross = k * ux * uy
+        return ux * new_speed, uy * new_speed, ((a - k + k * ux * ux, cross), (cross, a - k + k * uy * uy))
 
     # --- one step -----------------------------------------------------------------------------
     def step(self, state: np.ndarray, dt: float, with_jacobian: bool = True) -> StepResult:
         """Advance ``state`` by ``dt`` seconds (one model step, eq. 3.1-3.4)."""
-        x, y, vx, vy, th, om = (float(v) for v in state)
+        x, y, vx, vy, th, om = as_floats(state)
         first = self.first_impact(x, y, vx, vy, dt)
         if first is None:  # the common case: straight flight, cheap Jacobian
             nvx, nvy, jd = self.decay(vx, vy, dt)
@@ -180,7 +185,7 @@ class PuckModel:
             if not with_jacobian:
                 return StepResult(new, None, ())
             jac = np.array([[1.0, 0.0, dt, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, dt, 0.0, 0.0],
-                            [0.0, 0.0, jd[0, 0], jd[0, 1], 0.0, 0.0], [0.0, 0.0, jd[1, 0], jd[1, 1], 0.0, 0.0],
+                            [0.0, 0.0, jd[0][0], jd[0][1], 0.0, 0.0], [0.0, 0.0, jd[1][0], jd[1][1], 0.0, 0.0],
                             [0.0, 0.0, 0.0, 0.0, 1.0, dt], [0.0, 0.0, 0.0, 0.0, 0.0, 1.0]])
             return StepResult(new, jac, ())
         return self._step_with_impacts([x, y, vx, vy, th, om, dt], first, dt, with_jacobian)
@@ -203,6 +208,6 @@ class PuckModel:
         if jac is None:
             return StepResult(new, None, tuple(impacts))
         flight = np.array([[1.0, 0.0, h, 0.0, 0.0, 0.0, vx], [0.0, 1.0, 0.0, h, 0.0, 0.0, vy],
-                           [0.0, 0.0, jd[0, 0], jd[0, 1], 0.0, 0.0, 0.0], [0.0, 0.0, jd[1, 0], jd[1, 1], 0.0, 0.0, 0.0],
+                           [0.0, 0.0, jd[0][0], jd[0][1], 0.0, 0.0, 0.0], [0.0, 0.0, jd[1][0], jd[1][1], 0.0, 0.0, 0.0],
                            [0.0, 0.0, 0.0, 0.0, 1.0, h, om], [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]])
         return StepResult(new, (flight @ jac)[:, :6], tuple(impacts))

@@ -148,7 +148,8 @@ class PuckTrackerNode(AirHockeyNode):
             if not all(math.isfinite(v) for v in state):
                 response.success, response.message = False, "refused: initial_state has non-finite values"
                 return response
-            self.ekf.reset(state, to_seconds(s.header.stamp))
+            stamp = to_seconds(s.header.stamp)
+            self.ekf.reset(state, stamp if stamp > 0.0 else None)  # zero stamp: holds at the next frame
             response.message = "filter reset to the given state"
         else:
             self.ekf.reset()
