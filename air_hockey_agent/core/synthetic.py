@@ -6,8 +6,9 @@ rate with timestamp jitter, Gaussian noise, lost frames, repeated frames and one
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, fields
-from typing import Any, Mapping
+from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
@@ -62,34 +63,55 @@ def true_state_at(model: PuckModel, times: np.ndarray, states: np.ndarray, t: fl
     return states[index] if rest <= 0.0 else model.step(states[index], rest, with_jacobian=False).state
 
 
-def mocap_stream(model: PuckModel, times: np.ndarray, states: np.ndarray, rate: float,
-                 noise: MocapImperfections, rng: np.random.Generator) -> list[tuple[float, np.ndarray | None]]:
-    """Sample a true trajectory as a mocap stream: list of (stamp [s], (x, y, theta) or None if lost)."""
-    frames: list[tuple[float, np.ndarray | None]] = []
-    previous = None
-    gap_until = -1.0
-    for k in range(int(times[-1] * rate)):
-        if k / rate < gap_until:
-            continue
+class MocapSampler:
+    """Turns true poses into mocap frames with the imperfections of :class:`MocapImperfections`.
+
+    One call per nominal frame time: a dropout swallows frames silently, a lost frame has no pose,
+    a repeated frame re-sends the previous pose, a glitch displaces one frame by ``glitch_size``.
+    Used by the synthetic sessions and by the table simulation's OptiTrack stand-in.
+    """
+
+    def __init__(self, noise: MocapImperfections, rng: np.random.Generator) -> None:
+        self.noise, self.rng = noise, rng
+        self.previous: np.ndarray | None = None
+        self.gap_until = -math.inf
+
+    def sample(self, t: float, pose_at: Callable[[float], Sequence[float]],
+               t_max: float = math.inf) -> tuple[float, np.ndarray | None] | None:
+        """Frame due at nominal time ``t`` [s]: None inside a dropout, else (stamp, (x, y, theta) or None)."""
+        noise, rng = self.noise, self.rng
+        if t < self.gap_until:
+            return None
         if rng.random() < noise.gap_rate:
-            gap_until = k / rate + rng.uniform(0.0, noise.gap_max)
-            continue
-        stamp = k / rate + (rng.normal(0.0, noise.jitter_std) if noise.jitter_std else 0.0)
-        stamp = float(np.clip(stamp, 0.0, times[-1]))
+            self.gap_until = t + rng.uniform(0.0, noise.gap_max)
+            return None
+        stamp = t + (rng.normal(0.0, noise.jitter_std) if noise.jitter_std else 0.0)
+        stamp = float(np.clip(stamp, 0.0, t_max))
         if rng.random() < noise.lost_rate:
-            frames.append((stamp, None))
-            continue
-        x, y, _, _, theta, _ = true_state_at(model, times, states, stamp)
+            return stamp, None
+        x, y, theta = pose_at(stamp)
         z = np.array([x + rng.normal(0.0, noise.position_std), y + rng.normal(0.0, noise.position_std),
                       wrap_angle(theta + rng.normal(0.0, noise.angle_std))])
-        if previous is not None and rng.random() < noise.repeat_rate:
-            z = previous.copy()
+        if self.previous is not None and rng.random() < noise.repeat_rate:
+            z = self.previous.copy()
         elif rng.random() < noise.glitch_rate:
             direction = rng.uniform(0.0, 2.0 * np.pi)
             z[:2] += noise.glitch_size * np.array([np.cos(direction), np.sin(direction)])
-        frames.append((stamp, z))
-        previous = z
-    return frames
+        self.previous = z
+        return stamp, z
+
+
+def mocap_stream(model: PuckModel, times: np.ndarray, states: np.ndarray, rate: float,
+                 noise: MocapImperfections, rng: np.random.Generator) -> list[tuple[float, np.ndarray | None]]:
+    """Sample a true trajectory as a mocap stream: list of (stamp [s], (x, y, theta) or None if lost)."""
+    sampler = MocapSampler(noise, rng)
+
+    def pose_at(stamp: float) -> Sequence[float]:
+        x, y, _, _, theta, _ = true_state_at(model, times, states, stamp)
+        return x, y, theta
+
+    frames = (sampler.sample(k / rate, pose_at, times[-1]) for k in range(int(times[-1] * rate)))
+    return [f for f in frames if f is not None]
 
 
 def random_shot(model: PuckModel, shots: ShotRanges, rng: np.random.Generator) -> np.ndarray:

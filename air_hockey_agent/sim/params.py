@@ -1,0 +1,44 @@
+"""Parameters of the table simulation (ROS-free declarations; defaults in ``config/sim.yaml``)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterable
+
+from air_hockey_agent.params import ParamSpec, load_defaults
+from air_hockey_agent.paths import config_file
+from air_hockey_agent.tracker_params import TABLE_PARAMS
+
+NODE_NAME = "/table_sim"
+PARAM_FILES = ("table.yaml", "sim.yaml")
+ROBOTS = ("iiwa_front", "iiwa_back")
+MOCAP_FIELDS = ("position_std", "angle_std", "jitter_std", "lost_rate", "repeat_rate", "glitch_rate",
+                "glitch_size", "gap_rate", "gap_max")
+
+SIM_PARAMS = TABLE_PARAMS + (
+    ParamSpec("puck.height", float, "[m] puck thickness", 0.001, 0.1),
+    ParamSpec("physics_rate", float, "[Hz] physics step rate", 100.0, 10000.0),
+    ParamSpec("real_time_factor", float, "sim seconds per wall second; 0 = as fast as possible", 0.0, 1000.0),
+    ParamSpec("gui", bool, "open the pybullet window (top view)"),
+    ParamSpec("clock_rate", float, "[Hz] /clock messages per simulated second", 1.0, 10000.0),
+    ParamSpec("joint_state_rate", float, "[Hz] joint_states messages per simulated second", 1.0, 10000.0),
+    ParamSpec("home_joint_positions", list, "[rad] home configuration of the 7 arm joints", -3.1, 3.1, 7),
+    ParamSpec("surface_friction", float, "[m/s^2] air-cushion friction deceleration (eq. 3.1)", 0.0, 10.0),
+    ParamSpec("surface_damping", float, "[1/s] air-cushion viscous damping (eq. 3.1)", 0.0, 10.0),
+    ParamSpec("rim_restitution", float, "[-] puck-rim restitution (pybullet)", 0.0, 1.0),
+    ParamSpec("rim_friction", float, "[-] puck-rim lateral friction (pybullet)", 0.0, 2.0),
+    ParamSpec("mallet_restitution", float, "[-] puck-mallet restitution", 0.0, 1.0),
+    ParamSpec("mallet_friction", float, "[-] puck-mallet lateral friction", 0.0, 2.0),
+    ParamSpec("contact_erp", float, "[-] contact error reduction parameter", 0.0, 1.0),
+    ParamSpec("mocap_rate", float, "[Hz] OptiTrack stand-in frame rate", 1.0, 1000.0),
+    ParamSpec("mocap_table_pose", list, "table pose in the mocap frame: x, y, z [m], yaw [rad]", -100.0, 100.0, 4),
+    ParamSpec("seed", int, "random seed of the mocap imperfections", 0, 2**31 - 1),
+) + tuple(ParamSpec(f"robot_base.{name}", list, f"{name} base in the table frame: x, y, z [m], yaw [rad]",
+                    -10.0, 10.0, 4) for name in ROBOTS) \
+  + tuple(ParamSpec(f"mocap.{name}", float, "OptiTrack stand-in imperfection (config/sim.yaml)", 0.0, 10.0)
+          for name in MOCAP_FIELDS)
+
+
+def load_sim_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
+    """Simulation parameters: the defaults, overridden by ``extra_files`` (ROS 2 parameter YAML)."""
+    files = [config_file(name) for name in PARAM_FILES] + [Path(f) for f in extra_files]
+    return load_defaults(files, NODE_NAME, SIM_PARAMS)

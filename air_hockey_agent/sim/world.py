@@ -1,0 +1,212 @@
+"""The simulated table (ROS-free): pybullet world with the table, the puck and the iiwa arms.
+
+Frames: the world frame is the table frame (README "Frames and units"); the surface is at z = 0.
+
+* Puck: pybullet handles its contacts with the rims and the mallets (restitution and lateral friction
+  from ``config/sim.yaml``). The puck-surface contact is disabled: the air film acts as thesis eq. 3.1's
+  surface friction and damping, applied to the puck's velocity after every physics step, and the puck
+  is held on the surface (height, roll and pitch reset every step: a planar body, as on the real table).
+  A puck that has fully crossed a goal line stops there (it is in the goal).
+* Robots: KUKA iiwa 14 with the striker (``models/iiwa14_striker.urdf``), position/velocity control
+  of the seven arm joints following :class:`~air_hockey_agent.core.joint_trajectory.JointTrajectory`;
+  the striker's passive universal joint is driven to keep the mallet vertical, like the universal-joint
+  plugins of the earlier stacks (REFERENCE_FACTS 3.5). The mallet's height comes from the trajectory.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import pybullet
+from pybullet_utils.bullet_client import BulletClient
+
+from air_hockey_agent.core.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.table import TableGeometry
+from air_hockey_agent.paths import share_dir
+from air_hockey_agent.sim.params import ROBOTS
+
+ARM_JOINTS = tuple(f"iiwa_joint_{i}" for i in range(1, 8))
+STRIKER_JOINTS = ("striker_joint_1", "striker_joint_2")
+FLANGE_LINK, MALLET_LINK, TIP_LINK = "iiwa_flange", "striker_mallet", "striker_tip"
+
+
+@dataclass(frozen=True)
+class SimSettings:
+    """Physical and control settings of the world (``config/sim.yaml``, ``config/table.yaml``)."""
+
+    table: TableGeometry
+    puck_height: float
+    physics_rate: float
+    surface_friction: float
+    surface_damping: float
+    rim_restitution: float
+    rim_friction: float
+    mallet_restitution: float
+    mallet_friction: float
+    contact_erp: float
+    robot_bases: dict            # name -> (x, y, z, yaw) in the table frame
+    home: tuple                  # home joint positions [rad]
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> "SimSettings":
+        return cls(TableGeometry.from_params(params), params["puck.height"], params["physics_rate"],
+                   params["surface_friction"], params["surface_damping"], params["rim_restitution"],
+                   params["rim_friction"], params["mallet_restitution"], params["mallet_friction"],
+                   params["contact_erp"], {n: tuple(params[f"robot_base.{n}"]) for n in ROBOTS},
+                   tuple(params["home_joint_positions"]))
+
+
+def model_path(name: str) -> str:
+    return str(share_dir() / "models" / name)
+
+
+class _Robot:
+    """Joint bookkeeping of one arm in the pybullet world."""
+
+    def __init__(self, client: BulletClient, body: int, home: Sequence[float]) -> None:
+        self.body = body
+        index = {client.getJointInfo(body, j)[1].decode(): j for j in range(client.getNumJoints(body))}
+        links = {client.getJointInfo(body, j)[12].decode(): j for j in range(client.getNumJoints(body))}
+        self.arm = [index[n] for n in ARM_JOINTS]
+        self.striker = [index[n] for n in STRIKER_JOINTS]
+        self.flange, self.mallet, self.tip = links[FLANGE_LINK], links[MALLET_LINK], links[TIP_LINK]
+        self.limits = [client.getJointInfo(body, j)[10] for j in self.arm]  # max effort [N m]
+        self.home = np.asarray(home, float)
+        self.trajectory: JointTrajectory | None = None
+
+
+class TableWorld:
+    """pybullet world of the table, the puck and the robots, stepped at ``physics_rate``."""
+
+    def __init__(self, settings: SimSettings, gui: bool = False) -> None:
+        self.settings = settings
+        self.dt = 1.0 / settings.physics_rate
+        self.time = 0.0
+        self.client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        c = self.client
+        c.setGravity(0.0, 0.0, -9.81)
+        c.setTimeStep(self.dt)
+        c.setPhysicsEngineParameter(restitutionVelocityThreshold=0.0, erp=settings.contact_erp,
+                                    contactERP=settings.contact_erp, frictionERP=settings.contact_erp)
+        self.table = c.loadURDF(model_path("air_hockey_table.urdf"), useFixedBase=True)
+        self.puck = c.loadURDF(model_path("puck.urdf"), [0.0, 0.0, settings.puck_height / 2])
+        self.robots = {name: self._load_robot(pose) for name, pose in settings.robot_bases.items()}
+        self._configure_contacts()
+        if gui:
+            c.configureDebugVisualizer(pybullet.COV_ENABLE_GUI, 0)
+            c.resetDebugVisualizerCamera(cameraDistance=2.6, cameraYaw=0.0, cameraPitch=-89.9,
+                                         cameraTargetPosition=[0.0, 0.0, 0.0])
+        self.reset_robots()
+
+    # --- set-up -------------------------------------------------------------------------------
+    def _load_robot(self, pose: Sequence[float]) -> _Robot:
+        x, y, z, yaw = pose
+        body = self.client.loadURDF(model_path("iiwa14_striker.urdf"), [x, y, z],
+                                    self.client.getQuaternionFromEuler([0.0, 0.0, yaw]), useFixedBase=True)
+        return _Robot(self.client, body, self.settings.home)
+
+    def _configure_contacts(self) -> None:
+        c, s = self.client, self.settings
+        no_threshold = dict(contactProcessingThreshold=0.0)  # no speculative contacts: they ignore restitution
+        c.changeDynamics(self.puck, -1, restitution=1.0, lateralFriction=1.0, rollingFriction=0.0,
+                         spinningFriction=0.0, linearDamping=0.0, angularDamping=0.0, **no_threshold)
+        for link in range(c.getNumJoints(self.table)):
+            c.changeDynamics(self.table, link, restitution=s.rim_restitution, lateralFriction=s.rim_friction,
+                             **no_threshold)
+        c.setCollisionFilterPair(self.puck, self.table, -1, -1, 0)  # air cushion: no surface contact
+        for robot in self.robots.values():
+            c.changeDynamics(robot.body, robot.mallet, restitution=s.mallet_restitution,
+                             lateralFriction=s.mallet_friction, **no_threshold)
+            c.setCollisionFilterPair(robot.body, self.table, robot.mallet, -1, 0)  # mallet glides on the surface
+
+    # --- puck ---------------------------------------------------------------------------------
+    def puck_state(self) -> np.ndarray:
+        """True puck state (x, y, vx, vy, theta, omega) in the table frame."""
+        (x, y, _), orn = self.client.getBasePositionAndOrientation(self.puck)
+        (vx, vy, _), (_, _, wz) = self.client.getBaseVelocity(self.puck)
+        return np.array([x, y, vx, vy, self.client.getEulerFromQuaternion(orn)[2], wz])
+
+    def set_puck_state(self, state: Sequence[float]) -> None:
+        x, y, vx, vy, theta, omega = (float(v) for v in state)
+        self.client.resetBasePositionAndOrientation(self.puck, [x, y, self.settings.puck_height / 2],
+                                                    self.client.getQuaternionFromEuler([0.0, 0.0, theta]))
+        self.client.resetBaseVelocity(self.puck, [vx, vy, 0.0], [0.0, 0.0, omega])
+
+    def _air_cushion(self) -> None:
+        """Eq. 3.1's friction and damping over one step, the planar constraint and goal capture."""
+        x, y, vx, vy, theta, omega = self.puck_state()
+        s, dt = self.settings, self.dt
+        speed = math.hypot(vx, vy)
+        new_speed = max((1.0 - dt * s.surface_damping) * speed - dt * s.surface_friction, 0.0)
+        scale = new_speed / speed if speed > 0.0 else 0.0
+        if abs(x) > s.table.length / 2 + s.table.puck_radius:  # fully over a goal line: in the goal
+            scale, omega = 0.0, 0.0
+        self.set_puck_state((x, y, vx * scale, vy * scale, theta, omega))
+
+    # --- robots -------------------------------------------------------------------------------
+    def joint_state(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Arm joint positions [rad] and velocities [rad/s] of robot ``name``."""
+        robot = self.robots[name]
+        states = self.client.getJointStates(robot.body, robot.arm)
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def follow(self, name: str, trajectory: JointTrajectory) -> None:
+        """Execute ``trajectory`` on robot ``name`` (its joint names must be the arm's seven joints)."""
+        if set(trajectory.joint_names) != set(ARM_JOINTS):
+            raise ValueError(f"joint_names must be the 7 arm joints {list(ARM_JOINTS)}")
+        order = [trajectory.joint_names.index(n) for n in ARM_JOINTS]
+        trajectory.positions, trajectory.velocities = trajectory.positions[:, order], trajectory.velocities[:, order]
+        trajectory.joint_names = ARM_JOINTS
+        self.robots[name].trajectory = trajectory
+
+    def reset_robots(self) -> None:
+        """Put every robot at its home configuration, at rest, holding it."""
+        for robot in self.robots.values():
+            for j, q in zip(robot.arm, robot.home):
+                self.client.resetJointState(robot.body, j, q, 0.0)
+            robot.trajectory = None
+            self._command(robot, robot.home, np.zeros(len(robot.arm)))
+            self._keep_mallet_vertical(robot)
+
+    def _command(self, robot: _Robot, q: np.ndarray, dq: np.ndarray) -> None:
+        self.client.setJointMotorControlArray(robot.body, robot.arm, pybullet.POSITION_CONTROL,
+                                              targetPositions=q.tolist(), targetVelocities=dq.tolist(),
+                                              forces=robot.limits)
+
+    def _keep_mallet_vertical(self, robot: _Robot) -> None:
+        """Universal-joint angles that point the mallet axis straight down (world -z)."""
+        _, orn = self.client.getLinkState(robot.body, robot.flange)[4:6]
+        rot = np.array(self.client.getMatrixFromQuaternion(orn)).reshape(3, 3)
+        down = rot.T @ np.array([0.0, 0.0, -1.0])  # wanted mallet axis in the flange frame
+        q1 = math.atan2(down[0], down[2])
+        q2 = -math.asin(max(-1.0, min(1.0, down[1])))
+        self.client.setJointMotorControlArray(robot.body, robot.striker, pybullet.POSITION_CONTROL,
+                                              targetPositions=[q1, q2], forces=[10.0, 10.0])
+
+    def _control(self) -> None:
+        for robot in self.robots.values():
+            if robot.trajectory is not None:
+                q, dq = robot.trajectory.sample(self.time)
+                self._command(robot, q, dq)
+                if self.time - robot.trajectory.start > robot.trajectory.duration:
+                    robot.trajectory = None  # done: the last command holds the final point
+            self._keep_mallet_vertical(robot)
+
+    # --- time ---------------------------------------------------------------------------------
+    def step(self, steps: int = 1) -> None:
+        """Advance the world by ``steps`` physics steps."""
+        for _ in range(steps):
+            self._control()
+            self.client.stepSimulation()
+            self.time += self.dt
+            self._air_cushion()
+
+    def mallet_position(self, name: str) -> np.ndarray:
+        """Centre of the mallet's bottom face (the striker tip) in the table frame [m]."""
+        robot = self.robots[name]
+        return np.array(self.client.getLinkState(robot.body, robot.tip)[4])
+
+    def close(self) -> None:
+        self.client.disconnect()

@@ -1,0 +1,47 @@
+"""The OptiTrack stand-in's imperfections have the configured rates and noise over thousands of frames."""
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.synthetic import MocapImperfections, MocapSampler
+from air_hockey_agent.sim.params import MOCAP_FIELDS, load_sim_params
+
+RATE = 120.0
+
+
+def stream(noise, n=60000, seed=0):
+    sampler = MocapSampler(noise, np.random.default_rng(seed))
+    frames = [sampler.sample(k / RATE, lambda t: (0.1, -0.2, 0.3)) for k in range(n)]
+    return [f for f in frames if f is not None]
+
+
+def test_configured_defaults_look_like_the_lab_recordings():
+    noise = MocapImperfections.from_params(load_sim_params())
+    frames = stream(noise)
+    published = [(t, z) for t, z in frames if z is not None]
+    stamps = np.array([t for t, _ in published])
+    intervals = np.diff(stamps)
+    long_fraction = np.mean(intervals > 0.012)
+    assert 0.10 < long_fraction < 0.16  # issue #3: about 13 % of intervals longer than 12 ms
+    assert intervals.max() > 0.3  # dropouts of several tenths of a second occur
+
+
+def test_rates_and_noise_statistics():
+    noise = MocapImperfections(position_std=1e-4, angle_std=1e-2, jitter_std=2e-4, lost_rate=0.1,
+                               repeat_rate=0.02, glitch_rate=0.01, glitch_size=0.2)
+    frames = stream(noise)
+    lost = np.mean([z is None for _, z in frames])
+    assert lost == pytest.approx(0.1, abs=0.005)
+    z = np.array([z for _, z in frames if z is not None])
+    glitch = np.hypot(z[:, 0] - 0.1, z[:, 1] + 0.2) > 0.1
+    assert np.mean(glitch) == pytest.approx(0.01 * (1 - 0.02), abs=0.002)
+    repeats = np.mean(np.all(np.diff(z, axis=0) == 0.0, axis=1))
+    assert repeats == pytest.approx(0.02, abs=0.004)
+    clean = z[~glitch]
+    assert np.std(clean[:, 0]) == pytest.approx(1e-4, rel=0.05) and np.std(clean[:, 1]) == pytest.approx(1e-4, rel=0.05)
+    assert np.std(clean[:, 2]) == pytest.approx(1e-2, rel=0.05)
+    jitter = np.array([t for t, _ in frames]) - np.array([round(t * RATE) / RATE for t, _ in frames])
+    assert np.std(jitter) == pytest.approx(2e-4, rel=0.05)
+
+
+def test_every_imperfection_has_a_parameter():
+    assert set(MOCAP_FIELDS) == {f for f in MocapImperfections.__dataclass_fields__}

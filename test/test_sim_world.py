@@ -1,0 +1,85 @@
+"""The pybullet table against closed forms: rim restitution, air-cushion deceleration, trajectory tracking."""
+import math
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.joint_trajectory import JointTrajectory
+from air_hockey_agent.sim.params import load_sim_params
+from air_hockey_agent.sim.world import ARM_JOINTS, SimSettings, TableWorld
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_sim_params()
+
+
+@pytest.fixture
+def world(params):
+    w = TableWorld(SimSettings.from_params(params))
+    yield w
+    w.close()
+
+
+def test_straight_rim_impact_scales_the_normal_velocity_by_the_restitution(world, params):
+    world.settings = SimSettings.from_params({**params, "surface_damping": 0.0, "surface_friction": 0.0})
+    world.set_puck_state([0.0, 0.2, 0.0, 1.2, 0.0, 0.0])
+    world.step(400)  # hits the y = +W/2 rim after ~0.24 s
+    x, _, vx, vy, _, omega = world.puck_state()
+    assert vy == pytest.approx(-1.2 * params["rim_restitution"], rel=0.02)
+    assert abs(vx) < 1e-3 and abs(x) < 1e-3 and abs(omega) < 1e-2  # straight in, straight out, no spin
+
+
+def test_oblique_impact_with_rim_friction_slows_the_tangential_motion_and_spins_the_puck(world):
+    world.set_puck_state([0.0, 0.2, 1.0, 1.2, 0.0, 0.0])
+    world.step(400)
+    _, _, vx, vy, _, omega = world.puck_state()
+    assert vy < 0.0 and 0.0 < vx < 1.0 and abs(omega) > 1.0
+
+
+def test_free_puck_decelerates_as_configured(world, params):
+    v0, steps = 0.4, 1000
+    world.set_puck_state([-0.3, 0.0, v0, 0.0, 0.5, 3.0])
+    world.step(steps)
+    dt = 1.0 / params["physics_rate"]
+    speed = v0
+    for _ in range(steps):
+        speed = (1 - dt * params["surface_damping"]) * speed - dt * params["surface_friction"]
+    x, y, vx, vy, theta, omega = world.puck_state()
+    assert math.hypot(vx, vy) == pytest.approx(speed, rel=1e-6)
+    assert abs(y) < 1e-9 and omega == pytest.approx(3.0, rel=1e-6)  # spin is not damped (eq. 3.1)
+    assert theta == pytest.approx(0.5 + 3.0 - 2 * math.pi, abs=1e-6)  # wrapped to (-pi, pi]
+
+
+def test_puck_in_a_goal_stops_there(world, params):
+    world.set_puck_state([0.7, 0.0, 2.0, 0.0, 0.0, 0.0])
+    world.step(500)
+    x, y, vx, vy, _, _ = world.puck_state()
+    assert x > params["table.length"] / 2 and vx == 0.0 and vy == 0.0
+
+
+def test_joint_trajectory_is_tracked(world):
+    q0, dq0 = world.joint_state("iiwa_front")
+    target = q0 + np.array([0.3, -0.2, 0.2, 0.3, -0.2, -0.3, 0.4])
+    traj = JointTrajectory.from_points(ARM_JOINTS, world.time, [0.5, 1.0], [0.5 * (q0 + target), target], None,
+                                       q0, dq0)
+    world.follow("iiwa_front", traj)
+    worst = 0.0
+    for _ in range(120):
+        world.step(10)
+        wanted, _ = traj.sample(world.time)
+        worst = max(worst, float(np.abs(world.joint_state("iiwa_front")[0] - wanted).max()))
+    assert worst < 0.02  # [rad] while moving (stated tolerance, README "Table simulation")
+    assert np.abs(world.joint_state("iiwa_front")[0] - target).max() < 2e-3  # [rad] at rest afterwards
+
+
+def test_mallet_stays_vertical_and_the_other_robot_holds_home(world, params):
+    home = np.array(params["home_joint_positions"])
+    q0, dq0 = world.joint_state("iiwa_back")
+    world.follow("iiwa_back", JointTrajectory.from_points(ARM_JOINTS, world.time, [1.0], [q0 + 0.2], None, q0, dq0))
+    world.step(1200)
+    robot = world.robots["iiwa_back"]
+    _, orn = world.client.getLinkState(robot.body, robot.mallet)[4:6]
+    axis = np.array(world.client.getMatrixFromQuaternion(orn)).reshape(3, 3)[:, 2]
+    assert axis[2] == pytest.approx(-1.0, abs=1e-3)
+    assert np.abs(world.joint_state("iiwa_front")[0] - home).max() < 2e-3
