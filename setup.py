@@ -11,7 +11,7 @@ NODES = {
     "tactics": "air_hockey_agent.nodes.not_implemented:tactics",
     "trajectory_generator": "air_hockey_agent.nodes.not_implemented:trajectory_generator",
     "referee": "air_hockey_agent.nodes.not_implemented:referee",
-    "table_sim": "air_hockey_agent.nodes.not_implemented:table_sim",
+    "table_sim": "air_hockey_agent.nodes.table_sim:main",
     "bag_player": "air_hockey_agent.nodes.not_implemented:bag_player",
     "strategy_test": "air_hockey_agent.nodes.not_implemented:strategy_test",
     "prediction_optimizer": "air_hockey_agent.nodes.not_implemented:prediction_optimizer",

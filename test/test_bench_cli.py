@@ -15,3 +15,13 @@ def test_bench_tracker_json_shape():
     for method in ("stepwise", "fast"):
         assert set(result["predict_us"][method]) == {"0.5", "1.0", "1.5"}
         assert all(v["mean"] > 0 for v in result["predict_us"][method].values())
+
+
+def test_bench_sim_json_shape():
+    exe = Path(sys.executable).parent / "air-hockey"
+    out = subprocess.run([str(exe), "bench", "sim", "--duration", "1", "--json"], capture_output=True, text=True,
+                         timeout=300)
+    assert out.returncode == 0, out.stderr
+    result = json.loads(out.stdout)  # nothing but the JSON object on stdout (pybullet's prints silenced)
+    assert set(result) == {"rtf_puck_only", "rtf_arms_idle", "rtf_with_arms"}
+    assert all(v > 0 for v in result.values())

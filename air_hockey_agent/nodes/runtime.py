@@ -68,6 +68,10 @@ class AirHockeyNode(Node):
     def on_parameters_changed(self, changed: dict[str, Any]) -> None:
         """Hook for nodes that react to parameter changes at run time."""
 
+    def spin(self) -> None:
+        """Process callbacks until shutdown; nodes with their own main loop (the simulation) override it."""
+        rclpy.spin(self)
+
 
 def format_help(node_cls: type[AirHockeyNode]) -> str:
     """Usage text of a node: description and its parameters with defaults from ``config/``."""
@@ -104,7 +108,7 @@ def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int
     try:
         node = node_cls()
         node.get_logger().info(f"{READY_MARKER} {node.get_fully_qualified_name()}")
-        rclpy.spin(node)
+        node.spin()
     except (ParameterFileError, ParameterValueError, ParameterException) as exc:
         print(f"[{node_cls.NAME}] error: {exc}", file=sys.stderr)
         return EXIT_BAD_PARAMETERS

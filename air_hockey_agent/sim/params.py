@@ -29,6 +29,7 @@ SIM_PARAMS = TABLE_PARAMS + (
     ParamSpec("mallet_restitution", float, "[-] puck-mallet restitution", 0.0, 1.0),
     ParamSpec("mallet_friction", float, "[-] puck-mallet lateral friction", 0.0, 2.0),
     ParamSpec("contact_erp", float, "[-] contact error reduction parameter", 0.0, 1.0),
+    ParamSpec("striker_control_rate", float, "[Hz] rate of the universal-joint (vertical mallet) control", 1.0, 10000.0),
     ParamSpec("mocap_rate", float, "[Hz] OptiTrack stand-in frame rate", 1.0, 1000.0),
     ParamSpec("mocap_table_pose", list, "table pose in the mocap frame: x, y, z [m], yaw [rad]", -100.0, 100.0, 4),
     ParamSpec("seed", int, "random seed of the mocap imperfections", 0, 2**31 - 1),

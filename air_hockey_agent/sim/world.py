@@ -14,7 +14,10 @@ Frames: the world frame is the table frame (README "Frames and units"); the surf
 """
 from __future__ import annotations
 
+import contextlib
 import math
+import os
+import sys
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
@@ -46,6 +49,7 @@ class SimSettings:
     mallet_restitution: float
     mallet_friction: float
     contact_erp: float
+    striker_control_rate: float  # [Hz]
     robot_bases: dict            # name -> (x, y, z, yaw) in the table frame
     home: tuple                  # home joint positions [rad]
 
@@ -54,8 +58,23 @@ class SimSettings:
         return cls(TableGeometry.from_params(params), params["puck.height"], params["physics_rate"],
                    params["surface_friction"], params["surface_damping"], params["rim_restitution"],
                    params["rim_friction"], params["mallet_restitution"], params["mallet_friction"],
-                   params["contact_erp"], {n: tuple(params[f"robot_base.{n}"]) for n in ROBOTS},
+                   params["contact_erp"], params["striker_control_rate"], {n: tuple(params[f"robot_base.{n}"]) for n in ROBOTS},
                    tuple(params["home_joint_positions"]))
+
+
+@contextlib.contextmanager
+def _c_stdout_silenced():
+    """Silence what pybullet's C code prints to stdout ("argv[0]=", URDF importer warnings), which
+    would otherwise end up in front of a tool's JSON output."""
+    sys.stdout.flush()
+    saved = os.dup(1)
+    try:
+        with open(os.devnull, "wb") as null:
+            os.dup2(null.fileno(), 1)
+            yield
+    finally:
+        os.dup2(saved, 1)
+        os.close(saved)
 
 
 def model_path(name: str) -> str:
@@ -73,6 +92,7 @@ class _Robot:
         self.striker = [index[n] for n in STRIKER_JOINTS]
         self.flange, self.mallet, self.tip = links[FLANGE_LINK], links[MALLET_LINK], links[TIP_LINK]
         self.limits = [client.getJointInfo(body, j)[10] for j in self.arm]  # max effort [N m]
+        self.striker_limits = [client.getJointInfo(body, j)[10] for j in self.striker]
         self.home = np.asarray(home, float)
         self.trajectory: JointTrajectory | None = None
 
@@ -83,8 +103,15 @@ class TableWorld:
     def __init__(self, settings: SimSettings, gui: bool = False) -> None:
         self.settings = settings
         self.dt = 1.0 / settings.physics_rate
-        self.time = 0.0
-        self.client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+        self.time, self._steps = 0.0, 0
+        self._striker_every = max(1, round(settings.physics_rate / settings.striker_control_rate))
+        with _c_stdout_silenced():
+            self.client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
+            self._load(gui)
+
+    def _load(self, gui: bool) -> None:
+        settings = self.settings
+        self.cid = self.client._client  # hot paths call pybullet directly (BulletClient wraps every call)
         c = self.client
         c.setGravity(0.0, 0.0, -9.81)
         c.setTimeStep(self.dt)
@@ -124,19 +151,23 @@ class TableWorld:
     # --- puck ---------------------------------------------------------------------------------
     def puck_state(self) -> np.ndarray:
         """True puck state (x, y, vx, vy, theta, omega) in the table frame."""
-        (x, y, _), orn = self.client.getBasePositionAndOrientation(self.puck)
-        (vx, vy, _), (_, _, wz) = self.client.getBaseVelocity(self.puck)
-        return np.array([x, y, vx, vy, self.client.getEulerFromQuaternion(orn)[2], wz])
+        return np.array(self._puck_state())
+
+    def _puck_state(self) -> tuple[float, ...]:
+        (x, y, _), (qx, qy, qz, qw) = pybullet.getBasePositionAndOrientation(self.puck, physicsClientId=self.cid)
+        (vx, vy, _), (_, _, wz) = pybullet.getBaseVelocity(self.puck, physicsClientId=self.cid)
+        return x, y, vx, vy, math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)), wz
 
     def set_puck_state(self, state: Sequence[float]) -> None:
         x, y, vx, vy, theta, omega = (float(v) for v in state)
-        self.client.resetBasePositionAndOrientation(self.puck, [x, y, self.settings.puck_height / 2],
-                                                    self.client.getQuaternionFromEuler([0.0, 0.0, theta]))
-        self.client.resetBaseVelocity(self.puck, [vx, vy, 0.0], [0.0, 0.0, omega])
+        pybullet.resetBasePositionAndOrientation(self.puck, [x, y, self.settings.puck_height / 2],
+                                                 [0.0, 0.0, math.sin(theta / 2), math.cos(theta / 2)],
+                                                 physicsClientId=self.cid)
+        pybullet.resetBaseVelocity(self.puck, [vx, vy, 0.0], [0.0, 0.0, omega], physicsClientId=self.cid)
 
     def _air_cushion(self) -> None:
         """Eq. 3.1's friction and damping over one step, the planar constraint and goal capture."""
-        x, y, vx, vy, theta, omega = self.puck_state()
+        x, y, vx, vy, theta, omega = self._puck_state()
         s, dt = self.settings, self.dt
         speed = math.hypot(vx, vy)
         new_speed = max((1.0 - dt * s.surface_damping) * speed - dt * s.surface_friction, 0.0)
@@ -150,6 +181,12 @@ class TableWorld:
         """Arm joint positions [rad] and velocities [rad/s] of robot ``name``."""
         robot = self.robots[name]
         states = self.client.getJointStates(robot.body, robot.arm)
+        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+
+    def striker_state(self, name: str) -> tuple[np.ndarray, np.ndarray]:
+        """Universal-joint positions [rad] and velocities [rad/s] of robot ``name``."""
+        robot = self.robots[name]
+        states = self.client.getJointStates(robot.body, robot.striker)
         return np.array([s[0] for s in states]), np.array([s[1] for s in states])
 
     def follow(self, name: str, trajectory: JointTrajectory) -> None:
@@ -171,36 +208,40 @@ class TableWorld:
             self._keep_mallet_vertical(robot)
 
     def _command(self, robot: _Robot, q: np.ndarray, dq: np.ndarray) -> None:
-        self.client.setJointMotorControlArray(robot.body, robot.arm, pybullet.POSITION_CONTROL,
-                                              targetPositions=q.tolist(), targetVelocities=dq.tolist(),
-                                              forces=robot.limits)
+        pybullet.setJointMotorControlArray(robot.body, robot.arm, pybullet.POSITION_CONTROL,
+                                           targetPositions=q.tolist(), targetVelocities=dq.tolist(),
+                                           forces=robot.limits, physicsClientId=self.cid)
 
     def _keep_mallet_vertical(self, robot: _Robot) -> None:
         """Universal-joint angles that point the mallet axis straight down (world -z)."""
-        _, orn = self.client.getLinkState(robot.body, robot.flange)[4:6]
-        rot = np.array(self.client.getMatrixFromQuaternion(orn)).reshape(3, 3)
-        down = rot.T @ np.array([0.0, 0.0, -1.0])  # wanted mallet axis in the flange frame
+        _, orn = pybullet.getLinkState(robot.body, robot.flange, physicsClientId=self.cid)[4:6]
+        rot = pybullet.getMatrixFromQuaternion(orn)  # row-major; its third row is the world z axis in the flange frame
+        down = (-rot[6], -rot[7], -rot[8])  # wanted mallet axis (world -z) in the flange frame
         q1 = math.atan2(down[0], down[2])
         q2 = -math.asin(max(-1.0, min(1.0, down[1])))
-        self.client.setJointMotorControlArray(robot.body, robot.striker, pybullet.POSITION_CONTROL,
-                                              targetPositions=[q1, q2], forces=[10.0, 10.0])
+        pybullet.setJointMotorControlArray(robot.body, robot.striker, pybullet.POSITION_CONTROL,
+                                           targetPositions=[q1, q2], forces=robot.striker_limits,
+                                           physicsClientId=self.cid)
 
     def _control(self) -> None:
+        striker_due = self._steps % self._striker_every == 0
         for robot in self.robots.values():
             if robot.trajectory is not None:
                 q, dq = robot.trajectory.sample(self.time)
                 self._command(robot, q, dq)
                 if self.time - robot.trajectory.start > robot.trajectory.duration:
                     robot.trajectory = None  # done: the last command holds the final point
-            self._keep_mallet_vertical(robot)
+            if striker_due:
+                self._keep_mallet_vertical(robot)
 
     # --- time ---------------------------------------------------------------------------------
     def step(self, steps: int = 1) -> None:
         """Advance the world by ``steps`` physics steps."""
         for _ in range(steps):
             self._control()
-            self.client.stepSimulation()
-            self.time += self.dt
+            pybullet.stepSimulation(physicsClientId=self.cid)
+            self._steps += 1
+            self.time = self._steps * self.dt
             self._air_cushion()
 
     def mallet_position(self, name: str) -> np.ndarray:

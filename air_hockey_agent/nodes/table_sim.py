@@ -1,0 +1,181 @@
+"""``table_sim`` node: the pybullet table standing in for the OptiTrack system and both robots.
+
+Publishes ``/clock`` (simulated time; run every other node with ``use_sim_time``), ``/optitrack/puck``
+(geometry_msgs/PoseStamped, mocap frame, 120 Hz with the lab's imperfections), ``/sim/puck_true_state``
+(PuckState, table frame, at every mocap tick) and ``/<robot>/joint_states`` (sensor_msgs/JointState).
+Executes ``/<robot>/joint_trajectory`` (trajectory_msgs/JointTrajectory). Services: ``set_puck_state``
+(SetPuckState, table frame) and ``reset_robots`` (std_srvs/Trigger). ``real_time_factor`` 1.0 is
+watchable, larger is faster, 0 is as fast as possible; ``gui:=true`` opens the pybullet window.
+The world and the output schedule are :mod:`air_hockey_agent.sim`; this module only translates.
+"""
+from __future__ import annotations
+
+import math
+import sys
+import time
+
+import numpy as np
+import rclpy
+from air_hockey_msgs.msg import PuckState
+from air_hockey_msgs.srv import SetPuckState
+from geometry_msgs.msg import PoseStamped
+from rclpy._rclpy_pybind11 import RCLError
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import JointState
+from std_srvs.srv import Trigger
+from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
+
+from air_hockey_agent.core.frames import quaternion_from_yaw
+from air_hockey_agent.core.joint_trajectory import JointTrajectory, TrajectoryError
+from air_hockey_agent.core.synthetic import MocapImperfections
+from air_hockey_agent.nodes.puck_tracker import state_msg, to_seconds, to_stamp
+from air_hockey_agent.nodes.runtime import AirHockeyNode, run
+from air_hockey_agent.sim.params import PARAM_FILES, ROBOTS, SIM_PARAMS
+from air_hockey_agent.sim.runner import Every, SimRunner
+from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld
+
+CALLBACK_PERIOD = 0.002   # [s] simulated time between two rounds of subscription/service callbacks
+STATUS_PERIOD = 10.0      # [s] wall time between two progress lines in the log
+MAX_LAG = 0.5             # [s] lag behind the real-time factor after which pacing re-anchors
+
+
+class TableSimNode(AirHockeyNode):
+    NAME = "table_sim"
+    DESCRIPTION = __doc__
+    PARAM_FILES = PARAM_FILES
+    PARAMS = SIM_PARAMS
+
+    def __init__(self) -> None:
+        super().__init__()
+        p = self.params
+        self.world = TableWorld(SimSettings.from_params(p), gui=p["gui"])
+        self.runner = SimRunner(self.world, p["mocap_rate"], MocapImperfections.from_params(p),
+                                np.random.default_rng(p["seed"]), p["clock_rate"], p["joint_state_rate"],
+                                p["mocap_table_pose"])
+        self.clock_pub = self.create_publisher(Clock, "/clock", 10)
+        self.mocap_pub = self.create_publisher(PoseStamped, "/optitrack/puck", 10)
+        self.truth_pub = self.create_publisher(PuckState, "/sim/puck_true_state", 10)
+        self.joint_pubs = {r: self.create_publisher(JointState, f"/{r}/joint_states", 10) for r in ROBOTS}
+        for robot in ROBOTS:
+            self.create_subscription(JointTrajectoryMsg, f"/{robot}/joint_trajectory",
+                                     lambda msg, r=robot: self.on_trajectory(r, msg), 10)
+        self.create_service(SetPuckState, "set_puck_state", self.on_set_puck_state)
+        self.create_service(Trigger, "reset_robots", self.on_reset_robots)
+        self.started = time.monotonic()
+        self.get_logger().info(f"table simulation: physics {p['physics_rate']:.0f} Hz, real-time factor "
+                               f"{p['real_time_factor']:g} (0 = as fast as possible), gui {p['gui']}")
+
+    # --- main loop ----------------------------------------------------------------------------
+    def spin(self) -> None:
+        executor = SingleThreadedExecutor(context=self.context)
+        executor.add_node(self)
+        steps_per_round = max(1, round(CALLBACK_PERIOD / self.world.dt))
+        wall0, sim0 = time.monotonic(), self.world.time
+        report = Every(1.0 / STATUS_PERIOD)
+        while rclpy.ok(context=self.context):
+            try:
+                executor.spin_once(timeout_sec=0.0)
+                for _ in range(steps_per_round):
+                    self.publish(self.runner.step())
+            except (RCLError, ExternalShutdownException):
+                if rclpy.ok(context=self.context):
+                    raise
+                break  # shut down (Ctrl-C / SIGTERM) while publishing
+            wall0, sim0 = self._pace(wall0, sim0)
+            if report.due(time.monotonic() - self.started) is not None:
+                self.get_logger().info(f"sim time {self.world.time:.1f} s, real-time factor "
+                                       f"{self.world.time / max(time.monotonic() - self.started, 1e-9):.2f}")
+
+    def _pace(self, wall0: float, sim0: float) -> tuple[float, float]:
+        """Sleep to keep ``real_time_factor``; returns the (possibly re-anchored) reference times."""
+        rtf = self.params["real_time_factor"]
+        if rtf <= 0.0:
+            return wall0, sim0
+        ahead = (self.world.time - sim0) / rtf - (time.monotonic() - wall0)
+        if ahead > 0.0:
+            time.sleep(ahead)
+        elif ahead < -MAX_LAG:  # far behind (slow machine): run on at full speed without catching up
+            return time.monotonic(), self.world.time
+        return wall0, sim0
+
+    def on_parameters_changed(self, changed: dict) -> None:
+        if "real_time_factor" in changed:
+            self.get_logger().info(f"real-time factor now {changed['real_time_factor']:g}")
+
+    def publish(self, out) -> None:
+        stamp = to_stamp(out.time)
+        if out.clock:
+            self.clock_pub.publish(Clock(clock=stamp))
+        if out.joint_states:
+            for robot in ROBOTS:
+                self.joint_pubs[robot].publish(self.joint_state_msg(robot, stamp))
+        if out.true_state is not None:
+            self.truth_pub.publish(state_msg(out.true_state, np.zeros((6, 6)), out.time))
+        if out.mocap is not None:
+            mocap_stamp, (x, y, z, yaw) = out.mocap
+            msg = PoseStamped()
+            msg.header.stamp, msg.header.frame_id = to_stamp(mocap_stamp), "optitrack"
+            msg.pose.position.x, msg.pose.position.y, msg.pose.position.z = x, y, z
+            q = msg.pose.orientation
+            q.x, q.y, q.z, q.w = quaternion_from_yaw(yaw)
+            self.mocap_pub.publish(msg)
+
+    def joint_state_msg(self, robot: str, stamp) -> JointState:
+        q, dq = self.world.joint_state(robot)
+        sq, sdq = self.world.striker_state(robot)
+        msg = JointState(name=list(ARM_JOINTS + STRIKER_JOINTS), position=[*q, *sq], velocity=[*dq, *sdq])
+        msg.header.stamp = stamp
+        return msg
+
+    # --- inputs -------------------------------------------------------------------------------
+    def on_trajectory(self, robot: str, msg: JointTrajectoryMsg) -> None:
+        topic = f"/{robot}/joint_trajectory"
+        try:
+            q, dq = self.world.joint_state(robot)
+            names = list(msg.joint_names)
+            if set(names) != set(ARM_JOINTS):
+                raise TrajectoryError(f"joint_names must be the 7 arm joints {list(ARM_JOINTS)}, got {names}")
+            current = {n: (q[i], dq[i]) for i, n in enumerate(ARM_JOINTS)}
+            start = to_seconds(msg.header.stamp)
+            start = self.world.time if start <= 0.0 else start
+            times = [pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9 for pt in msg.points]
+            has_velocities = all(len(pt.velocities) for pt in msg.points) and msg.points
+            traj = JointTrajectory.from_points(
+                names, start, times, [list(pt.positions) for pt in msg.points],
+                [list(pt.velocities) for pt in msg.points] if has_velocities else None,
+                [current[n][0] for n in names], [current[n][1] for n in names])
+            self.world.follow(robot, traj)
+        except (TrajectoryError, ValueError) as exc:
+            self.get_logger().error(f"{topic}: trajectory ignored: {exc}")
+
+    def on_set_puck_state(self, request, response):
+        state = [request.x, request.y, request.vx, request.vy, request.theta, request.omega]
+        table = self.world.settings.table
+        if not all(math.isfinite(v) for v in state):
+            response.success, response.message = False, "refused: non-finite values"
+        elif not table.contains(request.x, request.y, -table.puck_radius):
+            response.success, response.message = False, (
+                f"refused: ({request.x:.3f}, {request.y:.3f}) m is not on the playing surface "
+                f"(|x| <= {table.x_limit:.3f}, |y| <= {table.y_limit:.3f})")
+        else:
+            self.world.set_puck_state(state)
+            response.success, response.message = True, f"puck set at t = {self.world.time:.3f} s"
+        return response
+
+    def on_reset_robots(self, request, response):
+        self.world.reset_robots()
+        response.success, response.message = True, "robots at home"
+        return response
+
+    def destroy_node(self) -> None:
+        self.world.close()
+        super().destroy_node()
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run(TableSimNode, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
