@@ -84,3 +84,21 @@ def test_joint_trajectory_is_executed_and_bad_ones_are_refused(sim, rclpy_node):
     assert sim.processes["table_sim"].returncode is None
     assert any("trajectory ignored: joint_names must be the 7 arm joints" in line
                for line in sim.processes["table_sim"].lines)
+
+
+def test_record_writes_a_bag_that_eval_prediction_reads(sim, ros_env, tmp_path):
+    import json
+    import subprocess
+
+    from air_hockey_agent.bags.reader import read_poses
+    out = subprocess.run([str(BIN / "air-hockey"), "record", str(tmp_path / "run.mcap"), "--duration", "4"],
+                         capture_output=True, text=True, timeout=120, env=ros_env)
+    assert out.returncode == 0, out.stderr
+    bag = tmp_path / "run"
+    assert (bag / "run.mcap").is_file() and (bag / "metadata.yaml").is_file()
+    assert not [p for p in tmp_path.iterdir() if p.name.startswith(".")]  # no staging left behind
+    assert len(read_poses(bag, "/optitrack/puck")) > 100
+    report = subprocess.run([str(BIN / "air-hockey"), "eval-prediction", str(bag), "--json"], capture_output=True,
+                            text=True, timeout=120)
+    assert report.returncode == 0, report.stderr
+    assert json.loads(report.stdout)["frames"] > 100

@@ -11,6 +11,7 @@ TOOL_MODULES = (
     "air_hockey_agent.tools.bench",
     "air_hockey_agent.tools.eval_prediction",
     "air_hockey_agent.tools.synth_bag",
+    "air_hockey_agent.tools.record",
 )
 
 
