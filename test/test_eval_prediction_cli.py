@@ -77,3 +77,11 @@ def test_human_readable_table(bags):
 def test_synth_bag_refuses_to_overwrite(bags):
     out = cli("synth-bag", bags / "a", "--shots", 1)
     assert out.returncode == 2 and "exists already" in out.stderr
+
+
+def test_synth_bag_from_the_table_simulation(tmp_path):
+    out = cli("synth-bag", tmp_path / "sim", "--shots", 2, "--source", "sim")
+    assert out.returncode == 0, out.stderr
+    assert "truth from the sim" in out.stdout
+    report = cli("eval-prediction", tmp_path / "sim", "--json")
+    assert report.returncode == 0 and json.loads(report.stdout)["frames"] > 500

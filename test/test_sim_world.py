@@ -83,3 +83,17 @@ def test_mallet_stays_vertical_and_the_other_robot_holds_home(world, params):
     axis = np.array(world.client.getMatrixFromQuaternion(orn)).reshape(3, 3)[:, 2]
     assert axis[2] == pytest.approx(-1.0, abs=1e-3)
     assert np.abs(world.joint_state("iiwa_front")[0] - home).max() < 2e-3
+
+
+def test_mallet_at_table_height_returns_the_puck(world, params):
+    """A puck shot at the front robot's mallet (lowered to the surface by a trajectory) bounces back."""
+    down = np.array([0.0, 0.6543, 0.0, -0.6829, 0.0, 1.7977, 0.0])  # IK: universal joint 0.0505 m above the surface
+    q0, dq0 = world.joint_state("iiwa_front")
+    world.follow("iiwa_front", JointTrajectory.from_points(ARM_JOINTS, world.time, [0.5], [down], None, q0, dq0))
+    world.step(800)
+    tip = world.mallet_position("iiwa_front")
+    assert abs(tip[2]) < 5e-3  # mallet bottom on the surface
+    world.set_puck_state([tip[0] + 0.4, tip[1], -1.5, 0.0, 0.0, 0.0])
+    world.step(500)
+    x, _, vx, _, _, _ = world.puck_state()
+    assert vx > 0.5 and x > tip[0] + 0.08  # returned toward the centre, never through the mallet

@@ -81,6 +81,11 @@ def test_joint_trajectory_is_executed_and_bad_ones_are_refused(sim, rclpy_node):
     pub.publish(good)
     assert spin_until(rclpy_node, lambda: np.abs(np.array(states[-1].position[:7]) - target).max() < 5e-3, 60.0), \
         states[-1].position[:7]
+    from std_srvs.srv import Trigger
+    reset = call_service(rclpy_node, rclpy_node.create_client(Trigger, "/reset_robots"), Trigger.Request(), 30.0)
+    assert reset is not None and reset.success
+    home = np.array(load_sim_params()["home_joint_positions"])
+    assert spin_until(rclpy_node, lambda: np.abs(np.array(states[-1].position[:7]) - home).max() < 2e-3, 30.0)
     assert sim.processes["table_sim"].returncode is None
     assert any("trajectory ignored: joint_names must be the 7 arm joints" in line
                for line in sim.processes["table_sim"].lines)

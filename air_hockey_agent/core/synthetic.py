@@ -133,18 +133,26 @@ class SyntheticFrame:
     truth: np.ndarray                # true state at the stamp
 
 
+Simulate = Callable[[np.ndarray, float], "tuple[np.ndarray, np.ndarray]"]
+
+
 def synthetic_session(model: PuckModel, shots: ShotRanges, n_shots: int, rate: float,
                       noise: MocapImperfections, rng: np.random.Generator,
-                      fine_dt: float) -> list[SyntheticFrame]:
+                      fine_dt: float, simulate: Simulate | None = None) -> list[SyntheticFrame]:
     """Consecutive random shots recorded like a mocap session (a bag generator for tests and tools).
 
-    Each shot is integrated with ``fine_dt`` [s] and sampled by :func:`mocap_stream`; a pause without
-    frames separates shots. Shots that leave the table through a goal end there.
+    Each shot's truth comes from ``simulate(state, duration) -> (times, states)`` (default: the puck
+    model integrated with ``fine_dt`` [s]; the table simulation can stand in) and is sampled by
+    :func:`mocap_stream`; a pause without frames separates shots. Shots that leave the table through
+    a goal end there.
     """
+    if simulate is None:
+        def simulate(state: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
+            return simulate_truth(model, state, duration, fine_dt)
     session: list[SyntheticFrame] = []
     offset = 0.0
     for _ in range(n_shots):
-        times, states = simulate_truth(model, random_shot(model, shots, rng), shots.duration, fine_dt)
+        times, states = simulate(random_shot(model, shots, rng), shots.duration)
         for stamp, z in mocap_stream(model, times, states, rate, noise, rng):
             truth = true_state_at(model, times, states, stamp)
             if not model.table.contains(truth[0], truth[1], model.table.puck_radius):

@@ -251,3 +251,19 @@ class TableWorld:
 
     def close(self) -> None:
         self.client.disconnect()
+
+
+def simulate_shot(world: TableWorld, state: Sequence[float], duration: float) -> tuple[np.ndarray, np.ndarray]:
+    """True puck states at every physics step of ``duration`` [s] from ``state``: times (n,), states (n, 6).
+
+    The signature of :func:`air_hockey_agent.core.synthetic.simulate_truth` without the model, so the
+    table simulation can stand in for the model as the truth of a synthetic session.
+    """
+    world.set_puck_state(state)
+    n = int(round(duration / world.dt)) + 1
+    states = np.empty((n, 6))
+    states[0] = world.puck_state()
+    for i in range(1, n):
+        world.step()
+        states[i] = world.puck_state()
+    return np.arange(n) * world.dt, states

@@ -6,10 +6,16 @@ Topics: ``/optitrack/puck`` (geometry_msgs/PoseStamped, mocap frame; lost frames
 ``/puck/true_state`` (air_hockey_msgs/PuckState, table frame, the true state at each frame's stamp).
 The model's parameters come from ``config/tracker.yaml`` unless ``--params-file`` overrides them, so a
 bag with known parameters can test system identification.
+
+``--source sim`` takes the truth from the pybullet table instead (``config/sim.yaml``, the puck alone
+at the simulation's physics rate): the same shots and imperfections, but rim impacts by pybullet's
+contact model, which the tracker's model does not know; use it to measure model error and to
+identify the tracker's parameters for the simulation.
 """
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import sys
 from pathlib import Path
 
@@ -46,6 +52,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--shots", type=int, help="number of shots (default: config/synthetic.yaml)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="bag storage (default mcap)")
+    parser.add_argument("--source", choices=("model", "sim"), default="model",
+                        help="truth from the puck model (default) or from the pybullet table simulation")
     parser.add_argument("--params-file", type=Path, action="append", default=[],
                         help="parameter YAML overriding the tracker's model parameters and/or the session "
                              "(synth_bag node); may be repeated")
@@ -63,9 +71,13 @@ def run(args: argparse.Namespace) -> int:
         session["shots"] = SESSION_PARAMS[0].check(args.shots)
     model = PuckEKF.from_params(tracker).model
     shots = ShotRanges(tuple(session["speed"]), tuple(session["spin"]), session["shot_duration"], session["pause"])
+    world = _puck_only_world(args.params_file) if args.source == "sim" else None
+    simulate = None if world is None else (lambda state, duration: simulate_shot(world, state, duration))
     frames = synthetic_session(model, shots, session["shots"], session["rate"],
                                MocapImperfections.from_params(session), np.random.default_rng(args.seed),
-                               session["fine_dt"])
+                               session["fine_dt"], simulate)
+    if world is not None:
+        world.close()
     messages = _messages(frames, session["start_time"], tracker["mocap_table_pose"])
     try:
         count = write_bag(args.out, {POSE_TOPIC: "geometry_msgs/msg/PoseStamped",
@@ -74,9 +86,22 @@ def run(args: argparse.Namespace) -> int:
         print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
         return 2
     poses = sum(f.measurement is not None for f in frames)
-    print(f"wrote {args.out} ({args.storage}): {session['shots']} shots, {poses} poses on {POSE_TOPIC} "
+    print(f"wrote {args.out} ({args.storage}, truth from the {args.source}): {session['shots']} shots, {poses} poses on {POSE_TOPIC} "
           f"({len(frames) - poses} lost), {len(frames)} true states on {TRUTH_TOPIC}, {count} messages")
     return 0
+
+
+def _puck_only_world(params_files):
+    """The pybullet table without robots (imported here: pybullet prints a banner when loaded)."""
+    from air_hockey_agent.sim.params import load_sim_params
+    from air_hockey_agent.sim.world import SimSettings, TableWorld
+    settings = SimSettings.from_params(load_sim_params(params_files))
+    return TableWorld(dataclasses.replace(settings, robot_bases={}))
+
+
+def simulate_shot(world, state, duration):
+    from air_hockey_agent.sim.world import simulate_shot as shot
+    return shot(world, state, duration)
 
 
 def _messages(frames, start_time: float, table_pose):
