@@ -35,9 +35,6 @@ from air_hockey_agent.sim.params import PARAM_FILES, ROBOTS, SIM_PARAMS
 from air_hockey_agent.sim.runner import Every, SimRunner
 from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld
 
-CALLBACK_PERIOD = 0.002   # [s] simulated time between two rounds of subscription/service callbacks
-STATUS_PERIOD = 10.0      # [s] wall time between two progress lines in the log
-MAX_LAG = 0.5             # [s] lag behind the real-time factor after which pacing re-anchors
 
 
 class TableSimNode(AirHockeyNode):
@@ -70,9 +67,9 @@ class TableSimNode(AirHockeyNode):
     def spin(self) -> None:
         executor = SingleThreadedExecutor(context=self.context)
         executor.add_node(self)
-        steps_per_round = max(1, round(CALLBACK_PERIOD / self.world.dt))
+        steps_per_round = max(1, round(self.params["callback_period"] / self.world.dt))
         wall0, sim0 = time.monotonic(), self.world.time
-        report = Every(1.0 / STATUS_PERIOD)
+        report = Every(1.0 / self.params["status_period"])
         while rclpy.ok(context=self.context):
             try:
                 executor.spin_once(timeout_sec=0.0)
@@ -95,7 +92,7 @@ class TableSimNode(AirHockeyNode):
         ahead = (self.world.time - sim0) / rtf - (time.monotonic() - wall0)
         if ahead > 0.0:
             time.sleep(ahead)
-        elif ahead < -MAX_LAG:  # far behind (slow machine): run on at full speed without catching up
+        elif ahead < -self.params["max_lag"]:  # far behind (slow machine): run on at full speed without catching up
             return time.monotonic(), self.world.time
         return wall0, sim0
 

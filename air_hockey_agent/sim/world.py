@@ -58,7 +58,8 @@ class SimSettings:
         return cls(TableGeometry.from_params(params), params["puck.height"], params["physics_rate"],
                    params["surface_friction"], params["surface_damping"], params["rim_restitution"],
                    params["rim_friction"], params["mallet_restitution"], params["mallet_friction"],
-                   params["contact_erp"], params["striker_control_rate"], {n: tuple(params[f"robot_base.{n}"]) for n in ROBOTS},
+                   params["contact_erp"], params["striker_control_rate"],
+                   {n: tuple(params[f"robot_base.{n}"]) for n in ROBOTS},
                    tuple(params["home_joint_positions"]))
 
 

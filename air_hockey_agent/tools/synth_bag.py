@@ -86,7 +86,8 @@ def run(args: argparse.Namespace) -> int:
         print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
         return 2
     poses = sum(f.measurement is not None for f in frames)
-    print(f"wrote {args.out} ({args.storage}, truth from the {args.source}): {session['shots']} shots, {poses} poses on {POSE_TOPIC} "
+    print(f"wrote {args.out} ({args.storage}, truth from the {args.source}): {session['shots']} shots, "
+          f"{poses} poses on {POSE_TOPIC} "
           f"({len(frames) - poses} lost), {len(frames)} true states on {TRUTH_TOPIC}, {count} messages")
     return 0
 
