@@ -133,6 +133,15 @@ def load_defaults(paths: Iterable[Path], fq_name: str, specs: Iterable[ParamSpec
     return result
 
 
+def load_node_params(default_files: Iterable[str], fq_name: str, specs: Iterable[ParamSpec],
+                     extra_files: Iterable[Path] = ()) -> dict[str, Any]:
+    """A node's parameters outside ROS: the defaults in ``config/<default_files>``, overridden by
+    ``extra_files`` in order (as ``--params-file`` does for a running node)."""
+    from air_hockey_agent.paths import config_file
+    files = [config_file(name) for name in default_files] + [Path(f) for f in extra_files]
+    return load_defaults(files, fq_name, specs)
+
+
 def validate(specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> dict[str, Any]:
     """Check a complete set of values against their specs; raise on the first bad one."""
     return {spec.name: spec.check(values[spec.name]) for spec in specs}

@@ -8,8 +8,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterable
 
-from air_hockey_agent.params import ParamSpec, load_defaults
-from air_hockey_agent.paths import config_file
+from air_hockey_agent.params import ParamSpec, load_node_params
 
 NODE_NAME = "/puck_tracker"
 PARAM_FILES = ("table.yaml", "tracker.yaml")
@@ -47,5 +46,4 @@ def load_tracker_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     Raises :class:`air_hockey_agent.params.ParameterFileError` / ``ParameterValueError`` with a
     one-line message naming the file or parameter.
     """
-    files = [config_file(name) for name in PARAM_FILES] + [Path(f) for f in extra_files]
-    return load_defaults(files, NODE_NAME, TRACKER_NODE_PARAMS)
+    return load_node_params(PARAM_FILES, NODE_NAME, TRACKER_NODE_PARAMS, extra_files)

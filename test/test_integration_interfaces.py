@@ -1,6 +1,5 @@
 """air_hockey_msgs types round-trip between two processes over a real topic and a service."""
 import sys
-import time
 
 import pytest
 

@@ -4,8 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterable
 
-from air_hockey_agent.params import ParamSpec, load_defaults
-from air_hockey_agent.paths import config_file
+from air_hockey_agent.params import ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import TABLE_PARAMS
 
 NODE_NAME = "/table_sim"
@@ -45,5 +44,4 @@ SIM_PARAMS = TABLE_PARAMS + (
 
 def load_sim_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     """Simulation parameters: the defaults, overridden by ``extra_files`` (ROS 2 parameter YAML)."""
-    files = [config_file(name) for name in PARAM_FILES] + [Path(f) for f in extra_files]
-    return load_defaults(files, NODE_NAME, SIM_PARAMS)
+    return load_node_params(PARAM_FILES, NODE_NAME, SIM_PARAMS, extra_files)

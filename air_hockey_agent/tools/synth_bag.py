@@ -26,8 +26,7 @@ from air_hockey_agent.bags.writer import STORAGES, BagExistsError, write_bag
 from air_hockey_agent.core.ekf import PuckEKF
 from air_hockey_agent.core.frames import quaternion_from_yaw, table_to_mocap
 from air_hockey_agent.core.synthetic import MocapImperfections, ShotRanges, synthetic_session
-from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_defaults
-from air_hockey_agent.paths import config_file
+from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import load_tracker_params
 
 POSE_TOPIC, TRUTH_TOPIC = "/optitrack/puck", "/puck/true_state"
@@ -63,7 +62,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def run(args: argparse.Namespace) -> int:
     try:
         tracker = load_tracker_params(args.params_file)
-        session = load_defaults([config_file("synthetic.yaml"), *args.params_file], "/synth_bag", SESSION_PARAMS)
+        session = load_node_params(["synthetic.yaml"], "/synth_bag", SESSION_PARAMS, args.params_file)
     except (ParameterFileError, ParameterValueError) as exc:
         print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
         return 2
