@@ -1,0 +1,106 @@
+"""Preprocessing of recorded mocap data for system identification (thesis sec. 4.5.1, algorithm 2).
+
+* :func:`to_model_grid`: map irregular stamps onto the filter's fixed grid (``t0 + k dt``): each grid
+  slot takes the nearest recorded frame within half a step, a slot without one gets a blank (lost
+  frame), and of two frames in one slot only the nearer is kept (duplicates dropped).
+* :func:`interpolate_frozen`: frames whose position repeats the previous one within ``threshold``
+  (1e-6 m in the thesis) are replaced by linear interpolation between the neighbouring good frames.
+* :func:`split_trajectories`: a long recording is cut where more than ``max_gap`` seconds have no frame.
+* :func:`cut_rest`: the start and end of a trajectory where the puck is at rest or moved slowly by
+  hand are cut (speed below ``rest_speed`` over a window).
+
+A grid trajectory is a :class:`GridTrajectory`: start time, step and an (n, 3) array of
+(x, y, theta) with NaN rows for blanks.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Sequence
+
+import numpy as np
+
+
+@dataclass
+class GridTrajectory:
+    t0: float          # [s] stamp of row 0
+    dt: float          # [s] grid step
+    z: np.ndarray      # (n, 3) measurements (x, y, theta), NaN rows = blank
+
+    def __len__(self) -> int:
+        return len(self.z)
+
+    @property
+    def duration(self) -> float:
+        return (len(self.z) - 1) * self.dt
+
+    def frames(self) -> list[tuple[float, np.ndarray | None]]:
+        """(stamp, measurement or None) per grid step: the stream the filter consumes."""
+        return [(self.t0 + k * self.dt, None if np.isnan(row[0]) else row) for k, row in enumerate(self.z)]
+
+    def measured(self) -> int:
+        return int(np.sum(~np.isnan(self.z[:, 0])))
+
+
+def to_model_grid(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt: float) -> GridTrajectory:
+    """Algorithm 2: one row per model step from the first to the last stamp; blanks where frames are lost."""
+    t = np.asarray(stamps, float)
+    order = np.argsort(t, kind="stable")
+    t0 = float(t[order[0]])
+    n = int(math.floor((t[order[-1]] - t0) / dt + 0.5)) + 1
+    grid = np.full((n, 3), np.nan)
+    offset = np.full(n, np.inf)
+    for i in order:
+        if z[i] is None:
+            continue
+        k = int(math.floor((t[i] - t0) / dt + 0.5))
+        miss = abs(t[i] - (t0 + k * dt))
+        if miss < offset[k]:  # nearest frame wins the slot; the other is a duplicate
+            grid[k], offset[k] = z[i], miss
+    return GridTrajectory(t0, dt, grid)
+
+
+def interpolate_frozen(traj: GridTrajectory, threshold: float) -> int:
+    """Replace frozen frames (position unchanged within ``threshold`` [m]) in place; returns their count."""
+    z = traj.z
+    valid = np.flatnonzero(~np.isnan(z[:, 0]))
+    frozen = [b for a, b in zip(valid[:-1], valid[1:]) if math.hypot(*(z[b, :2] - z[a, :2])) < threshold]
+    z[frozen] = np.nan
+    good = np.flatnonzero(~np.isnan(z[:, 0]))
+    for k in frozen:
+        after = np.searchsorted(good, k)
+        if 0 < after < len(good):
+            a, b = good[after - 1], good[after]
+            w = (k - a) / (b - a)
+            z[k] = (1 - w) * z[a] + w * z[b]
+            z[k, 2] = z[a, 2] + w * math.remainder(z[b, 2] - z[a, 2], 2 * math.pi)
+    return len(frozen)
+
+
+def split_trajectories(traj: GridTrajectory, max_gap: float) -> list[GridTrajectory]:
+    """Cut where more than ``max_gap`` [s] pass without a measurement."""
+    valid = np.flatnonzero(~np.isnan(traj.z[:, 0]))
+    if valid.size == 0:
+        return []
+    breaks = np.flatnonzero(np.diff(valid) * traj.dt > max_gap)
+    pieces = np.split(valid, breaks + 1)
+    return [GridTrajectory(traj.t0 + p[0] * traj.dt, traj.dt, traj.z[p[0]:p[-1] + 1].copy()) for p in pieces]
+
+
+def cut_rest(traj: GridTrajectory, rest_speed: float, window: float) -> GridTrajectory | None:
+    """Drop the start and end where the puck moves slower than ``rest_speed`` [m/s] over ``window`` [s].
+
+    The kept part is the motion plus at most one window of rest at each end; None if it never moves.
+    """
+    steps = max(1, int(round(window / traj.dt)))
+    z = traj.z
+    moving = np.zeros(len(z), bool)
+    for k in range(len(z) - steps):
+        a, b = z[k, :2], z[k + steps, :2]
+        if not (np.isnan(a[0]) or np.isnan(b[0])):
+            moving[k] = math.hypot(*(b - a)) / (steps * traj.dt) >= rest_speed
+    idx = np.flatnonzero(moving)
+    if idx.size == 0:
+        return None
+    first, last = idx[0], min(idx[-1] + steps, len(z) - 1)
+    return GridTrajectory(traj.t0 + first * traj.dt, traj.dt, z[first:last + 1].copy())

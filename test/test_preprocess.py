@@ -1,0 +1,54 @@
+"""Preprocessing (thesis algorithm 2 and sec. 4.5.1) on hand-made streams with known answers."""
+import math
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.preprocess import (GridTrajectory, cut_rest, interpolate_frozen, split_trajectories,
+                                              to_model_grid)
+
+DT = 1 / 120
+
+
+def test_grid_inserts_blanks_for_lost_frames_and_drops_duplicates():
+    stamps = [0.0, DT + 1e-4, 3 * DT - 2e-4, 3 * DT + 1e-3, 4 * DT]  # frame 2 lost, frame 3 twice
+    z = [[0.0, 0, 0], [0.01, 0, 0], [0.03, 0, 0], [0.031, 0, 0], [0.04, 0, 0]]
+    grid = to_model_grid(stamps, z, DT)
+    assert len(grid) == 5 and grid.t0 == 0.0
+    assert np.isnan(grid.z[2, 0])
+    assert grid.z[3, 0] == 0.03  # the nearer of the two
+    assert grid.measured() == 4
+
+
+def test_unsorted_stamps_and_lost_poses_are_handled():
+    grid = to_model_grid([2 * DT, 0.0, DT], [[2, 0, 0], [0, 0, 0], None], DT)
+    assert grid.z[0, 0] == 0 and np.isnan(grid.z[1, 0]) and grid.z[2, 0] == 2
+
+
+def test_frozen_frames_are_interpolated():
+    z = np.array([[0.0, 0, 0.0], [0.01, 0, 0.1], [0.01, 0, 0.1], [0.03, 0, 0.3]])
+    traj = GridTrajectory(0.0, DT, z)
+    assert interpolate_frozen(traj, 1e-6) == 1
+    assert traj.z[2] == pytest.approx([0.02, 0.0, 0.2])
+
+
+def test_frozen_angle_interpolation_wraps():
+    z = np.array([[0.0, 0, math.pi - 0.1], [0.0, 0, math.pi - 0.1], [0.02, 0, -math.pi + 0.1]])
+    z[1, 0] = 0.0  # frozen copy of row 0
+    traj = GridTrajectory(0.0, DT, z)
+    interpolate_frozen(traj, 1e-6)
+    assert abs(math.remainder(traj.z[1, 2] - math.pi, 2 * math.pi)) < 1e-9
+
+
+def test_split_at_long_gaps_and_cut_rest():
+    n = 400
+    x = np.concatenate([np.zeros(100), np.linspace(0, 1.0, 200), np.full(100, 1.0)])  # rest, move, rest
+    z = np.column_stack([x, np.zeros(n), np.zeros(n)])
+    z = np.vstack([z, np.full((300, 3), np.nan), z])  # 2.5 s without frames between two recordings
+    pieces = split_trajectories(GridTrajectory(10.0, DT, z), max_gap=1.0)
+    assert len(pieces) == 2 and pieces[1].t0 == pytest.approx(10.0 + 700 * DT)
+    cut = cut_rest(pieces[0], rest_speed=0.05, window=0.1)  # window = 12 steps
+    # the motion (rows 100-299) is kept, with at most one window of rest at each end
+    assert cut is not None and 100 - 12 <= round((cut.t0 - 10.0) / DT) <= 100
+    assert 199 * DT <= cut.duration <= (199 + 2 * 12) * DT
+    assert cut_rest(GridTrajectory(0.0, DT, np.zeros((50, 3))), 0.05, 0.1) is None
