@@ -86,3 +86,22 @@ def test_mean_only_prediction_equals_the_mean_with_covariance(params):
     assert mean_only.covariance is None
     np.testing.assert_array_equal(mean_only.state, with_cov.state)
     assert len(mean_only.impacts) == len(with_cov.impacts) >= 2
+
+
+def test_negative_log_likelihood_matches_scipy():
+    from scipy.stats import multivariate_normal
+
+    from air_hockey_agent.core.evaluation import _neg_log_likelihood
+    cov = np.array([[2e-6, 5e-7], [5e-7, 1e-6]])
+    r = np.array([1e-3, -4e-4])
+    assert _neg_log_likelihood(r, cov) == pytest.approx(-multivariate_normal(np.zeros(2), cov).logpdf(r), rel=1e-10)
+
+
+def test_loglik_and_stride(params):
+    ekf = PuckEKF.from_params(params)
+    frames = frames_of(session(ekf, seed=2, n_shots=2, noise=MocapImperfections()))
+    full, sparse = EvaluationTotals((0.5,), loglik=True), EvaluationTotals((0.5,), stride=3)
+    evaluate_stream(ekf, frames, full)
+    evaluate_stream(ekf, frames, sparse)
+    assert len(full.nll["0.5"]) == len(full.errors["0.5"]) > 0 and not sparse.nll["0.5"]
+    assert len(sparse.errors["0.5"]) == pytest.approx(len(full.errors["0.5"]) / 3, abs=2)

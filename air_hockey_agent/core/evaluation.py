@@ -40,7 +40,10 @@ class EvaluationTotals:
     """Errors per horizon and stream counts, summed over any number of recordings."""
 
     horizons: tuple[float, ...]
+    loglik: bool = False        # also collect the negative log-likelihood of each comparison (sec. 4.3.1)
+    stride: int = 1             # predict from every stride-th fused frame only (faster, for optimisation)
     errors: dict = field(default_factory=dict)  # horizon key -> list of errors [m]
+    nll: dict = field(default_factory=dict)     # horizon key -> list of -ln N(z_xy; x_xy, P_xy + R_xy)
     frames: int = 0
     lost_frames: int = 0
     outliers_rejected: int = 0
@@ -49,6 +52,7 @@ class EvaluationTotals:
     def __post_init__(self) -> None:
         for h in self.horizons:
             self.errors.setdefault(horizon_key(h), [])
+            self.nll.setdefault(horizon_key(h), [])
 
     def summary(self) -> dict:
         """Per horizon mean / median / p95 [m] and count, plus the stream counts (JSON-ready)."""
@@ -66,7 +70,7 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
     ekf.reset()
     ekf.stats = FilterStats()
     invalid = 0
-    starts: list[tuple[float, np.ndarray]] = []
+    starts: list[tuple[float, np.ndarray, np.ndarray]] = []
     truth_t: list[float] = []
     truth_xy: list[tuple[float, float]] = []
     stamps = []
@@ -78,20 +82,32 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
             truth_t.append(t)
             truth_xy.append((z[0], z[1]))
             if not flags & FLAG_REINITIALISED:
-                starts.append((t, ekf.x.copy()))
+                starts.append((t, ekf.x.copy(), ekf.P.copy()))
     tolerance = 0.5 * ekf.settings.dt
     for h in totals.horizons:
-        errors = totals.errors[horizon_key(h)]
-        for t, state in starts:
+        errors, nll = totals.errors[horizon_key(h)], totals.nll[horizon_key(h)]
+        for t, state, cov in starts[::totals.stride]:
             j = _nearest(truth_t, t + h)
             if j is None or abs(truth_t[j] - (t + h)) > tolerance or truth_t[j] <= t:
                 continue
-            pred = predict_fast(ekf.model, state, None, truth_t[j] - t, ekf.settings.dt, ekf.settings.q)
-            errors.append(float(np.hypot(pred.state[0] - truth_xy[j][0], pred.state[1] - truth_xy[j][1])))
+            pred = predict_fast(ekf.model, state, cov if totals.loglik else None, truth_t[j] - t, ekf.settings.dt,
+                                ekf.settings.q)
+            residual = np.array([truth_xy[j][0] - pred.state[0], truth_xy[j][1] - pred.state[1]])
+            errors.append(float(np.hypot(*residual)))
+            if totals.loglik:
+                nll.append(_neg_log_likelihood(residual, pred.covariance[:2, :2] + ekf.settings.r[:2, :2]))
     totals.frames += ekf.stats.frames  # lost = missing from the stream + arrived without a usable pose
     totals.lost_frames += count_lost_frames(sorted(stamps), ekf.settings.dt, ekf.settings.max_prediction_gap) + invalid
     totals.outliers_rejected += ekf.stats.outliers_rejected
     totals.recordings += 1
+
+
+def _neg_log_likelihood(residual: np.ndarray, cov: np.ndarray) -> float:
+    """-ln of the 2-D normal density of ``residual`` with covariance ``cov`` (thesis sec. 4.3.1)."""
+    (a, b), (_, d) = cov
+    det = a * d - b * b
+    quad = (d * residual[0] ** 2 - 2 * b * residual[0] * residual[1] + a * residual[1] ** 2) / det
+    return float(0.5 * (quad + np.log(det)) + np.log(2 * np.pi))
 
 
 def _nearest(times: list[float], t: float) -> int | None:

@@ -1,0 +1,68 @@
+"""Recorded puck trajectories for system identification: bags -> preprocessed model-grid trajectories."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Mapping, Sequence
+
+from air_hockey_agent.bags.reader import BagError, read_poses
+from air_hockey_agent.core.frames import pose_to_measurement
+from air_hockey_agent.core.preprocess import (cut_rest, interpolate_frozen, split_trajectories,
+                                              to_model_grid)
+
+
+@dataclass
+class LoadedTrajectories:
+    trajectories: list          # GridTrajectory, in bag order
+    sources: list               # the bag of each trajectory
+    errors: list                # one-line messages for bags that could not be used
+    bags: int                   # bags read successfully
+    frozen: int = 0             # frozen frames interpolated
+
+
+def find_bags(paths: Sequence[Path]) -> tuple[list[Path], list[str]]:
+    """Bags named directly or found below directories (any folder with a metadata.yaml), sorted."""
+    bags, errors = [], []
+    for path in map(Path, paths):
+        if (path / "metadata.yaml").is_file() or path.suffix in (".mcap", ".db3"):
+            bags.append(path)
+        elif path.is_dir():
+            found = sorted(p.parent for p in path.rglob("metadata.yaml"))
+            bags.extend(found) if found else errors.append(f"{path}: no rosbag2 bags in this directory")
+        else:
+            errors.append(f"{path}: does not exist")
+    return bags, errors
+
+
+def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, Any],
+                      prep: Mapping[str, Any]) -> LoadedTrajectories:
+    """Read, grid, clean, split and cut every bag (thesis sec. 4.5.1); bad bags are reported, not fatal."""
+    bags, errors = find_bags(paths)
+    result = LoadedTrajectories([], [], errors, 0)
+    dt = 1.0 / tracker["frequency"]
+    for bag in bags:
+        try:
+            records = read_poses(bag, topic)
+        except BagError as exc:
+            result.errors.append(str(exc))
+            continue
+        result.bags += 1
+        measurements = [pose_to_measurement(r.position, r.orientation, tracker["mocap_table_pose"]) for r in records]
+        grid = to_model_grid([r.stamp for r in records], measurements, dt)
+        result.frozen += interpolate_frozen(grid, prep["frozen_threshold"])
+        for piece in split_trajectories(grid, prep["max_gap"]):
+            traj = cut_rest(piece, prep["rest_speed"], prep["rest_window"])
+            if traj is not None and traj.duration >= prep["min_duration"]:
+                result.trajectories.append(traj)
+                result.sources.append(str(bag))
+    return result
+
+
+def split_train_validation(n: int, fraction: float, seed: int) -> tuple[list[int], list[int]]:
+    """Shuffle trajectory indices and split them (at least one of each when n >= 2)."""
+    import numpy as np
+    order = np.random.default_rng(seed).permutation(n).tolist()
+    cut = min(max(1, int(round(fraction * n))), n - 1) if n >= 2 else n
+    return sorted(order[:cut]), sorted(order[cut:])
+
+

@@ -1,0 +1,125 @@
+"""System identification of the puck model's physical parameters (thesis sec. 3.3, 4.3, 5.2).
+
+The objective for one parameter set: run the EKF with those parameters over every trajectory and
+compare the position predicted ``h`` seconds ahead with the measurement there (:mod:`.evaluation`),
+either as the mean distance (``position``) or as the mean negative log-likelihood of the measurement
+under the predicted covariance (``loglik``), thesis sec. 4.3.1. Reported like thesis tables 5.2-5.4:
+``loss`` (mean distance over all comparisons), ``min`` and ``median`` of the per-trajectory means.
+
+:func:`identify` minimises the objective with HEBO over the table 4.1 box, batch by batch, starting
+from the current parameters, then polishes the best point with a bounded Nelder-Mead simplex.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Callable, Mapping, Sequence
+
+import numpy as np
+
+from air_hockey_agent.core.ekf import PuckEKF
+from air_hockey_agent.core.evaluation import EvaluationTotals, evaluate_stream, horizon_key
+from air_hockey_agent.core.preprocess import GridTrajectory
+
+PHYSICAL = ("friction_surface", "damping", "restitution", "friction_rim")
+LOSSES = ("position", "loglik")
+
+
+@dataclass
+class LossReport:
+    """Prediction error of one parameter set at one horizon (thesis table 5.2 columns)."""
+
+    objective: float      # what the optimiser minimises
+    loss: float           # [m] mean distance over all comparisons
+    min: float            # [m] best trajectory's mean distance
+    median: float         # [m] median of the per-trajectory mean distances
+    comparisons: int
+
+    def as_dict(self) -> dict:
+        return {"objective": self.objective, "loss_m": self.loss, "min_m": self.min, "median_m": self.median,
+                "n": self.comparisons}
+
+
+def loss_report(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory], horizon: float,
+                loss: str = "position", stride: int = 1) -> LossReport:
+    """Filter and predict every trajectory with tracker parameters ``params`` at ``horizon`` [s]."""
+    ekf = PuckEKF.from_params(params)
+    key = horizon_key(horizon)
+    means, errors, nll = [], [], []
+    for traj in trajectories:
+        totals = EvaluationTotals((horizon,), loglik=loss == "loglik", stride=stride)
+        evaluate_stream(ekf, traj.frames(), totals)
+        if totals.errors[key]:
+            means.append(float(np.mean(totals.errors[key])))
+            errors.extend(totals.errors[key])
+            nll.extend(totals.nll[key])
+    if not errors:
+        return LossReport(float("inf"), float("inf"), float("inf"), float("inf"), 0)
+    objective = float(np.mean(errors)) if loss == "position" else float(np.mean(nll))
+    return LossReport(objective, float(np.mean(errors)), float(np.min(means)), float(np.median(means)), len(errors))
+
+
+@dataclass
+class Identification:
+    best: dict            # parameter name -> value
+    best_objective: float
+    initial_objective: float
+    evaluations: int
+    history: list         # (parameters, objective) in evaluation order
+
+
+Objective = Callable[[list[dict]], list[float]]  # a batch of parameter sets -> their objectives
+
+
+def identify(objective: Objective, bounds: Mapping[str, Sequence[float]], initial: Mapping[str, float],
+             iterations: int, batch: int, seed: int, random_samples: int, polish_evaluations: int,
+             progress: Callable[[int, int, float], None] = lambda done, total, best: None) -> Identification:
+    """HEBO over ``bounds`` (``iterations`` x ``batch`` suggestions), then a Nelder-Mead polish."""
+    import pandas as pd
+    import torch
+    from hebo.design_space.design_space import DesignSpace
+    from hebo.optimizers.hebo import HEBO
+
+    np.random.seed(seed)
+    torch.manual_seed(seed)
+    names = list(bounds)
+    space = DesignSpace().parse([{"name": n, "type": "num", "lb": float(bounds[n][0]), "ub": float(bounds[n][1])}
+                                 for n in names])
+    optimiser = HEBO(space, rand_sample=random_samples, scramble_seed=seed)
+    start = {n: float(np.clip(initial[n], *bounds[n])) for n in names}
+    history = [(start, objective([start])[0])]
+    optimiser.observe(pd.DataFrame([start]), np.array([[history[0][1]]]))
+    total = iterations * batch + polish_evaluations
+    for _ in range(iterations):
+        suggestions = optimiser.suggest(n_suggestions=batch)
+        candidates = [{n: float(row[n]) for n in names} for _, row in suggestions.iterrows()]
+        values = objective(candidates)
+        optimiser.observe(suggestions, np.array(values, float).reshape(-1, 1))
+        history.extend(zip(candidates, values))
+        progress(len(history) - 1, total, min(v for _, v in history))
+    best, best_value = min(history, key=lambda item: item[1])
+    if polish_evaluations > 0:
+        best, best_value = _polish(objective, bounds, best, best_value, polish_evaluations, history, progress, total)
+    return Identification(best, best_value, history[0][1], len(history), history)
+
+
+def _polish(objective: Objective, bounds, best: dict, best_value: float, budget: int, history: list,
+            progress, total: int) -> tuple[dict, float]:
+    """Bounded Nelder-Mead from ``best`` in coordinates scaled to [0, 1] per parameter."""
+    from scipy.optimize import minimize
+
+    names = list(bounds)
+    lo, hi = np.array([bounds[n][0] for n in names], float), np.array([bounds[n][1] for n in names], float)
+
+    def f(u: np.ndarray) -> float:
+        candidate = {n: float(v) for n, v in zip(names, lo + np.clip(u, 0.0, 1.0) * (hi - lo))}
+        value = objective([candidate])[0]
+        history.append((candidate, value))
+        progress(len(history) - 1, total, min(v for _, v in history))
+        return value
+
+    u0 = (np.array([best[n] for n in names]) - lo) / (hi - lo)
+    simplex = [u0] + [u0 + np.where(np.arange(len(names)) == i, 0.05 if u0[i] < 0.95 else -0.05, 0.0)
+                      for i in range(len(names))]
+    minimize(f, u0, method="Nelder-Mead", bounds=list(zip(np.zeros(len(names)), np.ones(len(names)))),
+             options={"maxfev": budget, "initial_simplex": np.array(simplex), "xatol": 1e-4, "fatol": 1e-12})
+    return min(((c, v) for c, v in history), key=lambda item: item[1])

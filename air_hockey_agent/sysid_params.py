@@ -1,0 +1,35 @@
+"""Parameters of system identification (ROS-free declarations; defaults in ``config/sysid.yaml``)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterable
+
+from air_hockey_agent.params import ParamSpec, load_node_params
+
+NODE_NAME = "/sysid"
+PARAM_FILES = ("sysid.yaml",)
+SYSID_PARAMS = (
+    ParamSpec("bounds.friction_surface", list, "[m/s^2] search bounds (thesis table 4.1)", 0.0, 10.0, 2),
+    ParamSpec("bounds.friction_rim", list, "[-] search bounds (thesis table 4.1)", 0.0, 2.0, 2),
+    ParamSpec("bounds.restitution", list, "[-] search bounds (thesis table 4.1)", 0.0, 1.0, 2),
+    ParamSpec("bounds.damping", list, "[1/s] search bounds (thesis table 4.1)", 0.0, 10.0, 2),
+    ParamSpec("random_samples", int, "HEBO's initial random suggestions", 1, 1000),
+    ParamSpec("polish_evaluations", int, "Nelder-Mead evaluations after HEBO (0 = off)", 0, 100000),
+    ParamSpec("stride", int, "predict from every stride-th fused frame while optimising", 1, 1000),
+    ParamSpec("workers", int, "processes evaluating a batch in parallel", 1, 64),
+    ParamSpec("frozen_threshold", float, "[m] frozen-frame threshold", 0.0, 1.0),
+    ParamSpec("max_gap", float, "[s] time without frames that ends a trajectory", 0.01, 60.0),
+    ParamSpec("rest_speed", float, "[m/s] speed below which the puck is at rest", 0.0, 10.0),
+    ParamSpec("rest_window", float, "[s] window of the rest test", 0.001, 10.0),
+    ParamSpec("min_duration", float, "[s] shortest trajectory kept", 0.0, 600.0),
+)
+
+
+def load_sysid_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
+    return load_node_params(PARAM_FILES, NODE_NAME, SYSID_PARAMS, extra_files)
+
+
+def bounds(params: dict[str, Any]) -> dict[str, tuple[float, float]]:
+    """Search box per physical parameter, in the order of ``core.sysid.PHYSICAL``."""
+    from air_hockey_agent.core.sysid import PHYSICAL
+    return {name: tuple(params[f"bounds.{name}"]) for name in PHYSICAL}

@@ -1,0 +1,201 @@
+"""``air-hockey sysid BAG_DIR...``: identify the puck model's physical parameters from recordings.
+
+Bags (or directories holding bags) are preprocessed into trajectories (thesis sec. 4.5.1), split into
+training and validation sets by trajectory, and HEBO (thesis sec. 3.3, 4.3) minimises the prediction
+loss at ``--horizon`` on the training set over the table 4.1 bounds (``config/sysid.yaml``), starting
+from the tracker's current parameters and finishing with a local polish. Printed: the loss before and
+after on both sets (thesis table 5.2/5.3 columns: loss, min, median); with ``--cross-validate`` the
+identification is repeated at 0.5, 1.0 and 1.5 s and each result validated at every horizon (table
+5.4). ``--out`` writes the winning parameters as a parameter YAML that ``puck_tracker --ros-args
+--params-file`` and ``air-hockey eval-prediction --params-file`` accept.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import multiprocessing
+import os
+import sys
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+
+from air_hockey_agent.bags.trajectories import load_trajectories, split_train_validation
+from air_hockey_agent.core.sysid import LOSSES, PHYSICAL, identify, loss_report
+from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.sysid_params import bounds, load_sysid_params
+from air_hockey_agent.tracker_params import load_tracker_params
+
+PROG = "air-hockey sysid"
+HORIZONS = (0.5, 1.0, 1.5)
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("sysid", help="identify the puck model's physical parameters (HEBO)",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG_DIR", help="bags, or directories of bags")
+    parser.add_argument("--topic", default="/optitrack/puck", help="PoseStamped topic (default /optitrack/puck)")
+    parser.add_argument("--loss", choices=LOSSES, default="position", help="objective (thesis sec. 4.3.1)")
+    parser.add_argument("--horizon", type=float, choices=HORIZONS, default=1.0, help="prediction horizon [s]")
+    parser.add_argument("--iterations", type=int, default=50, help="HEBO iterations (default 50)")
+    parser.add_argument("--batch", type=int, default=5, help="suggestions per iteration (default 5)")
+    parser.add_argument("--split", type=float, default=0.9, help="training fraction of the trajectories")
+    parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
+    parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
+    parser.add_argument("--params-file", type=Path, action="append", default=[],
+                        help="tracker / sysid parameter YAML (starting parameters, bounds); may be repeated")
+    parser.add_argument("--out", type=Path, help="write the identified parameters to this parameter YAML")
+    parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
+    parser.set_defaults(run=run)
+
+
+# --- parallel objective (processes forked once, trajectories inherited) ---------------------------
+_WORK: dict = {}
+
+
+def _evaluate(candidate: dict) -> float:
+    w = _WORK
+    return loss_report({**w["tracker"], **candidate}, w["trajectories"], w["horizon"], w["loss"], w["stride"]).objective
+
+
+class _Objective:
+    def __init__(self, pool, horizon: float) -> None:
+        self.pool, self.horizon = pool, horizon
+
+    def __call__(self, candidates: list[dict]) -> list[float]:
+        jobs = [dict(c, __horizon=self.horizon) for c in candidates]
+        return self.pool.map(_evaluate_at, jobs) if self.pool else [_evaluate_at(j) for j in jobs]
+
+
+def _evaluate_at(job: dict) -> float:
+    job = dict(job)
+    _WORK["horizon"] = job.pop("__horizon")
+    return _evaluate(job)
+
+
+class _Progress:
+    """One line on stderr: a bar when stderr is a terminal, else a line every 10 %."""
+
+    def __init__(self, label: str, quiet: bool) -> None:
+        self.label, self.quiet, self.tty, self.shown = label, quiet, sys.stderr.isatty(), -1
+        self.start = time.monotonic()
+
+    def __call__(self, done: int, total: int, best: float) -> None:
+        if self.quiet and not self.tty:
+            return
+        tenth = 10 * done // max(total, 1)
+        bar = "#" * (30 * done // max(total, 1))
+        line = (f"{self.label} [{bar:<30}] {done}/{total} evaluations, best {best:.6g}, "
+                f"{time.monotonic() - self.start:.0f} s")
+        if self.tty:
+            print("\r" + line, end="\n" if done >= total else "", file=sys.stderr, flush=True)
+        elif tenth != self.shown:
+            self.shown = tenth
+            print(line, file=sys.stderr, flush=True)
+
+
+def run(args: argparse.Namespace) -> int:
+    try:
+        tracker = load_tracker_params(args.params_file)
+        settings = load_sysid_params(args.params_file)
+    except (ParameterFileError, ParameterValueError) as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return 2
+    if args.out is not None and args.out.exists() and args.out.is_dir():
+        print(f"{PROG}: error: --out {args.out} is a directory", file=sys.stderr)
+        return 2
+    loaded = load_trajectories(args.bags, args.topic, tracker, settings)
+    for message in loaded.errors:
+        print(f"{PROG}: error: {message}", file=sys.stderr)
+    if len(loaded.trajectories) < 2:
+        print(f"{PROG}: error: need at least 2 usable trajectories, found {len(loaded.trajectories)} "
+              f"in {loaded.bags} bag(s)", file=sys.stderr)
+        return 2
+    train_idx, val_idx = split_train_validation(len(loaded.trajectories), args.split, args.seed)
+    train = [loaded.trajectories[i] for i in train_idx]
+    validation = [loaded.trajectories[i] for i in val_idx]
+    if not args.json:
+        print(f"{len(loaded.trajectories)} trajectories from {loaded.bags} bag(s) ({loaded.frozen} frozen frames "
+              f"interpolated): {len(train)} for training, {len(validation)} for validation", flush=True)
+    result = _identify_all(args, tracker, settings, train, validation)
+    result.update({"train_trajectories": len(train), "validation_trajectories": len(validation),
+                   "bags": loaded.bags, "bad_bags": len(loaded.errors)})
+    if args.out is not None:
+        write_params_yaml(args.out, result["identified"], result["summary_line"])
+    result.pop("summary_line")
+    print(json.dumps(result) if args.json else format_report(result, args.out))
+    return 2 if loaded.errors else 0
+
+
+def _identify_all(args, tracker: dict, settings: dict, train: list, validation: list) -> dict:
+    _WORK.update(tracker=tracker, trajectories=train, loss=args.loss, stride=settings["stride"])
+    learn_at = HORIZONS if args.cross_validate else (args.horizon,)
+    workers = min(settings["workers"], args.batch, os.cpu_count() or 1)
+    context = multiprocessing.get_context("fork")
+    pool = context.Pool(workers) if workers > 1 else None
+    start = time.monotonic()
+    try:
+        runs = {}
+        for h in learn_at:
+            progress = _Progress(f"sysid {args.loss} @ {h} s", args.json)
+            ident = identify(_Objective(pool, h), bounds(settings), {n: tracker[n] for n in PHYSICAL},
+                             args.iterations, args.batch, args.seed, settings["random_samples"],
+                             settings["polish_evaluations"], progress)
+            runs[h] = ident
+    finally:
+        if pool is not None:
+            pool.close()
+            pool.join()
+    chosen = runs[args.horizon]
+    initial = {n: tracker[n] for n in PHYSICAL}
+    result = {"loss": args.loss, "horizon": args.horizon, "initial": initial, "identified": chosen.best,
+              "evaluations": sum(r.evaluations for r in runs.values()), "seconds": round(time.monotonic() - start, 1),
+              "before": {}, "after": {}}
+    for name, trajs in (("train", train), ("validation", validation)):
+        result["before"][name] = loss_report(tracker, trajs, args.horizon).as_dict()
+        result["after"][name] = loss_report({**tracker, **chosen.best}, trajs, args.horizon).as_dict()
+    if args.cross_validate:
+        result["learned"] = {str(h): r.best for h, r in runs.items()}
+        result["cross_validation"] = {
+            str(v): {str(h): loss_report({**tracker, **r.best}, validation, v).as_dict() for h, r in runs.items()}
+            for v in HORIZONS}
+    result["summary_line"] = (f"identified by `air-hockey sysid` ({args.loss} loss, horizon {args.horizon} s, "
+                              f"{len(train)} training trajectories) on "
+                              f"{datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}")
+    return result
+
+
+def format_report(result: dict, out: Path | None) -> str:
+    """Thesis-style tables: parameters with loss/min/median before and after; table 5.4 if asked."""
+    names = ("friction_surface", "friction_rim", "damping", "restitution")
+    head = f"{'':<22}" + "".join(f"{n:>17}" for n in names) + f"{'loss [mm]':>11}{'min [mm]':>10}{'median [mm]':>13}"
+    lines = [f"loss {result['loss']}, horizon {result['horizon']} s, {result['evaluations']} evaluations in "
+             f"{result['seconds']} s", head]
+    for label, params, key in (("initial (train)", result["initial"], "before"),
+                               ("identified (train)", result["identified"], "after")):
+        for subset in ("train", "validation"):
+            r = result[key][subset]
+            tag = label.replace("(train)", f"({subset})")
+            lines.append(f"{tag:<22}" + "".join(f"{params[n]:>17.6g}" for n in names)
+                         + f"{r['loss_m'] * 1e3:>11.2f}{r['min_m'] * 1e3:>10.2f}{r['median_m'] * 1e3:>13.2f}")
+    before, after = result["before"]["validation"]["loss_m"], result["after"]["validation"]["loss_m"]
+    lines.append(f"validation loss {before * 1e3:.2f} -> {after * 1e3:.2f} mm "
+                 f"({100 * (1 - after / before):+.1f} % reduction)" if before > 0 else "")
+    if "cross_validation" in result:
+        lines.append("cross-validation (thesis table 5.4): validate at / learned at -> loss, min, median [mm]")
+        for v, row in result["cross_validation"].items():
+            for h, r in row.items():
+                lines.append(f"  {v:>4} s / {h:>4} s: {r['loss_m'] * 1e3:8.2f} {r['min_m'] * 1e3:8.2f} "
+                             f"{r['median_m'] * 1e3:8.2f}")
+    if out is not None:
+        lines.append(f"wrote {out}")
+    return "\n".join(lines)
+
+
+def write_params_yaml(path: Path, values: dict, comment: str) -> None:
+    """Parameter YAML for the puck_tracker, written atomically (temporary file, then rename)."""
+    body = "".join(f"    {name}: {values[name]:.6g}\n" for name in PHYSICAL)
+    text = f"# Physical parameters of the puck model, {comment}.\n/**/puck_tracker:\n  ros__parameters:\n{body}"
+    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
+    tmp.write_text(text)
+    os.replace(tmp, path)

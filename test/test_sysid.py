@@ -1,0 +1,89 @@
+"""System identification: losses, HEBO + polish on a small synthetic problem, the CLI end to end."""
+import json
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.ekf import PuckEKF
+from air_hockey_agent.core.preprocess import to_model_grid
+from air_hockey_agent.core.synthetic import MocapImperfections, ShotRanges, synthetic_session
+from air_hockey_agent.core.sysid import identify, loss_report
+from air_hockey_agent.tracker_params import load_tracker_params
+
+TRUE = {"friction_surface": 0.1, "damping": 0.35, "restitution": 0.85, "friction_rim": 0.15}
+EXE = Path(sys.executable).parent / "air-hockey"
+
+
+@pytest.fixture(scope="module")
+def tracker():
+    return load_tracker_params()
+
+
+@pytest.fixture(scope="module")
+def trajectories(tracker):
+    model = PuckEKF.from_params({**tracker, **TRUE}).model
+    shots = ShotRanges(speed=(2.0, 4.0), spin=(-10.0, 10.0), duration=3.0, pause=3.0)
+    frames = synthetic_session(model, shots, 4, 120.0, MocapImperfections(), np.random.default_rng(1), 0.002)
+    out, start = [], 0
+    for i in range(1, len(frames) + 1):  # one grid trajectory per shot (pauses of 3 s separate them)
+        if i == len(frames) or frames[i].stamp - frames[i - 1].stamp > 1.0:
+            chunk = frames[start:i]
+            out.append(to_model_grid([f.stamp for f in chunk], [f.measurement for f in chunk], 1 / 120))
+            start = i
+    return out
+
+
+def test_true_parameters_have_the_lowest_loss(tracker, trajectories):
+    true = loss_report({**tracker, **TRUE}, trajectories, 1.0)
+    default = loss_report(tracker, trajectories, 1.0)
+    off = loss_report({**tracker, **TRUE, "restitution": 0.8}, trajectories, 1.0)
+    assert true.loss < 0.2 * default.loss and true.loss < off.loss
+    assert true.min <= true.median <= max(true.loss * 3, true.median)
+    ll_true = loss_report({**tracker, **TRUE}, trajectories, 1.0, loss="loglik")
+    ll_off = loss_report({**tracker, **TRUE, "restitution": 0.8}, trajectories, 1.0, loss="loglik")
+    assert ll_true.objective < ll_off.objective
+
+
+def test_identify_moves_toward_the_true_parameters(tracker, trajectories):
+    bounds = {"friction_surface": (0.0, 0.5), "damping": (0.2, 0.8), "restitution": (0.5, 1.0),
+              "friction_rim": (0.0, 0.6)}
+
+    def objective(batch):
+        return [loss_report({**tracker, **c}, trajectories, 1.0, stride=3).objective for c in batch]
+
+    seen = []
+    result = identify(objective, bounds, {k: tracker[k] for k in bounds}, iterations=4, batch=3, seed=0,
+                      random_samples=3, polish_evaluations=30, progress=lambda d, t, b: seen.append(d))
+    assert result.evaluations == len(result.history) > 1 + 4 * 3  # start, HEBO batches, polish
+    assert seen[-1] == len(result.history) - 1
+    assert result.best_objective < 0.5 * result.initial_objective
+    assert all(bounds[k][0] <= v <= bounds[k][1] for k, v in result.best.items())
+
+
+@pytest.mark.slow
+def test_cli_writes_params_that_eval_prediction_accepts(tmp_path):
+    true_file = tmp_path / "true.yaml"
+    true_file.write_text("/**/puck_tracker:\n  ros__parameters:\n"
+                         + "".join(f"    {k}: {v}\n" for k, v in TRUE.items()))
+    bags = tmp_path / "bags"
+    bags.mkdir()
+    made = subprocess.run([str(EXE), "synth-bag", str(bags / "a"), "--shots", "4", "--params-file", str(true_file)],
+                          capture_output=True, text=True, timeout=120)
+    assert made.returncode == 0, made.stderr
+    (bags / "junk").mkdir()
+    (bags / "junk" / "metadata.yaml").write_text("not: a bag\n")
+    out = tmp_path / "identified.yaml"
+    run = subprocess.run([str(EXE), "sysid", str(bags), "--iterations", "3", "--batch", "2", "--out", str(out),
+                          "--json"], capture_output=True, text=True, timeout=600)
+    assert run.returncode == 2  # the junk bag is reported ...
+    assert "junk: cannot read" in run.stderr
+    report = json.loads(run.stdout)  # ... and the good one still used
+    assert report["after"]["train"]["loss_m"] < report["before"]["train"]["loss_m"]
+    assert report["bags"] == 1 and report["bad_bags"] == 1
+    assert "ros__parameters" in out.read_text()
+    check = subprocess.run([str(EXE), "eval-prediction", str(bags / "a"), "--params-file", str(out), "--json"],
+                           capture_output=True, text=True, timeout=120)
+    assert check.returncode == 0, check.stderr
