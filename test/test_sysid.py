@@ -87,3 +87,20 @@ def test_cli_writes_params_that_eval_prediction_accepts(tmp_path):
     check = subprocess.run([str(EXE), "eval-prediction", str(bags / "a"), "--params-file", str(out), "--json"],
                            capture_output=True, text=True, timeout=120)
     assert check.returncode == 0, check.stderr
+
+
+def test_noise_estimate_cli(tmp_path):
+    bag = tmp_path / "a"
+    assert subprocess.run([str(EXE), "synth-bag", str(bag), "--shots", "3"], capture_output=True,
+                          timeout=120).returncode == 0
+    out = tmp_path / "noise.yaml"
+    run = subprocess.run([str(EXE), "noise-estimate", str(tmp_path), "--iterations", "2", "--fix", "Q", "--out",
+                          str(out), "--json"], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    report = json.loads(run.stdout)
+    assert len(report["history"]) == 2 and report["fixed"] == ["Q"]
+    assert set(report["prediction_error"]) == {"horizon", "current", "estimated_R", "estimated_Q", "estimated_both"}
+    assert all(v > 0 for v in report["measurement_noise"])
+    check = subprocess.run([str(EXE), "eval-prediction", str(bag), "--params-file", str(out), "--json"],
+                           capture_output=True, text=True, timeout=120)
+    assert check.returncode == 0, check.stderr

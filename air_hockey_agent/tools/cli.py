@@ -13,6 +13,7 @@ TOOL_MODULES = (
     "air_hockey_agent.tools.synth_bag",
     "air_hockey_agent.tools.record",
     "air_hockey_agent.tools.sysid",
+    "air_hockey_agent.tools.noise_estimate",
 )
 
 

@@ -1,0 +1,44 @@
+"""Noise estimation (eq. 3.12, 3.13) against streams with known measurement noise."""
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.ekf import PuckEKF
+from air_hockey_agent.core.noise import estimate_once, iterate
+from air_hockey_agent.core.preprocess import to_model_grid
+from air_hockey_agent.core.synthetic import MocapImperfections, ShotRanges, synthetic_session
+from air_hockey_agent.tracker_params import load_tracker_params
+
+
+def trajectories(position_std, angle_std, seed=0):
+    params = load_tracker_params()
+    model = PuckEKF.from_params(params).model
+    shots = ShotRanges(speed=(1.0, 3.0), spin=(-5.0, 5.0), duration=3.0, pause=3.0)
+    noise = MocapImperfections(position_std=position_std, angle_std=angle_std, jitter_std=0.0)
+    frames = synthetic_session(model, shots, 3, 120.0, noise, np.random.default_rng(seed), 1 / 1200)
+    grids, start = [], 0
+    for i in range(1, len(frames) + 1):
+        if i == len(frames) or frames[i].stamp - frames[i - 1].stamp > 1.0:
+            chunk = frames[start:i]
+            grids.append(to_model_grid([f.stamp for f in chunk], [f.measurement for f in chunk], 1 / 120))
+            start = i
+    return params, grids
+
+
+def test_measurement_noise_estimate_scales_with_the_true_noise():
+    """Posterior residuals understate R (the filter follows the noise a little), but track it: ten times
+    the noise gives about a hundred times the variance, and the order of magnitude is right."""
+    params, small = trajectories(1e-4, 1e-2)
+    _, large = trajectories(1e-3, 1e-2)
+    r_small = estimate_once(params, small).r
+    r_large = estimate_once({**params, "measurement_noise": [1e-6, 1e-6, 1e-4]}, large).r
+    assert 0.2 * 1e-8 < r_small[0] < 1.5 * 1e-8 and 0.2 * 1e-8 < r_small[1] < 1.5 * 1e-8
+    assert 30 < r_large[0] / r_small[0] < 300
+    assert 0.2 * 1e-4 < r_small[2] < 1.5 * 1e-4
+
+
+def test_iteration_feeds_back_and_fixing_keeps_a_matrix():
+    params, grids = trajectories(1e-4, 1e-2, seed=1)
+    history = iterate(params, grids, 3, fix=("Q",))
+    assert len(history) == 3 and history[0].q_samples > 100 and history[0].r_samples > 500
+    assert not np.allclose(history[0].r, history[1].r)  # R fed back changes the next estimate
+    assert np.all(history[-1].q > 0)
