@@ -142,6 +142,16 @@ def load_node_params(default_files: Iterable[str], fq_name: str, specs: Iterable
     return load_defaults(files, fq_name, specs)
 
 
+def yaml_float(value: float) -> str:
+    """A float as YAML 1.1 (PyYAML, ROS 2) reads back as a float: ``1e-06`` would be a string there."""
+    text = f"{float(value):.6g}"
+    if "e" in text and "." not in text.split("e")[0]:
+        text = text.replace("e", ".0e")
+    elif "." not in text and "e" not in text and text.lstrip("-").isdigit():
+        text += ".0"
+    return text
+
+
 def validate(specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> dict[str, Any]:
     """Check a complete set of values against their specs; raise on the first bad one."""
     return {spec.name: spec.check(values[spec.name]) for spec in specs}

@@ -23,7 +23,7 @@ from pathlib import Path
 from air_hockey_agent.bags.trajectories import load_trajectories
 from air_hockey_agent.core.noise import iterate
 from air_hockey_agent.core.sysid import loss_report
-from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.params import ParameterFileError, ParameterValueError, yaml_float
 from air_hockey_agent.sysid_params import load_sysid_params
 from air_hockey_agent.tracker_params import load_tracker_params
 
@@ -100,8 +100,8 @@ def _format(result: dict, out: Path | None) -> str:
 def _write(path: Path, r: list, q: list, args: argparse.Namespace) -> None:
     text = (f"# Noise covariances estimated by `air-hockey noise-estimate` (eq. 3.12, 3.13; {args.iterations} "
             f"iterations{', fixed ' + args.fix[0] if args.fix else ''}).\n/**/puck_tracker:\n  ros__parameters:\n"
-            f"    measurement_noise: [{', '.join(f'{v:.6g}' for v in r)}]\n"
-            f"    process_noise: [{', '.join(f'{v:.6g}' for v in q)}]\n")
+            f"    measurement_noise: [{', '.join(yaml_float(v) for v in r)}]\n"
+            f"    process_noise: [{', '.join(yaml_float(v) for v in q)}]\n")
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     tmp.write_text(text)
     os.replace(tmp, path)

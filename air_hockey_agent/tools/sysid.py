@@ -22,7 +22,7 @@ from pathlib import Path
 
 from air_hockey_agent.bags.trajectories import load_trajectories, split_train_validation
 from air_hockey_agent.core.sysid import LOSSES, PHYSICAL, identify, loss_report
-from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.params import ParameterFileError, ParameterValueError, yaml_float
 from air_hockey_agent.sysid_params import bounds, load_sysid_params
 from air_hockey_agent.tracker_params import load_tracker_params
 
@@ -194,7 +194,7 @@ def format_report(result: dict, out: Path | None) -> str:
 
 def write_params_yaml(path: Path, values: dict, comment: str) -> None:
     """Parameter YAML for the puck_tracker, written atomically (temporary file, then rename)."""
-    body = "".join(f"    {name}: {values[name]:.6g}\n" for name in PHYSICAL)
+    body = "".join(f"    {name}: {yaml_float(values[name])}\n" for name in PHYSICAL)
     text = f"# Physical parameters of the puck model, {comment}.\n/**/puck_tracker:\n  ros__parameters:\n{body}"
     tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
     tmp.write_text(text)
