@@ -144,7 +144,7 @@ def load_node_params(default_files: Iterable[str], fq_name: str, specs: Iterable
 
 def yaml_float(value: float) -> str:
     """A float as YAML 1.1 (PyYAML, ROS 2) reads back as a float: ``1e-06`` would be a string there."""
-    text = f"{float(value):.6g}"
+    text = f"{float(value):.9g}"
     if "e" in text and "." not in text.split("e")[0]:
         text = text.replace("e", ".0e")
     elif "." not in text and "e" not in text and text.lstrip("-").isdigit():

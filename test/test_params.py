@@ -77,4 +77,4 @@ def test_yaml_float_reads_back_as_the_same_float():
     from air_hockey_agent.params import yaml_float
     for value in (1e-6, 2.28e-4, 0.5, 3.0, -1e-10, 123456789.0, 0.0):
         text = yaml_float(value)
-        assert isinstance(yaml.safe_load(text), float) and float(yaml.safe_load(text)) == pytest.approx(value, rel=1e-6)
+        assert isinstance(yaml.safe_load(text), float) and float(yaml.safe_load(text)) == pytest.approx(value, rel=1e-8)
