@@ -12,7 +12,7 @@ NODES = {
     "trajectory_generator": "air_hockey_agent.nodes.not_implemented:trajectory_generator",
     "referee": "air_hockey_agent.nodes.not_implemented:referee",
     "table_sim": "air_hockey_agent.nodes.table_sim:main",
-    "bag_player": "air_hockey_agent.nodes.not_implemented:bag_player",
+    "bag_player": "air_hockey_agent.nodes.bag_player:main",
     "strategy_test": "air_hockey_agent.nodes.not_implemented:strategy_test",
     "prediction_optimizer": "air_hockey_agent.nodes.not_implemented:prediction_optimizer",
 }

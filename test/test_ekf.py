@@ -115,3 +115,15 @@ def test_state_set_without_a_time_holds_at_the_next_frame():
     flags = ekf.process(1234.5, [0.1001, 0.2, 0.0])
     assert flags == FLAG_MEASUREMENT_USED and ekf.stamp == 1234.5
     assert ekf.stats.reinitialisations == 0 and ekf.x[0] == pytest.approx(0.1001, abs=5e-5)
+
+
+def test_time_jumping_back_restarts_the_filter():
+    """A looping replay or a restarted simulation sends old stamps again: the filter starts over
+    instead of ignoring every frame as a repeat."""
+    ekf = PuckEKF(model(), SETTINGS)
+    for k in range(10):
+        ekf.process(100.0 + k * DT, [0.01 * k, 0.0, 0.0])
+    ekf.process(50.0, [0.3, 0.2, 0.0])
+    flags = ekf.process(50.0 + DT, [0.301, 0.2, 0.0])
+    assert flags & FLAG_REINITIALISED and ekf.stamp == pytest.approx(50.0 + DT)
+    assert ekf.x[0] == pytest.approx(0.301)

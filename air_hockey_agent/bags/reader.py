@@ -4,7 +4,7 @@ from __future__ import annotations
 import sqlite3
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterator
+from typing import Iterable, Iterator
 
 from rosbags.highlevel import AnyReader, AnyReaderError
 from rosbags.rosbag2 import ReaderError
@@ -87,12 +87,26 @@ def _one_line(exc: BaseException) -> str:
     return text if len(text) <= 200 else text[:197] + "..."
 
 
-def iter_messages(path: Path | str) -> Iterator[tuple[str, str, int, object]]:
-    """Every message of a bag in log-time order: (topic, msgtype, log time [ns], message)."""
+def bag_topics(path: Path | str) -> dict[str, str]:
+    """Topic -> message type of every connection in a bag. Raises :class:`BagError`."""
     directory = bag_directory(path)
     try:
         with AnyReader([directory], default_typestore=typestore()) as reader:
-            for c, log_ns, raw in reader.messages():
-                yield c.topic, c.msgtype, log_ns, reader.deserialize(raw, c.msgtype)
+            return {c.topic: c.msgtype for c in reader.connections}
+    except _READ_ERRORS as exc:
+        raise BagError(directory, f"cannot read ({_one_line(exc)})") from None
+
+
+def iter_raw(path: Path | str, topics: Iterable[str] = ()) -> Iterator[tuple[str, int, bytes]]:
+    """(topic, log time [ns], serialised CDR message) in log-time order, optionally for some topics only."""
+    directory = bag_directory(path)
+    wanted = set(topics)
+    try:
+        with AnyReader([directory], default_typestore=typestore()) as reader:
+            connections = [c for c in reader.connections if not wanted or c.topic in wanted]
+            if not connections:
+                return
+            for c, log_ns, raw in reader.messages(connections=connections):
+                yield c.topic, log_ns, bytes(raw)
     except _READ_ERRORS as exc:
         raise BagError(directory, f"cannot read ({_one_line(exc)})") from None

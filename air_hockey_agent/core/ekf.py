@@ -199,6 +199,9 @@ class PuckEKF:
             return flags | self._collect_for_initialisation(t, z)
         if self.stamp is None:
             self.stamp = t  # a state set without a time holds at the first frame after it
+        elif t < self.stamp - self.settings.max_prediction_gap:  # time jumped back (replay loop, sim restart)
+            self.reset()
+            return flags | self._collect_for_initialisation(t, z)
         elif t <= self.stamp:
             self.stats.repeated_frames += 1
             return flags

@@ -14,7 +14,6 @@ PENDING = {
     "tactics": "tactics state machine (thesis 4.6): Init/Home/Ready/Smash/Cut/Prepare/Repel -> HitCommand",
     "trajectory_generator": "trajectory generator: pinocchio IK and task-space planning -> JointTrajectory",
     "referee": "referee: goals, puck out or stuck, illegal robot states, score, start/stop/pause services",
-    "bag_player": "bag player: replays rosbag2 OptiTrack recordings with their original timing (issue #5)",
     "strategy_test": "strategy test: forces one tactic, sets puck states through the sim, scores each trial",
     "prediction_optimizer": "prediction optimizer: HEBO system identification through the tracker services (issue #5)",
 }
@@ -30,6 +29,5 @@ def _entry(name: str) -> Callable[[list[str] | None], int]:
 tactics = _entry("tactics")
 trajectory_generator = _entry("trajectory_generator")
 referee = _entry("referee")
-bag_player = _entry("bag_player")
 strategy_test = _entry("strategy_test")
 prediction_optimizer = _entry("prediction_optimizer")

@@ -19,7 +19,11 @@ from air_hockey_agent.paths import config_file
 
 EXIT_BAD_PARAMETERS = 2
 EXIT_NOT_IMPLEMENTED = 3
-READY_MARKER = "node ready:"  # logged once a node is constructed; the game launcher waits for it
+READY_MARKER = "node ready:"
+
+
+class NodeStartupError(Exception):
+    """A node cannot start (bad input named in the message); it exits with code 2 and one line."""  # logged once a node is constructed; the game launcher waits for it
 
 
 def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
@@ -109,7 +113,7 @@ def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int
         node = node_cls()
         node.get_logger().info(f"{READY_MARKER} {node.get_fully_qualified_name()}")
         node.spin()
-    except (ParameterFileError, ParameterValueError, ParameterException) as exc:
+    except (ParameterFileError, ParameterValueError, ParameterException, NodeStartupError) as exc:
         print(f"[{node_cls.NAME}] error: {exc}", file=sys.stderr)
         return EXIT_BAD_PARAMETERS
     except (KeyboardInterrupt, ExternalShutdownException):

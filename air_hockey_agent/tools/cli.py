@@ -12,6 +12,7 @@ TOOL_MODULES = (
     "air_hockey_agent.tools.eval_prediction",
     "air_hockey_agent.tools.synth_bag",
     "air_hockey_agent.tools.record",
+    "air_hockey_agent.tools.play",
     "air_hockey_agent.tools.sysid",
     "air_hockey_agent.tools.noise_estimate",
 )
