@@ -104,3 +104,16 @@ def test_noise_estimate_cli(tmp_path):
     check = subprocess.run([str(EXE), "eval-prediction", str(bag), "--params-file", str(out), "--json"],
                            capture_output=True, text=True, timeout=120)
     assert check.returncode == 0, check.stderr
+
+
+def test_plot_cli_writes_three_pngs(tmp_path):
+    bag = tmp_path / "a"
+    assert subprocess.run([str(EXE), "synth-bag", str(bag), "--shots", "2"], capture_output=True,
+                          timeout=120).returncode == 0
+    run = subprocess.run([str(EXE), "plot", str(bag), "--out", str(tmp_path / "plots"), "--horizon", "0.5"],
+                         capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr
+    for name in ("velocity.png", "prediction.png", "error_vs_horizon.png"):
+        data = (tmp_path / "plots" / name).read_bytes()
+        assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
+    assert not [p for p in (tmp_path / "plots").iterdir() if p.name.startswith(".")]

@@ -116,3 +116,35 @@ def _nearest(times: list[float], t: float) -> int | None:
     i = bisect.bisect_left(times, t)
     candidates = [k for k in (i - 1, i) if 0 <= k < len(times)]
     return min(candidates, key=lambda k: abs(times[k] - t))
+
+
+@dataclass
+class PredictionSeries:
+    """One recording, frame by frame: what was measured, estimated, and predicted ``horizon`` before."""
+
+    horizon: float
+    t: np.ndarray           # (n,) stamps [s] of fused frames
+    measured: np.ndarray    # (n, 3) x, y, theta
+    estimated: np.ndarray   # (n, 6) filter state after the frame
+    predicted: np.ndarray   # (n, 6) state predicted from the fused frame nearest t - horizon (NaN if none)
+
+
+def prediction_series(ekf: PuckEKF, frames: Iterable[Frame], horizon: float) -> PredictionSeries:
+    """Filter a recording and, for every fused frame, the prediction made ``horizon`` [s] earlier (fig. 5.2-5.4)."""
+    ekf.reset()
+    t, measured, estimated = [], [], []
+    for stamp, z in frames:
+        flags = ekf.process(stamp, z)
+        if flags & FLAG_MEASUREMENT_USED:
+            t.append(stamp)
+            measured.append(np.asarray(z, float))
+            estimated.append(ekf.x.copy())
+    predicted = np.full((len(t), 6), np.nan)
+    tolerance = 0.5 * ekf.settings.dt
+    for k, stamp in enumerate(t):
+        j = _nearest(t, stamp - horizon)
+        if j is not None and j < k and abs(t[j] - (stamp - horizon)) <= tolerance:
+            predicted[k] = predict_fast(ekf.model, estimated[j], None, stamp - t[j], ekf.settings.dt,
+                                        ekf.settings.q).state
+    return PredictionSeries(horizon, np.array(t), np.array(measured).reshape(-1, 3),
+                            np.array(estimated).reshape(-1, 6), predicted)

@@ -15,6 +15,7 @@ TOOL_MODULES = (
     "air_hockey_agent.tools.play",
     "air_hockey_agent.tools.sysid",
     "air_hockey_agent.tools.noise_estimate",
+    "air_hockey_agent.tools.plot",
 )
 
 
