@@ -14,7 +14,7 @@ NODES = {
     "table_sim": "air_hockey_agent.nodes.table_sim:main",
     "bag_player": "air_hockey_agent.nodes.bag_player:main",
     "strategy_test": "air_hockey_agent.nodes.not_implemented:strategy_test",
-    "prediction_optimizer": "air_hockey_agent.nodes.not_implemented:prediction_optimizer",
+    "prediction_optimizer": "air_hockey_agent.nodes.prediction_optimizer:main",
 }
 
 setup(

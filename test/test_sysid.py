@@ -117,3 +117,20 @@ def test_plot_cli_writes_three_pngs(tmp_path):
         data = (tmp_path / "plots" / name).read_bytes()
         assert data[:8] == b"\x89PNG\r\n\x1a\n" and len(data) > 10_000
     assert not [p for p in (tmp_path / "plots").iterdir() if p.name.startswith(".")]
+
+
+def test_errors_through_steps_match_the_offline_loss(tracker, trajectories):
+    """The service path of prediction_optimizer (a step function) gives the offline loss exactly."""
+    from air_hockey_agent.core.sysid import errors_through_steps
+    ekf = PuckEKF.from_params(tracker)
+
+    def step(t, z, h):
+        flags = ekf.process(t, z)
+        return flags, tuple(ekf.predict(h).state[:2]) if ekf.initialised else (0.0, 0.0)
+
+    errors = []
+    for traj in trajectories:
+        ekf.reset()
+        errors.extend(errors_through_steps(traj, 1.0, step))
+    offline = loss_report(tracker, trajectories, 1.0)
+    assert len(errors) == offline.comparisons and np.mean(errors) == pytest.approx(offline.loss, rel=1e-9)

@@ -123,3 +123,27 @@ def _polish(objective: Objective, bounds, best: dict, best_value: float, budget:
     minimize(f, u0, method="Nelder-Mead", bounds=list(zip(np.zeros(len(names)), np.ones(len(names)))),
              options={"maxfev": budget, "initial_simplex": np.array(simplex), "xatol": 1e-4, "fatol": 1e-12})
     return min(((c, v) for c, v in history), key=lambda item: item[1])
+
+
+StepFn = Callable[[float, "np.ndarray | None", float], "tuple[int, tuple[float, float]]"]
+
+
+def errors_through_steps(traj: GridTrajectory, horizon: float, step: StepFn) -> list[float]:
+    """Prediction errors of one trajectory computed through a filter behind ``step`` (e.g. the tracker's
+    ``kalman_step`` service): ``step(t, z, horizon) -> (flags, predicted (x, y) at t + horizon)``.
+
+    The same comparison as :func:`loss_report`: from every fused frame (not a re-initialisation) to the
+    measurement ``horizon`` later, on the model grid.
+    """
+    from air_hockey_agent.core.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED
+    steps = int(round(horizon / traj.dt))
+    predictions: dict[int, tuple[float, float]] = {}
+    errors = []
+    for row, (t, z) in enumerate(traj.frames()):
+        flags, predicted = step(t, z, horizon)
+        if row in predictions and z is not None and flags & FLAG_MEASUREMENT_USED:
+            px, py = predictions.pop(row)
+            errors.append(float(np.hypot(px - z[0], py - z[1])))
+        if flags & FLAG_MEASUREMENT_USED and not flags & FLAG_REINITIALISED:
+            predictions[row + steps] = predicted
+    return errors

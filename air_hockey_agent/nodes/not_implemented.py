@@ -15,7 +15,6 @@ PENDING = {
     "trajectory_generator": "trajectory generator: pinocchio IK and task-space planning -> JointTrajectory",
     "referee": "referee: goals, puck out or stuck, illegal robot states, score, start/stop/pause services",
     "strategy_test": "strategy test: forces one tactic, sets puck states through the sim, scores each trial",
-    "prediction_optimizer": "prediction optimizer: HEBO system identification through the tracker services (issue #5)",
 }
 
 
@@ -30,4 +29,3 @@ tactics = _entry("tactics")
 trajectory_generator = _entry("trajectory_generator")
 referee = _entry("referee")
 strategy_test = _entry("strategy_test")
-prediction_optimizer = _entry("prediction_optimizer")
