@@ -89,29 +89,28 @@ def test_cli_writes_params_that_eval_prediction_accepts(tmp_path):
     assert check.returncode == 0, check.stderr
 
 
+def cli(*args, timeout=300):
+    return subprocess.run([str(EXE), *map(str, args)], capture_output=True, text=True, timeout=timeout)
+
+
 def test_noise_estimate_cli(tmp_path):
     bag = tmp_path / "a"
-    assert subprocess.run([str(EXE), "synth-bag", str(bag), "--shots", "3"], capture_output=True,
-                          timeout=120).returncode == 0
+    assert cli("synth-bag", bag, "--shots", 3).returncode == 0
     out = tmp_path / "noise.yaml"
-    run = subprocess.run([str(EXE), "noise-estimate", str(tmp_path), "--iterations", "2", "--fix", "Q", "--out",
-                          str(out), "--json"], capture_output=True, text=True, timeout=300)
+    run = cli("noise-estimate", tmp_path, "--iterations", 2, "--fix", "Q", "--out", out, "--json")
     assert run.returncode == 0, run.stderr
     report = json.loads(run.stdout)
     assert len(report["history"]) == 2 and report["fixed"] == ["Q"]
     assert set(report["prediction_error"]) == {"horizon", "current", "estimated_R", "estimated_Q", "estimated_both"}
     assert all(v > 0 for v in report["measurement_noise"])
-    check = subprocess.run([str(EXE), "eval-prediction", str(bag), "--params-file", str(out), "--json"],
-                           capture_output=True, text=True, timeout=120)
+    check = cli("eval-prediction", bag, "--params-file", out, "--json")
     assert check.returncode == 0, check.stderr
 
 
 def test_plot_cli_writes_three_pngs(tmp_path):
     bag = tmp_path / "a"
-    assert subprocess.run([str(EXE), "synth-bag", str(bag), "--shots", "2"], capture_output=True,
-                          timeout=120).returncode == 0
-    run = subprocess.run([str(EXE), "plot", str(bag), "--out", str(tmp_path / "plots"), "--horizon", "0.5"],
-                         capture_output=True, text=True, timeout=300)
+    assert cli("synth-bag", bag, "--shots", 2).returncode == 0
+    run = cli("plot", bag, "--out", tmp_path / "plots", "--horizon", 0.5)
     assert run.returncode == 0, run.stderr
     for name in ("velocity.png", "prediction.png", "error_vs_horizon.png"):
         data = (tmp_path / "plots" / name).read_bytes()

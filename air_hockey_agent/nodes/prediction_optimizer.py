@@ -15,8 +15,6 @@ import time
 from pathlib import Path
 
 import numpy as np
-import rclpy
-from air_hockey_msgs.msg import PuckState
 from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetPhysicalParams
 from rclpy.executors import SingleThreadedExecutor
 

@@ -20,12 +20,10 @@ import os
 import sys
 from pathlib import Path
 
-from air_hockey_agent.bags.trajectories import load_trajectories
 from air_hockey_agent.core.noise import iterate
 from air_hockey_agent.core.sysid import loss_report
-from air_hockey_agent.params import ParameterFileError, ParameterValueError, yaml_float
-from air_hockey_agent.sysid_params import load_sysid_params
-from air_hockey_agent.tracker_params import load_tracker_params
+from air_hockey_agent.params import yaml_float
+from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 
 PROG = "air-hockey noise-estimate"
 
@@ -33,13 +31,11 @@ PROG = "air-hockey noise-estimate"
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("noise-estimate", help="estimate R and Q from recordings (eq. 3.12, 3.13)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG_DIR", help="bags, or directories of bags")
-    parser.add_argument("--topic", default="/optitrack/puck", help="PoseStamped topic (default /optitrack/puck)")
+    add_recording_arguments(parser)
     parser.add_argument("--iterations", type=int, default=5, help="iterations (thesis: 5)")
     parser.add_argument("--fix", choices=("R", "Q"), action="append", default=[],
                         help="keep this matrix fixed (may be given once)")
     parser.add_argument("--horizon", type=float, default=1.0, help="horizon of the reported prediction error [s]")
-    parser.add_argument("--params-file", type=Path, action="append", default=[], help="tracker parameter YAML")
     parser.add_argument("--out", type=Path, help="write measurement_noise and process_noise to this YAML")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)
@@ -50,17 +46,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: error: need --iterations >= 1 and at most one --fix", file=sys.stderr)
         return 2
     try:
-        tracker = load_tracker_params(args.params_file)
-        prep = load_sysid_params(args.params_file)
-    except (ParameterFileError, ParameterValueError) as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    loaded = load_trajectories(args.bags, args.topic, tracker, prep)
-    for message in loaded.errors:
-        print(f"{PROG}: error: {message}", file=sys.stderr)
-    if not loaded.trajectories:
-        print(f"{PROG}: error: no usable trajectories in {loaded.bags} bag(s)", file=sys.stderr)
-        return 2
+        recordings = load_recordings(PROG, args)
+    except ToolError as exc:
+        return report_error(PROG, exc)
+    tracker, loaded = recordings.tracker, recordings.loaded
     history = iterate(tracker, loaded.trajectories, args.iterations, args.fix)
     final = history[-1]
     r = tracker["measurement_noise"] if "R" in args.fix else final.r.tolist()

@@ -17,12 +17,11 @@ from pathlib import Path
 
 import numpy as np
 
-from air_hockey_agent.bags.trajectories import load_trajectories
 from air_hockey_agent.core.ekf import PuckEKF
 from air_hockey_agent.core.evaluation import prediction_series
 from air_hockey_agent.core.sysid import loss_report
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
-from air_hockey_agent.sysid_params import load_sysid_params
+from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 from air_hockey_agent.tracker_params import load_tracker_params
 
 PROG = "air-hockey plot"
@@ -32,30 +31,21 @@ HORIZON_GRID = np.round(np.arange(0.1, 1.51, 0.1), 2)
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("plot", help="PNG figures: velocity, prediction, error vs horizon",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG_DIR", help="bags, or directories of bags")
+    add_recording_arguments(parser)
     parser.add_argument("--out", type=Path, default=Path("plots"), help="output directory (default ./plots)")
     parser.add_argument("--horizon", type=float, default=0.5, help="prediction horizon of prediction.png [s]")
     parser.add_argument("--trajectory", type=int, help="index of the trajectory to draw (default: longest)")
-    parser.add_argument("--topic", default="/optitrack/puck", help="PoseStamped topic")
-    parser.add_argument("--params-file", type=Path, action="append", default=[], help="tracker parameter YAML")
     parser.add_argument("--compare", type=Path, help="a second tracker parameter YAML drawn for comparison")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
     try:
-        tracker = load_tracker_params(args.params_file)
+        recordings = load_recordings(PROG, args)
         other = load_tracker_params([*args.params_file, args.compare]) if args.compare else None
-        prep = load_sysid_params(args.params_file)
-    except (ParameterFileError, ParameterValueError) as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    loaded = load_trajectories(args.bags, args.topic, tracker, prep)
-    for message in loaded.errors:
-        print(f"{PROG}: error: {message}", file=sys.stderr)
-    if not loaded.trajectories:
-        print(f"{PROG}: error: no usable trajectories", file=sys.stderr)
-        return 2
+    except (ToolError, ParameterFileError, ParameterValueError) as exc:
+        return report_error(PROG, exc)
+    tracker, loaded = recordings.tracker, recordings.loaded
     index = args.trajectory if args.trajectory is not None else int(np.argmax([len(t) for t in loaded.trajectories]))
     if not 0 <= index < len(loaded.trajectories):
         print(f"{PROG}: error: --trajectory {index} out of range 0..{len(loaded.trajectories) - 1}", file=sys.stderr)

@@ -20,11 +20,11 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
-from air_hockey_agent.bags.trajectories import load_trajectories, split_train_validation
+from air_hockey_agent.bags.trajectories import split_train_validation
 from air_hockey_agent.core.sysid import LOSSES, PHYSICAL, identify, loss_report
-from air_hockey_agent.params import ParameterFileError, ParameterValueError, yaml_float
-from air_hockey_agent.sysid_params import bounds, load_sysid_params
-from air_hockey_agent.tracker_params import load_tracker_params
+from air_hockey_agent.params import yaml_float
+from air_hockey_agent.sysid_params import bounds
+from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 
 PROG = "air-hockey sysid"
 HORIZONS = (0.5, 1.0, 1.5)
@@ -33,8 +33,7 @@ HORIZONS = (0.5, 1.0, 1.5)
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("sysid", help="identify the puck model's physical parameters (HEBO)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG_DIR", help="bags, or directories of bags")
-    parser.add_argument("--topic", default="/optitrack/puck", help="PoseStamped topic (default /optitrack/puck)")
+    add_recording_arguments(parser)
     parser.add_argument("--loss", choices=LOSSES, default="position", help="objective (thesis sec. 4.3.1)")
     parser.add_argument("--horizon", type=float, choices=HORIZONS, default=1.0, help="prediction horizon [s]")
     parser.add_argument("--iterations", type=int, default=50, help="HEBO iterations (default 50)")
@@ -42,8 +41,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--split", type=float, default=0.9, help="training fraction of the trajectories")
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
-    parser.add_argument("--params-file", type=Path, action="append", default=[],
-                        help="tracker / sysid parameter YAML (starting parameters, bounds); may be repeated")
     parser.add_argument("--out", type=Path, help="write the identified parameters to this parameter YAML")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)
@@ -95,22 +92,13 @@ class _Progress:
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.out is not None and args.out.is_dir():
+        return report_error(PROG, f"--out {args.out} is a directory")
     try:
-        tracker = load_tracker_params(args.params_file)
-        settings = load_sysid_params(args.params_file)
-    except (ParameterFileError, ParameterValueError) as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    if args.out is not None and args.out.exists() and args.out.is_dir():
-        print(f"{PROG}: error: --out {args.out} is a directory", file=sys.stderr)
-        return 2
-    loaded = load_trajectories(args.bags, args.topic, tracker, settings)
-    for message in loaded.errors:
-        print(f"{PROG}: error: {message}", file=sys.stderr)
-    if len(loaded.trajectories) < 2:
-        print(f"{PROG}: error: need at least 2 usable trajectories, found {len(loaded.trajectories)} "
-              f"in {loaded.bags} bag(s)", file=sys.stderr)
-        return 2
+        recordings = load_recordings(PROG, args, minimum=2)
+    except ToolError as exc:
+        return report_error(PROG, exc)
+    tracker, settings, loaded = recordings.tracker, recordings.settings, recordings.loaded
     train_idx, val_idx = split_train_validation(len(loaded.trajectories), args.split, args.seed)
     train = [loaded.trajectories[i] for i in train_idx]
     validation = [loaded.trajectories[i] for i in val_idx]

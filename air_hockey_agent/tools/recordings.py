@@ -1,0 +1,51 @@
+"""Shared start of the recorded-data tools (sysid, noise-estimate, plot): parameters, then trajectories."""
+from __future__ import annotations
+
+import argparse
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+
+from air_hockey_agent.bags.trajectories import LoadedTrajectories, load_trajectories
+from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.sysid_params import load_sysid_params
+from air_hockey_agent.tracker_params import load_tracker_params
+
+
+class ToolError(Exception):
+    """Reported as ``<prog>: error: <message>`` with exit code 2."""
+
+
+@dataclass
+class Recordings:
+    tracker: dict            # tracker parameters (defaults + --params-file)
+    settings: dict           # sysid / preprocessing parameters
+    loaded: LoadedTrajectories
+
+
+def add_recording_arguments(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG_DIR", help="bags, or directories of bags")
+    parser.add_argument("--topic", default="/optitrack/puck", help="PoseStamped topic (default /optitrack/puck)")
+    parser.add_argument("--params-file", type=Path, action="append", default=[],
+                        help="tracker / sysid parameter YAML; may be repeated")
+
+
+def load_recordings(prog: str, args: argparse.Namespace, minimum: int = 1) -> Recordings:
+    """Parameters and preprocessed trajectories; bad bags are printed as one-line errors, not fatal."""
+    try:
+        tracker = load_tracker_params(args.params_file)
+        settings = load_sysid_params(args.params_file)
+    except (ParameterFileError, ParameterValueError) as exc:
+        raise ToolError(str(exc)) from None
+    loaded = load_trajectories(args.bags, args.topic, tracker, settings)
+    for message in loaded.errors:
+        print(f"{prog}: error: {message}", file=sys.stderr)
+    if len(loaded.trajectories) < minimum:
+        raise ToolError(f"need at least {minimum} usable trajectories, found {len(loaded.trajectories)} "
+                        f"in {loaded.bags} bag(s)")
+    return Recordings(tracker, settings, loaded)
+
+
+def report_error(prog: str, exc: Exception | str) -> int:
+    print(f"{prog}: error: {exc}", file=sys.stderr)
+    return 2
