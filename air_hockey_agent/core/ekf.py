@@ -26,6 +26,8 @@ from air_hockey_agent.core.puck_model import PuckModel, PuckParams, wrap_angle
 from air_hockey_agent.core.table import TableGeometry
 
 MEASURED = (0, 1, 4)  # state indices of the measurement (x, y, theta)
+_MEASURED_ROWS = np.array(MEASURED)
+_MEASURED_BLOCK = np.ix_(MEASURED, MEASURED)  # index of the 3x3 measured block of P (built once: it is hot)
 
 FLAG_PREDICTED = 1          # same values as air_hockey_msgs/PuckState.FLAG_*
 FLAG_MEASUREMENT_USED = 2
@@ -161,9 +163,9 @@ class PuckEKF:
 
     def innovation(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Innovation y (angle wrapped), its covariance S and squared Mahalanobis distance."""
-        y = z - self.x[list(MEASURED)]
+        y = z - self.x[_MEASURED_ROWS]
         y[2] = wrap_angle(y[2])
-        s = self.P[np.ix_(MEASURED, MEASURED)] + self.settings.r
+        s = self.P[_MEASURED_BLOCK] + self.settings.r
         s_inv = _inverse3(s)
         return y, s_inv, float(y @ s_inv @ y)
 

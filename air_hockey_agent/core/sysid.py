@@ -11,7 +11,7 @@ from the current parameters, then polishes the best point with a bounded Nelder-
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
@@ -39,23 +39,49 @@ class LossReport:
                 "n": self.comparisons}
 
 
-def loss_report(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory], horizon: float,
-                loss: str = "position", stride: int = 1) -> LossReport:
-    """Filter and predict every trajectory with tracker parameters ``params`` at ``horizon`` [s]."""
+@dataclass
+class PartialLoss:
+    """Sums over some trajectories, to be combined with the rest (evaluation split across processes)."""
+
+    error_sum: float = 0.0
+    nll_sum: float = 0.0
+    count: int = 0
+    trajectory_means: list = field(default_factory=list)
+
+
+def partial_loss(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory], horizon: float,
+                 loss: str = "position", stride: int = 1) -> PartialLoss:
+    """Filter and predict ``trajectories`` with tracker parameters ``params`` at ``horizon`` [s]."""
     ekf = PuckEKF.from_params(params)
     key = horizon_key(horizon)
-    means, errors, nll = [], [], []
+    part = PartialLoss()
     for traj in trajectories:
         totals = EvaluationTotals((horizon,), loglik=loss == "loglik", stride=stride)
         evaluate_stream(ekf, traj.frames(), totals)
-        if totals.errors[key]:
-            means.append(float(np.mean(totals.errors[key])))
-            errors.extend(totals.errors[key])
-            nll.extend(totals.nll[key])
-    if not errors:
+        errors = totals.errors[key]
+        if errors:
+            part.trajectory_means.append(float(np.mean(errors)))
+            part.error_sum += float(np.sum(errors))
+            part.nll_sum += float(np.sum(totals.nll[key]))
+            part.count += len(errors)
+    return part
+
+
+def combine(parts: Sequence[PartialLoss], loss: str = "position") -> LossReport:
+    """One report from the partial sums of disjoint sets of trajectories."""
+    count = sum(p.count for p in parts)
+    means = [m for p in parts for m in p.trajectory_means]
+    if count == 0:
         return LossReport(float("inf"), float("inf"), float("inf"), float("inf"), 0)
-    objective = float(np.mean(errors)) if loss == "position" else float(np.mean(nll))
-    return LossReport(objective, float(np.mean(errors)), float(np.min(means)), float(np.median(means)), len(errors))
+    mean_error = sum(p.error_sum for p in parts) / count
+    objective = mean_error if loss == "position" else sum(p.nll_sum for p in parts) / count
+    return LossReport(objective, mean_error, float(np.min(means)), float(np.median(means)), count)
+
+
+def loss_report(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory], horizon: float,
+                loss: str = "position", stride: int = 1) -> LossReport:
+    """Filter and predict every trajectory with tracker parameters ``params`` at ``horizon`` [s]."""
+    return combine([partial_loss(params, trajectories, horizon, loss, stride)], loss)
 
 
 @dataclass

@@ -21,7 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from air_hockey_agent.bags.trajectories import split_train_validation
-from air_hockey_agent.core.sysid import LOSSES, PHYSICAL, identify, loss_report
+from air_hockey_agent.core.sysid import LOSSES, PHYSICAL, combine, identify, loss_report, partial_loss
 from air_hockey_agent.params import yaml_float
 from air_hockey_agent.sysid_params import bounds
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
@@ -50,24 +50,26 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 _WORK: dict = {}
 
 
-def _evaluate(candidate: dict) -> float:
+def _partial(job: tuple) -> object:
+    """One candidate on one share of the training trajectories (runs in a worker process)."""
+    candidate, horizon, share, shares = job
     w = _WORK
-    return loss_report({**w["tracker"], **candidate}, w["trajectories"], w["horizon"], w["loss"], w["stride"]).objective
+    return partial_loss({**w["tracker"], **candidate}, w["trajectories"][share::shares], horizon, w["loss"],
+                        w["stride"])
 
 
 class _Objective:
-    def __init__(self, pool, horizon: float) -> None:
-        self.pool, self.horizon = pool, horizon
+    """Evaluates a batch of candidates; each candidate's trajectories are split over the workers, so
+    every process is busy whatever the batch size (the polish evaluates one candidate at a time)."""
+
+    def __init__(self, pool, workers: int, horizon: float, loss: str) -> None:
+        self.pool, self.workers, self.horizon, self.loss = pool, workers, horizon, loss
 
     def __call__(self, candidates: list[dict]) -> list[float]:
-        jobs = [dict(c, __horizon=self.horizon) for c in candidates]
-        return self.pool.map(_evaluate_at, jobs) if self.pool else [_evaluate_at(j) for j in jobs]
-
-
-def _evaluate_at(job: dict) -> float:
-    job = dict(job)
-    _WORK["horizon"] = job.pop("__horizon")
-    return _evaluate(job)
+        jobs = [(c, self.horizon, share, self.workers) for c in candidates for share in range(self.workers)]
+        parts = self.pool.map(_partial, jobs) if self.pool else [_partial(j) for j in jobs]
+        return [combine(parts[i * self.workers:(i + 1) * self.workers], self.loss).objective
+                for i in range(len(candidates))]
 
 
 class _Progress:
@@ -118,7 +120,7 @@ def run(args: argparse.Namespace) -> int:
 def _identify_all(args, tracker: dict, settings: dict, train: list, validation: list) -> dict:
     _WORK.update(tracker=tracker, trajectories=train, loss=args.loss, stride=settings["stride"])
     learn_at = HORIZONS if args.cross_validate else (args.horizon,)
-    workers = min(settings["workers"], args.batch, os.cpu_count() or 1)
+    workers = min(settings["workers"], os.cpu_count() or 1)
     context = multiprocessing.get_context("fork")
     pool = context.Pool(workers) if workers > 1 else None
     start = time.monotonic()
@@ -126,9 +128,9 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
         runs = {}
         for h in learn_at:
             progress = _Progress(f"sysid {args.loss} @ {h} s", args.json)
-            ident = identify(_Objective(pool, h), bounds(settings), {n: tracker[n] for n in PHYSICAL},
-                             args.iterations, args.batch, args.seed, settings["random_samples"],
-                             settings["polish_evaluations"], progress)
+            ident = identify(_Objective(pool, workers, h, args.loss), bounds(settings),
+                             {n: tracker[n] for n in PHYSICAL}, args.iterations, args.batch, args.seed,
+                             settings["random_samples"], settings["polish_evaluations"], progress)
             runs[h] = ident
     finally:
         if pool is not None:
