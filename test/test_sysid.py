@@ -133,3 +133,48 @@ def test_errors_through_steps_match_the_offline_loss(tracker, trajectories):
         errors.extend(errors_through_steps(traj, 1.0, step))
     offline = loss_report(tracker, trajectories, 1.0)
     assert len(errors) == offline.comparisons and np.mean(errors) == pytest.approx(offline.loss, rel=1e-9)
+
+
+def test_messy_bag_is_repaired_with_a_warning_and_used(tmp_path):
+    """Out-of-order and repeated stamps and NaN poses: one warning line naming the bag, bag still used."""
+    from air_hockey_agent.bags.reader import read_poses
+    from air_hockey_agent.bags.trajectories import load_trajectories
+    from air_hockey_agent.bags.types import typestore
+    from air_hockey_agent.bags.writer import write_bag
+    from air_hockey_agent.sysid_params import load_sysid_params
+    from air_hockey_agent.tracker_params import load_tracker_params
+
+    clean = tmp_path / "clean"
+    assert cli("synth-bag", clean, "--shots", 2).returncode == 0
+    records = read_poses(clean, "/optitrack/puck")
+    types = typestore().types
+    msgs = []
+    for k, r in enumerate(records):
+        stamp_ns = int(round(r.stamp * 1e9)) if k != 50 else int(round(records[40].stamp * 1e9))  # back in time
+        x = float("nan") if k in (70, 71) else r.position[0]
+        msg = types["geometry_msgs/msg/PoseStamped"](
+            header=types["std_msgs/msg/Header"](stamp=types["builtin_interfaces/msg/Time"](
+                sec=stamp_ns // 10**9, nanosec=stamp_ns % 10**9), frame_id="optitrack"),
+            pose=types["geometry_msgs/msg/Pose"](
+                position=types["geometry_msgs/msg/Point"](x=x, y=r.position[1], z=r.position[2]),
+                orientation=types["geometry_msgs/msg/Quaternion"](x=0.0, y=0.0, z=r.orientation[2],
+                                                                  w=r.orientation[3])))
+        msgs.append(("/optitrack/puck", k, msg))
+    write_bag(tmp_path / "messy", {"/optitrack/puck": "geometry_msgs/msg/PoseStamped"}, msgs)
+    loaded = load_trajectories([tmp_path / "messy"], "/optitrack/puck", load_tracker_params(), load_sysid_params())
+    assert loaded.bags == 1 and loaded.trajectories and not loaded.errors
+    assert len(loaded.warnings) == 1 and str(tmp_path / "messy") in loaded.warnings[0]
+    assert "1 stamps out of order" in loaded.warnings[0] and "2 poses with NaN" in loaded.warnings[0]
+
+
+def test_cross_validation_table(tmp_path):
+    assert cli("synth-bag", tmp_path / "a", "--shots", 4).returncode == 0
+    fast = tmp_path / "fast.yaml"
+    fast.write_text("/**:\n  ros__parameters:\n    polish_evaluations: 0\n    random_samples: 1\n")
+    run = cli("sysid", tmp_path / "a", "--iterations", 1, "--batch", 1, "--cross-validate", "--params-file", fast,
+              "--json", timeout=600)
+    assert run.returncode == 0, run.stderr
+    report = json.loads(run.stdout)
+    assert set(report["learned"]) == {"0.5", "1.0", "1.5"}
+    assert set(report["cross_validation"]) == {"0.5", "1.0", "1.5"}
+    assert all(set(row) == {"0.5", "1.0", "1.5"} for row in report["cross_validation"].values())

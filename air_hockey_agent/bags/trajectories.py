@@ -1,9 +1,11 @@
 """Recorded puck trajectories for system identification: bags -> preprocessed model-grid trajectories."""
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Mapping, Sequence
+
+import numpy as np
 
 from air_hockey_agent.bags.reader import BagError, read_poses
 from air_hockey_agent.core.frames import pose_to_measurement
@@ -18,6 +20,7 @@ class LoadedTrajectories:
     errors: list                # one-line messages for bags that could not be used
     bags: int                   # bags read successfully
     frozen: int = 0             # frozen frames interpolated
+    warnings: list = field(default_factory=list)  # one-line notes on data repaired while loading
 
 
 def find_bags(paths: Sequence[Path]) -> tuple[list[Path], list[str]]:
@@ -48,6 +51,9 @@ def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, A
             continue
         result.bags += 1
         measurements = [pose_to_measurement(r.position, r.orientation, tracker["mocap_table_pose"]) for r in records]
+        note = _stream_problems([r.stamp for r in records], measurements)
+        if note:
+            result.warnings.append(f"{bag}: {note}")
         grid = to_model_grid([r.stamp for r in records], measurements, dt)
         result.frozen += interpolate_frozen(grid, prep["frozen_threshold"])
         for piece in split_trajectories(grid, prep["max_gap"]):
@@ -66,3 +72,13 @@ def split_train_validation(n: int, fraction: float, seed: int) -> tuple[list[int
     return sorted(order[:cut]), sorted(order[cut:])
 
 
+
+
+def _stream_problems(stamps: Sequence[float], measurements: Sequence) -> str:
+    """What preprocessing repairs in a stream, as one line ('' when nothing): out-of-order and repeated
+    stamps are put in order / dropped by the model grid, unusable poses become lost frames."""
+    steps = np.diff(np.asarray(stamps, float))
+    problems = [(int(np.sum(steps < 0.0)), "stamps out of order (sorted)"),
+                (int(np.sum(steps == 0.0)), "repeated stamps (one kept)"),
+                (sum(m is None for m in measurements), "poses with NaN or an invalid quaternion (treated as lost)")]
+    return ", ".join(f"{n} {what}" for n, what in problems if n)

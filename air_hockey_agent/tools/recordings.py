@@ -40,6 +40,8 @@ def load_recordings(prog: str, args: argparse.Namespace, minimum: int = 1) -> Re
     loaded = load_trajectories(args.bags, args.topic, tracker, settings)
     for message in loaded.errors:
         print(f"{prog}: error: {message}", file=sys.stderr)
+    for message in loaded.warnings:
+        print(f"{prog}: warning: {message}", file=sys.stderr)
     if len(loaded.trajectories) < minimum:
         raise ToolError(f"need at least {minimum} usable trajectories, found {len(loaded.trajectories)} "
                         f"in {loaded.bags} bag(s)")
