@@ -119,7 +119,10 @@ class TableWorld:
         c.setPhysicsEngineParameter(restitutionVelocityThreshold=0.0, erp=settings.contact_erp,
                                     contactERP=settings.contact_erp, frictionERP=settings.contact_erp)
         self.table = c.loadURDF(model_path("air_hockey_table.urdf"), useFixedBase=True)
-        self.puck = c.loadURDF(model_path("puck.urdf"), [0.0, 0.0, settings.puck_height / 2])
+        # the URDF's inertia (a disc, I = m r^2 / 2): by default pybullet derives it from the collision
+        # shape's bounding box (2/3 m r^2 for this cylinder), which gives too little spin at rim impacts
+        self.puck = c.loadURDF(model_path("puck.urdf"), [0.0, 0.0, settings.puck_height / 2],
+                               flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
         self.robots = {name: self._load_robot(pose) for name, pose in settings.robot_bases.items()}
         self._configure_contacts()
         if gui:
@@ -132,7 +135,8 @@ class TableWorld:
     def _load_robot(self, pose: Sequence[float]) -> _Robot:
         x, y, z, yaw = pose
         body = self.client.loadURDF(model_path("iiwa14_striker.urdf"), [x, y, z],
-                                    self.client.getQuaternionFromEuler([0.0, 0.0, yaw]), useFixedBase=True)
+                                    self.client.getQuaternionFromEuler([0.0, 0.0, yaw]), useFixedBase=True,
+                                    flags=pybullet.URDF_USE_INERTIA_FROM_FILE)
         return _Robot(self.client, body, self.settings.home)
 
     def _configure_contacts(self) -> None:
