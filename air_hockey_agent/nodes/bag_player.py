@@ -32,7 +32,7 @@ PLAYER_PARAMS = (
 
 
 def message_class(type_name: str):
-    """rclpy message class of ``pkg/msg/Type``."""
+    """rclpy message class of ``pkg/msg/Type`` (rosidl_runtime_py is not among the ROS wheels)."""
     package, _, name = type_name.split("/")
     return getattr(importlib.import_module(f"{package}.msg"), name)
 

@@ -10,7 +10,6 @@ after ``--duration`` seconds or on Ctrl-C; the bag appears under OUT only once i
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
 import time
 from collections import Counter
@@ -39,12 +38,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def _message_class(type_name: str):
-    """rclpy message class of ``pkg/msg/Type`` (rosidl_runtime_py is not among the ROS wheels)."""
-    package, _, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{package}.msg"), name)
-
-
 def run(args: argparse.Namespace) -> int:
     topics = {t: DEFAULT_TOPICS.get(t) for t in (args.topics or DEFAULT_TOPICS)}
     unknown = [t for t, msgtype in topics.items() if msgtype is None]
@@ -60,13 +53,15 @@ def run(args: argparse.Namespace) -> int:
         return 2
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+
+    from air_hockey_agent.nodes.bag_player import message_class
     rclpy.init()
     node = rclpy.create_node("air_hockey_recorder")
     counts: Counter = Counter()
     try:
         with writer:
             for topic, msgtype in topics.items():
-                node.create_subscription(_message_class(msgtype), topic,
+                node.create_subscription(message_class(msgtype), topic,
                                          lambda data, t=topic: _store(writer, counts, t, data), 100, raw=True)
             print(f"recording {', '.join(topics)} to {out} ({args.storage}); Ctrl-C to stop", flush=True)
             _spin(node, SingleThreadedExecutor(), args.duration, counts, ExternalShutdownException)
