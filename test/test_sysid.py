@@ -55,9 +55,11 @@ def test_identify_moves_toward_the_true_parameters(tracker, trajectories):
         return [loss_report({**tracker, **c}, trajectories, 1.0, stride=3).objective for c in batch]
 
     seen = []
-    result = identify(objective, bounds, {k: tracker[k] for k in bounds}, iterations=4, batch=3, seed=0,
-                      random_samples=3, polish_evaluations=30, progress=lambda d, t, b: seen.append(d))
-    assert result.evaluations == len(result.history) > 1 + 4 * 3  # start, HEBO batches, polish
+    # HEBO's GP fit is not bit-reproducible: over 4 runs this budget ended at 0.07-0.25 of the start
+    # (4 x 3 + 30 ended at 0.19-0.44, too close to the bound below)
+    result = identify(objective, bounds, {k: tracker[k] for k in bounds}, iterations=6, batch=3, seed=0,
+                      random_samples=3, polish_evaluations=40, progress=lambda d, t, b: seen.append(d))
+    assert result.evaluations == len(result.history) > 1 + 6 * 3  # start, HEBO batches, polish
     assert seen[-1] == len(result.history) - 1
     assert result.best_objective < 0.5 * result.initial_objective
     assert all(bounds[k][0] <= v <= bounds[k][1] for k, v in result.best.items())
