@@ -161,10 +161,15 @@ class PuckEKF:
             self.x, self.P = pred.state, pred.covariance
         self.stamp = t
 
+    def residual(self, z: np.ndarray) -> np.ndarray:
+        """Measurement minus the measured part of the current state, ``z - h(x)``, angle wrapped."""
+        y = np.asarray(z, float) - self.x[_MEASURED_ROWS]
+        y[2] = wrap_angle(y[2])
+        return y
+
     def innovation(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Innovation y (angle wrapped), its covariance S and squared Mahalanobis distance."""
-        y = z - self.x[_MEASURED_ROWS]
-        y[2] = wrap_angle(y[2])
+        y = self.residual(z)
         s = self.P[_MEASURED_BLOCK] + self.settings.r
         s_inv = _inverse3(s)
         return y, s_inv, float(y @ s_inv @ y)

@@ -65,34 +65,44 @@ class EvaluationTotals:
                 "lost_frames": self.lost_frames, "outliers_rejected": self.outliers_rejected}
 
 
-def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTotals) -> None:
-    """Filter one recording with ``ekf`` (reset first) and add its prediction errors to ``totals``."""
+@dataclass
+class _FusedFrame:
+    t: float
+    z: np.ndarray               # the fused measurement (x, y, theta)
+    x: np.ndarray               # filter state after the frame
+    P: np.ndarray | None        # its covariance (kept only when asked for)
+    reinitialised: bool
+
+
+def _filter_pass(ekf: PuckEKF, frames: Iterable[Frame], keep_cov: bool) -> tuple[list[_FusedFrame], list[float], int]:
+    """Run ``ekf`` (reset first) over a recording: the fused frames, every stamp, and frames without a pose."""
     ekf.reset()
-    ekf.stats = FilterStats()
-    invalid = 0
-    starts: list[tuple[float, np.ndarray, np.ndarray]] = []
-    truth_t: list[float] = []
-    truth_xy: list[tuple[float, float]] = []
-    stamps = []
+    fused, stamps, invalid = [], [], 0
     for t, z in frames:
         stamps.append(t)
         invalid += z is None
         flags = ekf.process(t, z)
         if flags & FLAG_MEASUREMENT_USED:
-            truth_t.append(t)
-            truth_xy.append((z[0], z[1]))
-            if not flags & FLAG_REINITIALISED:
-                starts.append((t, ekf.x.copy(), ekf.P.copy()))
+            fused.append(_FusedFrame(t, np.asarray(z, float), ekf.x.copy(), ekf.P.copy() if keep_cov else None,
+                                     bool(flags & FLAG_REINITIALISED)))
+    return fused, stamps, invalid
+
+
+def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTotals) -> None:
+    """Filter one recording with ``ekf`` (reset first) and add its prediction errors to ``totals``."""
+    ekf.stats = FilterStats()
+    fused, stamps, invalid = _filter_pass(ekf, frames, keep_cov=totals.loglik)
+    truth_t = [f.t for f in fused]
+    starts = [f for f in fused if not f.reinitialised]
     tolerance = 0.5 * ekf.settings.dt
     for h in totals.horizons:
         errors, nll = totals.errors[horizon_key(h)], totals.nll[horizon_key(h)]
-        for t, state, cov in starts[::totals.stride]:
-            j = _nearest(truth_t, t + h)
-            if j is None or abs(truth_t[j] - (t + h)) > tolerance or truth_t[j] <= t:
+        for start in starts[::totals.stride]:
+            j = _nearest(truth_t, start.t + h)
+            if j is None or abs(truth_t[j] - (start.t + h)) > tolerance or truth_t[j] <= start.t:
                 continue
-            pred = predict_fast(ekf.model, state, cov if totals.loglik else None, truth_t[j] - t, ekf.settings.dt,
-                                ekf.settings.q)
-            residual = np.array([truth_xy[j][0] - pred.state[0], truth_xy[j][1] - pred.state[1]])
+            pred = predict_fast(ekf.model, start.x, start.P, truth_t[j] - start.t, ekf.settings.dt, ekf.settings.q)
+            residual = fused[j].z[:2] - pred.state[:2]
             errors.append(float(np.hypot(*residual)))
             if totals.loglik:
                 nll.append(_neg_log_likelihood(residual, pred.covariance[:2, :2] + ekf.settings.r[:2, :2]))
@@ -131,20 +141,14 @@ class PredictionSeries:
 
 def prediction_series(ekf: PuckEKF, frames: Iterable[Frame], horizon: float) -> PredictionSeries:
     """Filter a recording and, for every fused frame, the prediction made ``horizon`` [s] earlier (fig. 5.2-5.4)."""
-    ekf.reset()
-    t, measured, estimated = [], [], []
-    for stamp, z in frames:
-        flags = ekf.process(stamp, z)
-        if flags & FLAG_MEASUREMENT_USED:
-            t.append(stamp)
-            measured.append(np.asarray(z, float))
-            estimated.append(ekf.x.copy())
+    fused, _, _ = _filter_pass(ekf, frames, keep_cov=False)
+    t = [f.t for f in fused]
     predicted = np.full((len(t), 6), np.nan)
     tolerance = 0.5 * ekf.settings.dt
     for k, stamp in enumerate(t):
         j = _nearest(t, stamp - horizon)
         if j is not None and j < k and abs(t[j] - (stamp - horizon)) <= tolerance:
-            predicted[k] = predict_fast(ekf.model, estimated[j], None, stamp - t[j], ekf.settings.dt,
+            predicted[k] = predict_fast(ekf.model, fused[j].x, None, stamp - t[j], ekf.settings.dt,
                                         ekf.settings.q).state
-    return PredictionSeries(horizon, np.array(t), np.array(measured).reshape(-1, 3),
-                            np.array(estimated).reshape(-1, 6), predicted)
+    return PredictionSeries(horizon, np.array(t), np.array([f.z for f in fused]).reshape(-1, 3),
+                            np.array([f.x for f in fused]).reshape(-1, 6), predicted)

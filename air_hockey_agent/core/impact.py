@@ -16,6 +16,7 @@ from __future__ import annotations
 
 from typing import NamedTuple
 
+
 class ImpactResult(NamedTuple):
     vb: float
     vn: float

@@ -16,7 +16,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED, MEASURED, PuckEKF
+from air_hockey_agent.core.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED, PuckEKF
 from air_hockey_agent.core.preprocess import GridTrajectory
 from air_hockey_agent.core.puck_model import wrap_angle
 
@@ -40,11 +40,10 @@ def estimate_once(params: Mapping[str, Any], trajectories: Sequence[GridTrajecto
             flags = ekf.process(t, z)
             fused = bool(flags & FLAG_MEASUREMENT_USED) and not flags & FLAG_REINITIALISED
             if not fused:
-                previous = None if flags & FLAG_REINITIALISED or not ekf.initialised else previous
+                if flags & FLAG_REINITIALISED or not ekf.initialised:
+                    previous = None  # the track restarted: no model step links it to the last estimate
                 continue
-            residual = np.asarray(z, float) - ekf.x[list(MEASURED)]
-            residual[2] = wrap_angle(residual[2])
-            meas_res.append(residual)
+            meas_res.append(ekf.residual(z))  # eq. 3.12 with the posterior standing in for the truth
             if previous is not None and previous[0] == row - 1:
                 step = ekf.model.step(previous[1], traj.dt, with_jacobian=False).state - ekf.x
                 step[4] = wrap_angle(step[4])
