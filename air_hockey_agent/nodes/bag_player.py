@@ -8,7 +8,6 @@ against the simulation. Parameters: ``bag`` (path), ``rate``, ``loop``, ``publis
 """
 from __future__ import annotations
 
-import importlib
 import sys
 
 import rclpy
@@ -18,7 +17,7 @@ from rosgraph_msgs.msg import Clock
 
 from air_hockey_agent.bags.playback import paced
 from air_hockey_agent.bags.reader import BagError, bag_topics, iter_raw
-from air_hockey_agent.nodes.puck_tracker import to_stamp
+from air_hockey_agent.nodes.messages import message_class, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.params import ParamSpec
 
@@ -29,12 +28,6 @@ PLAYER_PARAMS = (
     ParamSpec("publish_clock", bool, "publish the bag's time on /clock"),
     ParamSpec("topics", str, "comma-separated topics to replay (empty: all)"),
 )
-
-
-def message_class(type_name: str):
-    """rclpy message class of ``pkg/msg/Type`` (rosidl_runtime_py is not among the ROS wheels)."""
-    package, _, name = type_name.split("/")
-    return getattr(importlib.import_module(f"{package}.msg"), name)
 
 
 class BagPlayerNode(AirHockeyNode):
@@ -55,7 +48,8 @@ class BagPlayerNode(AirHockeyNode):
             raise NodeStartupError(str(exc)) from None
         missing = [t for t in wanted if t not in available]
         if missing:
-            raise NodeStartupError(f"{p['bag']}: no topic {', '.join(missing)} (topics: {', '.join(sorted(available))})")
+            raise NodeStartupError(f"{p['bag']}: no topic {', '.join(missing)} "
+                                   f"(topics: {', '.join(sorted(available))})")
         self.publishers_by_topic = {}
         for topic, msgtype in available.items():
             if wanted and topic not in wanted:

@@ -20,7 +20,7 @@ from rclpy.executors import SingleThreadedExecutor
 
 from air_hockey_agent.bags.trajectories import load_trajectories, split_train_validation
 from air_hockey_agent.core.sysid import PHYSICAL, errors_through_steps, identify
-from air_hockey_agent.nodes.puck_tracker import to_stamp
+from air_hockey_agent.nodes.messages import to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.params import ParamSpec
 from air_hockey_agent.sysid_params import SYSID_PARAMS, bounds

@@ -13,32 +13,14 @@ import sys
 import numpy as np
 from air_hockey_msgs.msg import LineCrossing, PuckPrediction, PuckState, WallImpact
 from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, SetPhysicalParams
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import PoseStamped
 
 from air_hockey_agent.core.ekf import PuckEKF, check_covariance
 from air_hockey_agent.core.frames import pose_to_measurement
 from air_hockey_agent.core.puck_model import PuckParams
+from air_hockey_agent.nodes.messages import state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.tracker_params import PARAM_FILES, TRACKER_NODE_PARAMS
-
-
-def to_seconds(stamp: Time) -> float:
-    return stamp.sec + stamp.nanosec * 1e-9
-
-
-def to_stamp(seconds: float) -> Time:
-    sec = math.floor(seconds)
-    return Time(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
-
-
-def state_msg(state: np.ndarray, cov: np.ndarray, seconds: float, flags: int = 0) -> PuckState:
-    msg = PuckState(x=float(state[0]), y=float(state[1]), vx=float(state[2]), vy=float(state[3]),
-                    theta=float(state[4]), omega=float(state[5]), flags=flags)
-    msg.header.stamp = to_stamp(seconds)
-    msg.header.frame_id = "table"
-    msg.covariance = np.asarray(cov, float).reshape(36)
-    return msg
 
 
 class PuckTrackerNode(AirHockeyNode):

@@ -19,11 +19,11 @@ from air_hockey_agent.paths import config_file
 
 EXIT_BAD_PARAMETERS = 2
 EXIT_NOT_IMPLEMENTED = 3
-READY_MARKER = "node ready:"
+READY_MARKER = "node ready:"  # logged once a node is constructed; the game launcher waits for it
 
 
 class NodeStartupError(Exception):
-    """A node cannot start (bad input named in the message); it exits with code 2 and one line."""  # logged once a node is constructed; the game launcher waits for it
+    """A node cannot start (bad input named in the message); it exits with code 2 and one line."""
 
 
 def _descriptor(spec: ParamSpec) -> ParameterDescriptor:

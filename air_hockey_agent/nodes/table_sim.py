@@ -27,13 +27,13 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from air_hockey_agent.core.frames import quaternion_from_yaw
-from air_hockey_agent.core.joint_trajectory import JointTrajectory, TrajectoryError
+from air_hockey_agent.core.joint_trajectory import JointTrajectory
 from air_hockey_agent.core.synthetic import MocapImperfections
-from air_hockey_agent.nodes.puck_tracker import state_msg, to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.sim.params import PARAM_FILES, ROBOTS, SIM_PARAMS
 from air_hockey_agent.sim.runner import Every, SimRunner
-from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld
+from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld, arm_joint_order
 
 
 
@@ -129,11 +129,10 @@ class TableSimNode(AirHockeyNode):
     def on_trajectory(self, robot: str, msg: JointTrajectoryMsg) -> None:
         topic = f"/{robot}/joint_trajectory"
         try:
-            q, dq = self.world.joint_state(robot)
             names = list(msg.joint_names)
-            if set(names) != set(ARM_JOINTS):
-                raise TrajectoryError(f"joint_names must be the 7 arm joints {list(ARM_JOINTS)}, got {names}")
-            current = {n: (q[i], dq[i]) for i, n in enumerate(ARM_JOINTS)}
+            order = arm_joint_order(names)
+            q, dq = np.empty(len(names)), np.empty(len(names))  # current state in the message's joint order
+            q[order], dq[order] = self.world.joint_state(robot)
             start = to_seconds(msg.header.stamp)
             start = self.world.time if start <= 0.0 else start
             times = [pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9 for pt in msg.points]
@@ -141,9 +140,9 @@ class TableSimNode(AirHockeyNode):
             traj = JointTrajectory.from_points(
                 names, start, times, [list(pt.positions) for pt in msg.points],
                 [list(pt.velocities) for pt in msg.points] if has_velocities else None,
-                [current[n][0] for n in names], [current[n][1] for n in names])
+                q, dq)
             self.world.follow(robot, traj)
-        except (TrajectoryError, ValueError) as exc:
+        except ValueError as exc:  # TrajectoryError included
             self.get_logger().error(f"{topic}: trajectory ignored: {exc}")
 
     def on_set_puck_state(self, request, response):

@@ -18,14 +18,15 @@ import contextlib
 import math
 import os
 import sys
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 import pybullet
 from pybullet_utils.bullet_client import BulletClient
 
-from air_hockey_agent.core.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.frames import quaternion_from_yaw, yaw_from_quaternion
+from air_hockey_agent.core.joint_trajectory import JointTrajectory, TrajectoryError
 from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.paths import share_dir
 from air_hockey_agent.sim.params import ROBOTS
@@ -62,6 +63,10 @@ class SimSettings:
                    {n: tuple(params[f"robot_base.{n}"]) for n in ROBOTS},
                    tuple(params["home_joint_positions"]))
 
+    def puck_only(self) -> "SimSettings":
+        """The same table without robots (benchmarks, synthetic sessions)."""
+        return replace(self, robot_bases={})
+
 
 @contextlib.contextmanager
 def _c_stdout_silenced():
@@ -76,6 +81,14 @@ def _c_stdout_silenced():
     finally:
         os.dup2(saved, 1)
         os.close(saved)
+
+
+def arm_joint_order(names: Sequence[str]) -> list[int]:
+    """Where each of ``ARM_JOINTS`` is in ``names``; :class:`TrajectoryError` unless they are exactly those 7."""
+    names = list(names)
+    if sorted(names) != sorted(ARM_JOINTS):
+        raise TrajectoryError(f"joint_names must be the 7 arm joints {list(ARM_JOINTS)}, got {names}")
+    return [names.index(n) for n in ARM_JOINTS]
 
 
 def model_path(name: str) -> str:
@@ -161,13 +174,12 @@ class TableWorld:
     def _puck_state(self) -> tuple[float, ...]:
         (x, y, _), (qx, qy, qz, qw) = pybullet.getBasePositionAndOrientation(self.puck, physicsClientId=self.cid)
         (vx, vy, _), (_, _, wz) = pybullet.getBaseVelocity(self.puck, physicsClientId=self.cid)
-        return x, y, vx, vy, math.atan2(2.0 * (qw * qz + qx * qy), 1.0 - 2.0 * (qy * qy + qz * qz)), wz
+        return x, y, vx, vy, yaw_from_quaternion(qx, qy, qz, qw), wz
 
     def set_puck_state(self, state: Sequence[float]) -> None:
         x, y, vx, vy, theta, omega = (float(v) for v in state)
         pybullet.resetBasePositionAndOrientation(self.puck, [x, y, self.settings.puck_height / 2],
-                                                 [0.0, 0.0, math.sin(theta / 2), math.cos(theta / 2)],
-                                                 physicsClientId=self.cid)
+                                                 quaternion_from_yaw(theta), physicsClientId=self.cid)
         pybullet.resetBaseVelocity(self.puck, [vx, vy, 0.0], [0.0, 0.0, omega], physicsClientId=self.cid)
 
     def _air_cushion(self) -> None:
@@ -185,20 +197,20 @@ class TableWorld:
     def joint_state(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Arm joint positions [rad] and velocities [rad/s] of robot ``name``."""
         robot = self.robots[name]
-        states = self.client.getJointStates(robot.body, robot.arm)
-        return np.array([s[0] for s in states]), np.array([s[1] for s in states])
+        return self._joint_states(robot.body, robot.arm)
 
     def striker_state(self, name: str) -> tuple[np.ndarray, np.ndarray]:
         """Universal-joint positions [rad] and velocities [rad/s] of robot ``name``."""
         robot = self.robots[name]
-        states = self.client.getJointStates(robot.body, robot.striker)
+        return self._joint_states(robot.body, robot.striker)
+
+    def _joint_states(self, body: int, joints: list[int]) -> tuple[np.ndarray, np.ndarray]:
+        states = self.client.getJointStates(body, joints)
         return np.array([s[0] for s in states]), np.array([s[1] for s in states])
 
     def follow(self, name: str, trajectory: JointTrajectory) -> None:
         """Execute ``trajectory`` on robot ``name`` (its joint names must be the arm's seven joints)."""
-        if set(trajectory.joint_names) != set(ARM_JOINTS):
-            raise ValueError(f"joint_names must be the 7 arm joints {list(ARM_JOINTS)}")
-        order = [trajectory.joint_names.index(n) for n in ARM_JOINTS]
+        order = arm_joint_order(trajectory.joint_names)
         trajectory.positions, trajectory.velocities = trajectory.positions[:, order], trajectory.velocities[:, order]
         trajectory.joint_names = ARM_JOINTS
         self.robots[name].trajectory = trajectory

@@ -9,7 +9,6 @@ around the table in every run. Real-time factor = simulated seconds / wall secon
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import time
 
@@ -38,7 +37,7 @@ def measure(params: dict, duration: float, arms: str) -> float:
     from air_hockey_agent.sim.world import SimSettings, TableWorld
     settings = SimSettings.from_params(params)
     if arms == "none":
-        settings = dataclasses.replace(settings, robot_bases={})
+        settings = settings.puck_only()
     world = TableWorld(settings)
     runner = SimRunner(world, params["mocap_rate"], MocapImperfections.from_params(params),
                        np.random.default_rng(0), params["clock_rate"], params["joint_state_rate"],

@@ -54,7 +54,7 @@ def run(args: argparse.Namespace) -> int:
     import rclpy
     from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 
-    from air_hockey_agent.nodes.bag_player import message_class
+    from air_hockey_agent.nodes.messages import message_class
     rclpy.init()
     node = rclpy.create_node("air_hockey_recorder")
     counts: Counter = Counter()

@@ -15,14 +15,14 @@ identify the tracker's parameters for the simulation.
 from __future__ import annotations
 
 import argparse
-import dataclasses
+import contextlib
 import sys
 from pathlib import Path
 
 import numpy as np
 
 from air_hockey_agent.bags.types import typestore
-from air_hockey_agent.bags.writer import STORAGES, BagExistsError, write_bag
+from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
 from air_hockey_agent.core.ekf import PuckEKF
 from air_hockey_agent.core.frames import quaternion_from_yaw, table_to_mocap
 from air_hockey_agent.core.synthetic import MocapImperfections, ShotRanges, synthetic_session
@@ -70,20 +70,20 @@ def run(args: argparse.Namespace) -> int:
         session["shots"] = SESSION_PARAMS[0].check(args.shots)
     model = PuckEKF.from_params(tracker).model
     shots = ShotRanges(tuple(session["speed"]), tuple(session["spin"]), session["shot_duration"], session["pause"])
-    world = _puck_only_world(args.params_file) if args.source == "sim" else None
-    simulate = None if world is None else (lambda state, duration: simulate_shot(world, state, duration))
-    frames = synthetic_session(model, shots, session["shots"], session["rate"],
-                               MocapImperfections.from_params(session), np.random.default_rng(args.seed),
-                               session["fine_dt"], simulate)
-    if world is not None:
-        world.close()
-    messages = _messages(frames, session["start_time"], tracker["mocap_table_pose"])
-    try:
-        count = write_bag(args.out, {POSE_TOPIC: "geometry_msgs/msg/PoseStamped",
-                                     TRUTH_TOPIC: "air_hockey_msgs/msg/PuckState"}, messages, args.storage)
+    try:  # before the (possibly long) session: an existing OUT is refused at once
+        writer = BagWriter(args.out, {POSE_TOPIC: "geometry_msgs/msg/PoseStamped",
+                                      TRUTH_TOPIC: "air_hockey_msgs/msg/PuckState"}, args.storage)
     except BagExistsError as exc:
         print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
         return 2
+    with _truth_source(args.source, args.params_file) as simulate:
+        frames = synthetic_session(model, shots, session["shots"], session["rate"],
+                                   MocapImperfections.from_params(session), np.random.default_rng(args.seed),
+                                   session["fine_dt"], simulate)
+    with writer:
+        for topic, log_ns, msg in _messages(frames, session["start_time"], tracker["mocap_table_pose"]):
+            writer.write(topic, log_ns, msg)
+    count = writer.count
     poses = sum(f.measurement is not None for f in frames)
     print(f"wrote {args.out} ({args.storage}, truth from the {args.source}): {session['shots']} shots, "
           f"{poses} poses on {POSE_TOPIC} "
@@ -91,17 +91,20 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
-def _puck_only_world(params_files):
-    """The pybullet table without robots (imported here: pybullet prints a banner when loaded)."""
+@contextlib.contextmanager
+def _truth_source(source: str, params_files):
+    """None for the puck model (synthetic_session's default), else a shot simulator on the pybullet table
+    without robots (imported here: pybullet prints a banner when loaded)."""
+    if source == "model":
+        yield None
+        return
     from air_hockey_agent.sim.params import load_sim_params
-    from air_hockey_agent.sim.world import SimSettings, TableWorld
-    settings = SimSettings.from_params(load_sim_params(params_files))
-    return TableWorld(dataclasses.replace(settings, robot_bases={}))
-
-
-def simulate_shot(world, state, duration):
-    from air_hockey_agent.sim.world import simulate_shot as shot
-    return shot(world, state, duration)
+    from air_hockey_agent.sim.world import SimSettings, TableWorld, simulate_shot
+    world = TableWorld(SimSettings.from_params(load_sim_params(params_files)).puck_only())
+    try:
+        yield lambda state, duration: simulate_shot(world, state, duration)
+    finally:
+        world.close()
 
 
 def _messages(frames, start_time: float, table_pose):

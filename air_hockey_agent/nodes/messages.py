@@ -1,0 +1,36 @@
+"""Conversions between ROS messages and the core's plain values, shared by the nodes and tools."""
+from __future__ import annotations
+
+import importlib
+import math
+
+import numpy as np
+from air_hockey_msgs.msg import PuckState
+from builtin_interfaces.msg import Time
+
+
+def to_seconds(stamp: Time) -> float:
+    """ROS time -> seconds."""
+    return stamp.sec + stamp.nanosec * 1e-9
+
+
+def to_stamp(seconds: float) -> Time:
+    """Seconds -> ROS time (nanoseconds rounded, never 1e9)."""
+    sec = math.floor(seconds)
+    return Time(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+
+
+def state_msg(state: np.ndarray, cov: np.ndarray, seconds: float, flags: int = 0) -> PuckState:
+    """PuckState (table frame) of a state (x, y, vx, vy, theta, omega) and its 6x6 covariance at ``seconds``."""
+    msg = PuckState(x=float(state[0]), y=float(state[1]), vx=float(state[2]), vy=float(state[3]),
+                    theta=float(state[4]), omega=float(state[5]), flags=flags)
+    msg.header.stamp = to_stamp(seconds)
+    msg.header.frame_id = "table"
+    msg.covariance = np.asarray(cov, float).reshape(36)
+    return msg
+
+
+def message_class(type_name: str):
+    """rclpy message class of ``pkg/msg/Type`` (rosidl_runtime_py is not among the ROS wheels)."""
+    package, _, name = type_name.split("/")
+    return getattr(importlib.import_module(f"{package}.msg"), name)
