@@ -1,6 +1,5 @@
 """Noise estimation (eq. 3.12, 3.13) against streams with known measurement noise."""
 import numpy as np
-import pytest
 
 from air_hockey_agent.core.ekf import PuckEKF
 from air_hockey_agent.core.noise import estimate_once, iterate

@@ -2,8 +2,10 @@
 
 Frames: the world frame is the table frame (README "Frames and units"); the surface is at z = 0.
 
-* Puck: pybullet handles its contacts with the rims and the mallets (restitution and lateral friction
-  from ``config/sim.yaml``). The puck-surface contact is disabled: the air film acts as thesis eq. 3.1's
+* Puck: pybullet handles its contacts with the mallets (restitution and lateral friction from
+  ``config/sim.yaml``); its rim impacts are rigid-body impacts computed by
+  :mod:`air_hockey_agent.sim.rim_contact` after every step (pybullet's rim contact depends on the step
+  phase for a spinning puck; see there). The puck-surface contact is disabled: the air film acts as thesis eq. 3.1's
   surface friction and damping, applied to the puck's velocity after every physics step, and the puck
   is held on the surface (height, roll and pitch reset every step: a planar body, as on the real table).
   A puck that has fully crossed a goal line stops there (it is in the goal).
@@ -30,6 +32,7 @@ from air_hockey_agent.core.joint_trajectory import JointTrajectory, TrajectoryEr
 from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.paths import share_dir
 from air_hockey_agent.sim.params import ROBOTS
+from air_hockey_agent.sim.rim_contact import PuckBody, RimContacts
 
 ARM_JOINTS = tuple(f"iiwa_joint_{i}" for i in range(1, 8))
 STRIKER_JOINTS = ("striker_joint_1", "striker_joint_2")
@@ -157,10 +160,11 @@ class TableWorld:
         no_threshold = dict(contactProcessingThreshold=0.0)  # no speculative contacts: they ignore restitution
         c.changeDynamics(self.puck, -1, restitution=1.0, lateralFriction=1.0, rollingFriction=0.0,
                          spinningFriction=0.0, linearDamping=0.0, angularDamping=0.0, **no_threshold)
-        for link in range(c.getNumJoints(self.table)):
-            c.changeDynamics(self.table, link, restitution=s.rim_restitution, lateralFriction=s.rim_friction,
-                             **no_threshold)
-        c.setCollisionFilterPair(self.puck, self.table, -1, -1, 0)  # air cushion: no surface contact
+        for link in range(-1, c.getNumJoints(self.table)):  # the surface (air cushion) and the rims (RimContacts)
+            c.setCollisionFilterPair(self.puck, self.table, -1, link, 0)
+        mass, _, inertia = c.getDynamicsInfo(self.puck, -1)[:3]
+        self.rims = RimContacts(s.table, PuckBody(s.table.puck_radius, mass, inertia[2]),
+                                s.rim_restitution, s.rim_friction)
         for robot in self.robots.values():
             c.changeDynamics(robot.body, robot.mallet, restitution=s.mallet_restitution,
                              lateralFriction=s.mallet_friction, **no_threshold)
@@ -182,9 +186,11 @@ class TableWorld:
                                                  quaternion_from_yaw(theta), physicsClientId=self.cid)
         pybullet.resetBaseVelocity(self.puck, [vx, vy, 0.0], [0.0, 0.0, omega], physicsClientId=self.cid)
 
-    def _air_cushion(self) -> None:
-        """Eq. 3.1's friction and damping over one step, the planar constraint and goal capture."""
+    def _puck_dynamics(self) -> None:
+        """After a physics step: rim impacts, eq. 3.1's friction and damping over the step, the planar
+        constraint and goal capture."""
         x, y, vx, vy, theta, omega = self._puck_state()
+        x, y, vx, vy, omega = self.rims.resolve(x, y, vx, vy, omega)
         s, dt = self.settings, self.dt
         speed = math.hypot(vx, vy)
         new_speed = max((1.0 - dt * s.surface_damping) * speed - dt * s.surface_friction, 0.0)
@@ -259,7 +265,7 @@ class TableWorld:
             pybullet.stepSimulation(physicsClientId=self.cid)
             self._steps += 1
             self.time = self._steps * self.dt
-            self._air_cushion()
+            self._puck_dynamics()
 
     def mallet_position(self, name: str) -> np.ndarray:
         """Centre of the mallet's bottom face (the striker tip) in the table frame [m]."""

@@ -8,9 +8,10 @@ The model's parameters come from ``config/tracker.yaml`` unless ``--params-file`
 bag with known parameters can test system identification.
 
 ``--source sim`` takes the truth from the pybullet table instead (``config/sim.yaml``, the puck alone
-at the simulation's physics rate): the same shots and imperfections, but rim impacts by pybullet's
-contact model, which the tracker's model does not know; use it to measure model error and to
-identify the tracker's parameters for the simulation.
+at the simulation's physics rate): the same shots and imperfections, with the simulation's physics
+(its own air film, rim impact coefficients and goals: a puck in a goal stops there, where the
+tracker's model lets it fly on); use it to measure model error and to identify the tracker's
+parameters for the simulation.
 """
 from __future__ import annotations
 
