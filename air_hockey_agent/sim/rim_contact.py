@@ -113,12 +113,16 @@ class RimContacts:
     def __init__(self, table: TableGeometry, puck: PuckBody, restitution: float, friction: float) -> None:
         self.segments = rim_segments(table)
         self.puck, self.restitution, self.friction = puck, restitution, friction
+        # every segment lies on or outside the surface's edge: a centre this far inside touches none
+        self.clear_x, self.clear_y = table.x_limit, table.y_limit
 
     def resolve(self, x: float, y: float, vx: float, vy: float, omega: float) -> tuple[float, ...]:
         """Puck (x, y, vx, vy, omega) after every contact that overlaps and approaches a rim.
 
         The overlap that built up during the step is mirrored out along the normal, scaled by the
         ratio of outgoing to incoming normal speed (the event-driven position at the step's end)."""
+        if abs(x) < self.clear_x and abs(y) < self.clear_y:
+            return x, y, vx, vy, omega
         for seg in self.segments:
             cx, cy = seg.closest_point(x, y)
             dist = math.hypot(x - cx, y - cy)
