@@ -11,7 +11,7 @@ from helpers.ros_wait import call_service, spin_until
 
 pytestmark = pytest.mark.integration
 DT = 1.0 / 120.0
-TABLE_X = 1.504  # mocap_table_pose x in config/tracker.yaml
+TABLE_X = 1.504  # mocap_table_pose x in config/table.yaml
 
 
 @pytest.fixture
