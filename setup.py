@@ -10,7 +10,7 @@ NODES = {
     "puck_tracker": "air_hockey_agent.nodes.puck_tracker:main",
     "tactics": "air_hockey_agent.nodes.not_implemented:tactics",
     "trajectory_generator": "air_hockey_agent.nodes.not_implemented:trajectory_generator",
-    "referee": "air_hockey_agent.nodes.not_implemented:referee",
+    "referee": "air_hockey_agent.nodes.referee:main",
     "table_sim": "air_hockey_agent.nodes.table_sim:main",
     "bag_player": "air_hockey_agent.nodes.bag_player:main",
     "strategy_test": "air_hockey_agent.nodes.not_implemented:strategy_test",

@@ -34,3 +34,8 @@ def config_dir() -> Path:
 def config_file(name: str) -> Path:
     """Path of one default parameter file, e.g. ``config_file("tracker.yaml")``."""
     return config_dir() / name
+
+
+def model_path(name: str) -> str:
+    """Path of one URDF in ``models/``, e.g. ``model_path("iiwa14_striker.urdf")``."""
+    return str(share_dir() / "models" / name)

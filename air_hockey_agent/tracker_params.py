@@ -19,6 +19,8 @@ TABLE_PARAMS = (
     ParamSpec("table.goal_width", float, "[m] goal opening", 0.0, 1.0),
     ParamSpec("puck.radius", float, "[m] puck radius", 0.005, 0.2),
 )
+MOCAP_POSE_PARAM = ParamSpec("mocap_table_pose", list, "table pose in the mocap frame: x, y, z [m], yaw [rad]",
+                             -100.0, 100.0, 4)  # config/table.yaml
 TRACKER_PARAMS = (
     ParamSpec("frequency", float, "[Hz] model step rate (mocap frame rate)", 1.0, 2000.0),
     ParamSpec("friction_surface", float, "[m/s^2] surface friction deceleration mu_s", 0.0, 10.0),
@@ -35,7 +37,7 @@ TRACKER_PARAMS = (
     ParamSpec("prediction_horizon", float, "[s] horizon of puck/prediction", 0.0, 10.0),
     ParamSpec("prediction_sample_period", float, "[s] spacing of predicted states", 0.001, 1.0),
     ParamSpec("defend_line_offset", float, "[m] defend line distance from each short rim", 0.0, 1.0),
-    ParamSpec("mocap_table_pose", list, "table pose in the mocap frame: x, y, z [m], yaw [rad]", -100.0, 100.0, 4),
+    MOCAP_POSE_PARAM,
 )
 TRACKER_NODE_PARAMS = TABLE_PARAMS + TRACKER_PARAMS
 

@@ -4,7 +4,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from air_hockey_agent.sim.world import model_path
+from air_hockey_agent.paths import model_path
 from air_hockey_agent.tracker_params import load_tracker_params
 
 

@@ -5,13 +5,17 @@ from pathlib import Path
 from typing import Any, Iterable
 
 from air_hockey_agent.params import ParamSpec, load_node_params
-from air_hockey_agent.tracker_params import TABLE_PARAMS
+from air_hockey_agent.tracker_params import MOCAP_POSE_PARAM, TABLE_PARAMS
 
 NODE_NAME = "/table_sim"
 PARAM_FILES = ("table.yaml", "sim.yaml")
 ROBOTS = ("iiwa_front", "iiwa_back")
 MOCAP_FIELDS = ("position_std", "angle_std", "jitter_std", "lost_rate", "repeat_rate", "glitch_rate",
                 "glitch_size", "gap_rate", "gap_max")
+
+ROBOT_BASE_PARAMS = tuple(  # config/table.yaml
+    ParamSpec(f"robot_base.{name}", list, f"{name} base in the table frame: x, y, z [m], yaw [rad]", -10.0, 10.0, 4)
+    for name in ROBOTS)
 
 SIM_PARAMS = TABLE_PARAMS + (
     ParamSpec("puck.height", float, "[m] puck thickness", 0.001, 0.1),
@@ -31,15 +35,14 @@ SIM_PARAMS = TABLE_PARAMS + (
     ParamSpec("striker_control_rate", float, "[Hz] rate of the universal-joint (vertical mallet) control",
               1.0, 10000.0),
     ParamSpec("mocap_rate", float, "[Hz] OptiTrack stand-in frame rate", 1.0, 1000.0),
-    ParamSpec("mocap_table_pose", list, "table pose in the mocap frame: x, y, z [m], yaw [rad]", -100.0, 100.0, 4),
+    MOCAP_POSE_PARAM,
     ParamSpec("callback_period", float, "[s] simulated time between two rounds of ROS callbacks", 1e-4, 1.0),
     ParamSpec("status_period", float, "[s] wall time between two progress lines in the log", 0.1, 3600.0),
     ParamSpec("max_lag", float, "[s] lag behind real_time_factor after which pacing re-anchors", 0.01, 60.0),
     ParamSpec("seed", int, "random seed of the mocap imperfections", 0, 2**31 - 1),
-) + tuple(ParamSpec(f"robot_base.{name}", list, f"{name} base in the table frame: x, y, z [m], yaw [rad]",
-                    -10.0, 10.0, 4) for name in ROBOTS) \
-  + tuple(ParamSpec(f"mocap.{name}", float, "OptiTrack stand-in imperfection (config/sim.yaml)", 0.0, 10.0)
-          for name in MOCAP_FIELDS)
+) + ROBOT_BASE_PARAMS + tuple(
+    ParamSpec(f"mocap.{name}", float, "OptiTrack stand-in imperfection (config/sim.yaml)", 0.0, 10.0)
+    for name in MOCAP_FIELDS)
 
 
 def load_sim_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:

@@ -30,7 +30,7 @@ from pybullet_utils.bullet_client import BulletClient
 from air_hockey_agent.core.frames import quaternion_from_yaw, yaw_from_quaternion
 from air_hockey_agent.core.joint_trajectory import JointTrajectory, TrajectoryError
 from air_hockey_agent.core.table import TableGeometry
-from air_hockey_agent.paths import share_dir
+from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.params import ROBOTS
 from air_hockey_agent.sim.rim_contact import PuckBody, RimContacts
 
@@ -92,10 +92,6 @@ def arm_joint_order(names: Sequence[str]) -> list[int]:
     if sorted(names) != sorted(ARM_JOINTS):
         raise TrajectoryError(f"joint_names must be the 7 arm joints {list(ARM_JOINTS)}, got {names}")
     return [names.index(n) for n in ARM_JOINTS]
-
-
-def model_path(name: str) -> str:
-    return str(share_dir() / "models" / name)
 
 
 class _Robot:
