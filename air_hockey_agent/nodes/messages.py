@@ -7,6 +7,9 @@ import math
 import numpy as np
 from air_hockey_msgs.msg import PuckState
 from builtin_interfaces.msg import Time
+from geometry_msgs.msg import PoseStamped
+
+from air_hockey_agent.core.frames import pose_to_measurement
 
 
 def to_seconds(stamp: Time) -> float:
@@ -18,6 +21,13 @@ def to_stamp(seconds: float) -> Time:
     """Seconds -> ROS time (nanoseconds rounded, never 1e9)."""
     sec = math.floor(seconds)
     return Time(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+
+
+def pose_measurement(msg: PoseStamped, table_pose) -> tuple[float, float, float] | None:
+    """Table-frame measurement (x, y, theta) of a mocap PoseStamped; None for an unusable pose
+    (see :func:`air_hockey_agent.core.frames.pose_to_measurement`)."""
+    p, q = msg.pose.position, msg.pose.orientation
+    return pose_to_measurement((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), table_pose)
 
 
 def state_msg(state: np.ndarray, cov: np.ndarray, seconds: float, flags: int = 0) -> PuckState:

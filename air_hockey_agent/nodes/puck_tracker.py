@@ -16,9 +16,8 @@ from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, Set
 from geometry_msgs.msg import PoseStamped
 
 from air_hockey_agent.core.ekf import PuckEKF, check_covariance
-from air_hockey_agent.core.frames import pose_to_measurement
 from air_hockey_agent.core.puck_model import PuckParams
-from air_hockey_agent.nodes.messages import state_msg, to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import pose_measurement, state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.tracker_params import PARAM_FILES, TRACKER_NODE_PARAMS
 
@@ -44,8 +43,7 @@ class PuckTrackerNode(AirHockeyNode):
     # --- stream -----------------------------------------------------------------------------------
     def on_pose(self, msg: PoseStamped) -> None:
         try:
-            p, q = msg.pose.position, msg.pose.orientation
-            z = pose_to_measurement((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), self.params["mocap_table_pose"])
+            z = pose_measurement(msg, self.params["mocap_table_pose"])
             if z is None:
                 self.get_logger().warn("/optitrack/puck: pose has a non-finite position or invalid quaternion; "
                                        "treated as a lost frame", throttle_duration_sec=1.0)

@@ -19,10 +19,9 @@ from std_srvs.srv import Trigger
 
 from air_hockey_msgs.msg import GameStatus
 from air_hockey_msgs.srv import SetPuckState
-from air_hockey_agent.core.frames import pose_to_measurement
 from air_hockey_agent.core.kinematics import ArmKinematics, base_to_table
 from air_hockey_agent.core.referee import EVENT_NONE, Decision, Referee, RefereeSettings
-from air_hockey_agent.nodes.messages import to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import pose_measurement, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.referee_params import PARAM_FILES, REFEREE_PARAMS
 from air_hockey_agent.sim.params import ROBOTS
@@ -68,8 +67,7 @@ class RefereeNode(AirHockeyNode):
     # --- inputs -------------------------------------------------------------------------------
     def on_pose(self, msg: PoseStamped) -> None:
         try:
-            p, q = msg.pose.position, msg.pose.orientation
-            z = pose_to_measurement((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), self.params["mocap_table_pose"])
+            z = pose_measurement(msg, self.params["mocap_table_pose"])
             if z is not None:
                 self.referee.observe_puck(to_seconds(msg.header.stamp), z[0], z[1])
         except Exception as exc:  # a malformed message must never stop the referee
