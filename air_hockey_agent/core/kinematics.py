@@ -6,11 +6,12 @@ The mallet's reference point is the ``striker_tip`` frame: the centre of the mal
 """
 from __future__ import annotations
 
-import math
 from typing import Mapping, Sequence
 
 import numpy as np
 import pinocchio as pin
+
+from air_hockey_agent.core.frames import table_to_mocap
 
 
 class ArmKinematics:
@@ -41,7 +42,6 @@ class ArmKinematics:
 
 def base_to_table(point: Sequence[float], base_pose: Sequence[float]) -> np.ndarray:
     """A point in a robot base frame -> table frame; ``base_pose`` = (x, y, z, yaw) of the base in the table."""
-    bx, by, bz, yaw = base_pose
-    c, s = math.cos(yaw), math.sin(yaw)
-    x, y, z = point
-    return np.array([bx + c * x - s * y, by + s * x + c * y, bz + z])
+    # the planar child-to-parent transform of core.frames (written for the table in the mocap frame)
+    x, y, _ = table_to_mocap(point[0], point[1], 0.0, base_pose)
+    return np.array([x, y, base_pose[2] + point[2]])

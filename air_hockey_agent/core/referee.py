@@ -20,7 +20,7 @@ the one at x = +L/2. The rules, after the ROS 1 referee (REFERENCE_FACTS 4) with
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Mapping, NamedTuple, Sequence
 
 import numpy as np
@@ -145,13 +145,13 @@ class Referee:
         stop = decision.event == EVENT_ROBOT_FAULT and not self.settings.restart_after_fault
         self._set(STOPPED if stop else PAUSED)
         self._resume_at = None if stop else t + self.settings.pause_duration
-        if decision.event == EVENT_ROBOT_FAULT and stop:
+        if stop:
             decision = decision._replace(reset_puck=None, reset_robots=False)
         return self._record(t, decision)
 
     def _puck_rules(self, t: float) -> Decision | None:
         s, table = self.settings, self.settings.table
-        if self._last_seen is None or t - self._last_seen > s.lost_timeout:
+        if self._lost(t):
             return Decision(EVENT_PUCK_OUT, f"no puck pose for {s.lost_timeout:g} s", self._reset_point(None))
         x, y = self._puck
         if abs(x) > table.length / 2 + s.goal_margin and abs(y) < table.goal_width / 2:
@@ -186,11 +186,15 @@ class Referee:
         return None
 
     # --- helpers ------------------------------------------------------------------------------
+    def _lost(self, t: float) -> bool:
+        """True when no puck pose came within ``lost_timeout`` before t."""
+        return self._last_seen is None or t - self._last_seen > self.settings.lost_timeout
+
     def _puck_on_table(self, t: float) -> bool:
-        s, table = self.settings, self.settings.table
-        if self._last_seen is None or t - self._last_seen > s.lost_timeout:
+        if self._lost(t):
             return False
         x, y = self._puck
+        table = self.settings.table
         return abs(x) < table.length / 2 and abs(y) < table.width / 2
 
     def _reset_point(self, robot: str | None) -> tuple[float, float]:
@@ -206,5 +210,5 @@ class Referee:
         self.state.status = status
 
     def _record(self, t: float, decision: Decision) -> Decision:
-        self.state = replace(self.state, last_event=decision.event, last_event_time=t, reason=decision.reason)
+        self.state.last_event, self.state.last_event_time, self.state.reason = decision.event, t, decision.reason
         return decision
