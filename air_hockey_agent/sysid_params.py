@@ -30,6 +30,6 @@ def load_sysid_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
 
 
 def bounds(params: dict[str, Any]) -> dict[str, tuple[float, float]]:
-    """Search box per physical parameter, in the order of ``core.sysid.PHYSICAL``."""
-    from air_hockey_agent.core.sysid import PHYSICAL
+    """Search box per physical parameter, in the order of ``core.identification.sysid.PHYSICAL``."""
+    from air_hockey_agent.core.identification.sysid import PHYSICAL
     return {name: tuple(params[f"bounds.{name}"]) for name in PHYSICAL}

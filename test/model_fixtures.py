@@ -1,7 +1,7 @@
 """Shared model objects for the core tests (values of config/table.yaml and thesis table 5.3)."""
 import numpy as np
 
-from air_hockey_agent.core.puck_model import PuckModel, PuckParams
+from air_hockey_agent.core.puck.model import PuckModel, PuckParams
 from air_hockey_agent.core.table import TableGeometry
 
 TABLE = TableGeometry(length=1.956, width=1.042, goal_width=0.25, puck_radius=0.03165)

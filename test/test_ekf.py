@@ -2,9 +2,9 @@
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.ekf import (FLAG_MEASUREMENT_USED, FLAG_OUTLIER_REJECTED, FLAG_PREDICTED,
+from air_hockey_agent.core.estimation.ekf import (FLAG_MEASUREMENT_USED, FLAG_OUTLIER_REJECTED, FLAG_PREDICTED,
                                        FLAG_REINITIALISED, FilterSettings, PuckEKF, check_covariance)
-from air_hockey_agent.core.synthetic import MocapImperfections, mocap_stream, simulate_truth, true_state_at
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections, mocap_stream, simulate_truth, true_state_at
 from model_fixtures import DT, Q, model
 
 SETTINGS = FilterSettings(dt=DT, q=Q, r=np.diag([1e-8, 1e-8, 1e-4]), p0=np.diag([1e-6, 1e-6, 1.0, 1.0, 1e-4, 100.0]),

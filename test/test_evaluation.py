@@ -1,11 +1,11 @@
-"""Offline prediction evaluation (core.evaluation) on synthetic sessions with known ground truth."""
+"""Offline prediction evaluation (core.estimation.evaluation) on synthetic sessions with known ground truth."""
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.ekf import PuckEKF
-from air_hockey_agent.core.evaluation import EvaluationTotals, count_lost_frames, evaluate_stream, horizon_key
-from air_hockey_agent.core.prediction import predict_fast
-from air_hockey_agent.core.synthetic import MocapImperfections, ShotRanges, synthetic_session
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, count_lost_frames, evaluate_stream, horizon_key
+from air_hockey_agent.core.puck.prediction import predict_fast
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
 from air_hockey_agent.tracker_params import load_tracker_params
 
 SHOTS = ShotRanges(speed=(2.0, 4.0), spin=(-10.0, 10.0), duration=4.0, pause=3.0)
@@ -91,7 +91,7 @@ def test_mean_only_prediction_equals_the_mean_with_covariance(params):
 def test_negative_log_likelihood_matches_scipy():
     from scipy.stats import multivariate_normal
 
-    from air_hockey_agent.core.evaluation import _neg_log_likelihood
+    from air_hockey_agent.core.estimation.evaluation import _neg_log_likelihood
     cov = np.array([[2e-6, 5e-7], [5e-7, 1e-6]])
     r = np.array([1e-3, -4e-4])
     assert _neg_log_likelihood(r, cov) == pytest.approx(-multivariate_normal(np.zeros(2), cov).logpdf(r), rel=1e-10)

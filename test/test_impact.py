@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.impact import is_sliding, rim_impact
+from air_hockey_agent.core.puck.impact import is_sliding, rim_impact
 
 R, E, MU = 0.03165, 0.9, 0.1
 

@@ -1,7 +1,7 @@
-"""core.kinematics (pinocchio) against the pybullet world: mallet tips of both robots in the table frame."""
+"""core.motion.kinematics (pinocchio) against the pybullet world: mallet tips of both robots in the table frame."""
 import numpy as np
 
-from air_hockey_agent.core.kinematics import ArmKinematics, base_to_table
+from air_hockey_agent.core.motion.kinematics import ArmKinematics, base_to_table
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.params import ROBOTS, load_sim_params
 from air_hockey_agent.sim.world import SimSettings, TableWorld

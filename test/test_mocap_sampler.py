@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.synthetic import MocapImperfections, MocapSampler
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections, MocapSampler
 from air_hockey_agent.sim.params import MOCAP_FIELDS, load_sim_params
 
 RATE = 120.0

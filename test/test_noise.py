@@ -1,10 +1,10 @@
 """Noise estimation (eq. 3.12, 3.13) against streams with known measurement noise."""
 import numpy as np
 
-from air_hockey_agent.core.ekf import PuckEKF
-from air_hockey_agent.core.noise import estimate_once, iterate
-from air_hockey_agent.core.preprocess import to_model_grid
-from air_hockey_agent.core.synthetic import MocapImperfections, ShotRanges, synthetic_session
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.identification.noise import estimate_once, iterate
+from air_hockey_agent.core.identification.preprocess import to_model_grid
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
 from air_hockey_agent.tracker_params import load_tracker_params
 
 

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.prediction import predict_fast, predict_stepwise
+from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise
 from model_fixtures import DT, Q, model
 
 P0 = np.diag([1e-7, 1e-7, 1e-3, 1e-3, 1e-4, 1e-2])

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.preprocess import (GridTrajectory, cut_rest, interpolate_frozen, split_trajectories,
+from air_hockey_agent.core.identification.preprocess import (GridTrajectory, cut_rest, interpolate_frozen, split_trajectories,
                                               to_model_grid)
 
 DT = 1 / 120

@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.puck_model import PuckParams, wrap_angle
+from air_hockey_agent.core.puck.model import PuckParams, wrap_angle
 from air_hockey_agent.core.table import WALL_FAR, WALL_LEFT, WALL_NEAR, WALL_RIGHT
 from model_fixtures import DT, TABLE, finite_difference_jacobian, model
 

@@ -1,8 +1,8 @@
-"""Referee rules (core.referee): goals, puck out/lost/stuck, possession, robot faults, resume."""
+"""Referee rules (core.game.referee): goals, puck out/lost/stuck, possession, robot faults, resume."""
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.referee import (BACK, EVENT_GOAL_BACK, EVENT_GOAL_FRONT, EVENT_PUCK_OUT,
+from air_hockey_agent.core.game.referee import (BACK, EVENT_GOAL_BACK, EVENT_GOAL_FRONT, EVENT_PUCK_OUT,
                                            EVENT_PUCK_STUCK, EVENT_RESET, EVENT_ROBOT_FAULT, FRONT, PAUSED,
                                            RUNNING, STOPPED, Referee, RefereeSettings)
 from air_hockey_agent.params import load_node_params

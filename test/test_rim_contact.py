@@ -1,10 +1,10 @@
-"""The simulation's rim impacts against Routh's closed form (core.impact) and conservation laws."""
+"""The simulation's rim impacts against Routh's closed form (core.puck.impact) and conservation laws."""
 import math
 
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.impact import rim_impact
+from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.sim.rim_contact import PuckBody, RimContacts, impact_impulse, rim_segments
 
@@ -25,7 +25,7 @@ def random_approach(rng):
 
 @pytest.mark.parametrize("wall", ["right", "left", "far", "near"])
 def test_a_disc_on_a_straight_rim_gives_rouths_closed_form(wall):
-    """Rim frame: b along the rim, n into the table, n = Rz(+90 deg) b (core.impact)."""
+    """Rim frame: b along the rim, n into the table, n = Rz(+90 deg) b (core.puck.impact)."""
     centre, n = {"right": ((0.3, TABLE.y_limit), (0.0, -1.0)), "left": ((-0.2, -TABLE.y_limit), (0.0, 1.0)),
                  "far": ((TABLE.x_limit, 0.4), (-1.0, 0.0)), "near": ((-TABLE.x_limit, -0.4), (1.0, 0.0))}[wall]
     b = (n[1], -n[0])

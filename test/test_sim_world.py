@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.impact import rim_impact
-from air_hockey_agent.core.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.puck.impact import rim_impact
+from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
 from air_hockey_agent.sim.params import load_sim_params
 from air_hockey_agent.sim.world import ARM_JOINTS, SimSettings, TableWorld
 
@@ -42,7 +42,7 @@ def test_spinning_rim_impact_is_rouths_whatever_the_step_phase(world, params):
     """pybullet's own rim contact gave 16.1 +- 2.4 rad/s here depending on the start phase (sim/rim_contact.py)."""
     world.settings = SimSettings.from_params({**params, "surface_damping": 0.0, "surface_friction": 0.0})
     table = world.settings.table
-    # right rim (y = +W/2): b = -x, n = -y in the impact frame of core.impact
+    # right rim (y = +W/2): b = -x, n = -y in the impact frame of core.puck.impact
     ref = rim_impact(-0.3, -1.5, 30.0, table.puck_radius, params["rim_restitution"], params["rim_friction"])
     for offset in np.linspace(0.02, 0.021, 5):  # start phases across one 1 ms step of the 1.5 m/s approach
         world.set_puck_state([0.0, table.y_limit - offset, 0.3, 1.5, 0.0, 30.0])

@@ -7,10 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.ekf import PuckEKF
-from air_hockey_agent.core.preprocess import to_model_grid
-from air_hockey_agent.core.synthetic import MocapImperfections, ShotRanges, synthetic_session
-from air_hockey_agent.core.sysid import identify, loss_report
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.identification.preprocess import to_model_grid
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
+from air_hockey_agent.core.identification.sysid import identify, loss_report
 from air_hockey_agent.tracker_params import load_tracker_params
 
 TRUE = {"friction_surface": 0.1, "damping": 0.35, "restitution": 0.85, "friction_rim": 0.15}
@@ -122,7 +122,7 @@ def test_plot_cli_writes_three_pngs(tmp_path):
 
 def test_errors_through_steps_match_the_offline_loss(tracker, trajectories):
     """The service path of prediction_optimizer (a step function) gives the offline loss exactly."""
-    from air_hockey_agent.core.sysid import errors_through_steps
+    from air_hockey_agent.core.identification.sysid import errors_through_steps
     ekf = PuckEKF.from_params(tracker)
 
     def step(t, z, h):

@@ -9,7 +9,7 @@ import numpy as np
 
 from air_hockey_agent.bags.reader import BagError, read_poses
 from air_hockey_agent.core.frames import pose_to_measurement
-from air_hockey_agent.core.preprocess import (cut_rest, interpolate_frozen, split_trajectories,
+from air_hockey_agent.core.identification.preprocess import (cut_rest, interpolate_frozen, split_trajectories,
                                               to_model_grid)
 
 

@@ -9,7 +9,7 @@ from __future__ import annotations
 import math
 from typing import Sequence
 
-from air_hockey_agent.core.puck_model import wrap_angle
+from air_hockey_agent.core.puck.model import wrap_angle
 
 ROBOT_YAW = {"iiwa_front": 0.0, "iiwa_back": math.pi}
 MIN_QUATERNION_NORM2 = 0.5  # squared norm below which a mocap quaternion is invalid (unit: 1; zero: lost body)

@@ -19,7 +19,7 @@ from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetPhysicalParams
 from rclpy.executors import SingleThreadedExecutor
 
 from air_hockey_agent.bags.trajectories import load_trajectories, split_train_validation
-from air_hockey_agent.core.sysid import PHYSICAL, errors_through_steps, identify
+from air_hockey_agent.core.identification.sysid import PHYSICAL, errors_through_steps, identify
 from air_hockey_agent.nodes.messages import to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.params import ParamSpec

@@ -3,7 +3,7 @@
 Subscribes ``/optitrack/puck`` (geometry_msgs/PoseStamped, mocap frame); publishes ``puck/state``
 (PuckState, table frame) at every frame and ``puck/prediction`` (PuckPrediction). Services (thesis
 4.1.1): ``set_physical_params``, ``set_noise_covariance``, ``kalman_step``, ``reset``. All filtering and
-prediction is :class:`air_hockey_agent.core.ekf.PuckEKF`; this module only translates.
+prediction is :class:`air_hockey_agent.core.estimation.ekf.PuckEKF`; this module only translates.
 """
 from __future__ import annotations
 
@@ -15,8 +15,8 @@ from air_hockey_msgs.msg import LineCrossing, PuckPrediction, PuckState, WallImp
 from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, SetPhysicalParams
 from geometry_msgs.msg import PoseStamped
 
-from air_hockey_agent.core.ekf import PuckEKF, check_covariance
-from air_hockey_agent.core.puck_model import PuckParams
+from air_hockey_agent.core.estimation.ekf import PuckEKF, check_covariance
+from air_hockey_agent.core.puck.model import PuckParams
 from air_hockey_agent.nodes.messages import pose_measurement, state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.tracker_params import PARAM_FILES, TRACKER_NODE_PARAMS

@@ -1,4 +1,4 @@
-"""``referee`` node: game status and score; the rules of :mod:`air_hockey_agent.core.referee`.
+"""``referee`` node: game status and score; the rules of :mod:`air_hockey_agent.core.game.referee`.
 
 Inputs: ``/optitrack/puck`` (PoseStamped, mocap frame; the referee sees the puck as the mocap does,
 independent of the players' trackers) and ``/<robot>/joint_states`` of both robots (mallet positions by
@@ -19,8 +19,8 @@ from std_srvs.srv import Trigger
 
 from air_hockey_msgs.msg import GameStatus
 from air_hockey_msgs.srv import SetPuckState
-from air_hockey_agent.core.kinematics import ArmKinematics, base_to_table
-from air_hockey_agent.core.referee import EVENT_NONE, Decision, Referee, RefereeSettings
+from air_hockey_agent.core.motion.kinematics import ArmKinematics, base_to_table
+from air_hockey_agent.core.game.referee import EVENT_NONE, Decision, Referee, RefereeSettings
 from air_hockey_agent.nodes.messages import pose_measurement, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.referee_params import PARAM_FILES, REFEREE_PARAMS

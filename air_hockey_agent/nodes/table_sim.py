@@ -27,8 +27,8 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from air_hockey_agent.core.frames import quaternion_from_yaw
-from air_hockey_agent.core.joint_trajectory import JointTrajectory
-from air_hockey_agent.core.synthetic import MocapImperfections
+from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.nodes.messages import state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.sim.params import PARAM_FILES, ROBOTS, SIM_PARAMS

@@ -12,7 +12,7 @@ delivers e times the compression phase's normal impulse). The process is piecewi
 is integrated exactly phase by phase. This is a general solver (any lever arm, any inertia, inertia
 read from the simulated body); for a uniform disc on a straight rim it reduces to Routh's closed form of
 thesis eq. 3.2-3.4, which ``test/test_rim_contact.py`` checks against
-:func:`air_hockey_agent.core.impact.rim_impact` as independent evidence for both.
+:func:`air_hockey_agent.core.puck.impact.rim_impact` as independent evidence for both.
 
 Rims: the inner outline of the table frame's rims (README "Frames and units") as line segments: the two
 long rims, the four short-rim pieces beside the goals and the goal posts' side faces. A puck whose

@@ -13,7 +13,7 @@ from typing import Sequence
 import numpy as np
 
 from air_hockey_agent.core.frames import table_to_mocap
-from air_hockey_agent.core.synthetic import MocapImperfections, MocapSampler
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections, MocapSampler
 from air_hockey_agent.sim.world import TableWorld
 
 

@@ -10,7 +10,7 @@ Frames: the world frame is the table frame (README "Frames and units"); the surf
   is held on the surface (height, roll and pitch reset every step: a planar body, as on the real table).
   A puck that has fully crossed a goal line stops there (it is in the goal).
 * Robots: KUKA iiwa 14 with the striker (``models/iiwa14_striker.urdf``), position/velocity control
-  of the seven arm joints following :class:`~air_hockey_agent.core.joint_trajectory.JointTrajectory`;
+  of the seven arm joints following :class:`~air_hockey_agent.core.motion.joint_trajectory.JointTrajectory`;
   the striker's passive universal joint is driven to keep the mallet vertical, like the universal-joint
   plugins of the earlier stacks (REFERENCE_FACTS 3.5). The mallet's height comes from the trajectory.
 """
@@ -28,7 +28,7 @@ import pybullet
 from pybullet_utils.bullet_client import BulletClient
 
 from air_hockey_agent.core.frames import quaternion_from_yaw, yaw_from_quaternion
-from air_hockey_agent.core.joint_trajectory import JointTrajectory, TrajectoryError
+from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory, TrajectoryError
 from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.params import ROBOTS
@@ -275,7 +275,7 @@ class TableWorld:
 def simulate_shot(world: TableWorld, state: Sequence[float], duration: float) -> tuple[np.ndarray, np.ndarray]:
     """True puck states at every physics step of ``duration`` [s] from ``state``: times (n,), states (n, 6).
 
-    The signature of :func:`air_hockey_agent.core.synthetic.simulate_truth` without the model, so the
+    The signature of :func:`air_hockey_agent.core.estimation.synthetic.simulate_truth` without the model, so the
     table simulation can stand in for the model as the truth of a synthetic session.
     """
     world.set_puck_state(state)

@@ -14,8 +14,8 @@ import time
 
 import numpy as np
 
-from air_hockey_agent.core.joint_trajectory import JointTrajectory
-from air_hockey_agent.core.synthetic import MocapImperfections
+from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.sim.params import load_sim_params
 
 # pybullet prints a banner when imported: the simulation modules load only when this benchmark runs,

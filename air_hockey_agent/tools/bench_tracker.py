@@ -12,8 +12,8 @@ import time
 
 import numpy as np
 
-from air_hockey_agent.core.ekf import PuckEKF
-from air_hockey_agent.core.prediction import predict_fast, predict_stepwise
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise
 from air_hockey_agent.tracker_params import load_tracker_params
 
 HORIZONS = (0.5, 1.0, 1.5)

@@ -1,7 +1,7 @@
 """``air-hockey eval-prediction BAG...``: prediction accuracy of the puck tracker on recorded bags.
 
 Each rosbag2 bag (sqlite3 or MCAP, read with rosbags; no ROS needed) is replayed through the tracker's
-own filter code offline (:mod:`air_hockey_agent.core.evaluation`, thesis sec. 4.3): from every fused
+own filter code offline (:mod:`air_hockey_agent.core.estimation.evaluation`, thesis sec. 4.3): from every fused
 frame the position is predicted ``h`` seconds ahead and compared with the measurement at ``t + h``.
 Reported per horizon: mean, median and 95th percentile of the error [m] and the number of comparisons,
 plus frames, lost frames and rejected outliers. A bag that cannot be used gives a one-line error on
@@ -15,8 +15,8 @@ import sys
 from pathlib import Path
 
 from air_hockey_agent.bags.reader import BagError, read_poses
-from air_hockey_agent.core.ekf import PuckEKF
-from air_hockey_agent.core.evaluation import EvaluationTotals, evaluate_stream
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
 from air_hockey_agent.core.frames import pose_to_measurement
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tracker_params import load_tracker_params

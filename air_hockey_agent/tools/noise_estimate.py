@@ -20,8 +20,8 @@ import os
 import sys
 from pathlib import Path
 
-from air_hockey_agent.core.noise import iterate
-from air_hockey_agent.core.sysid import loss_report
+from air_hockey_agent.core.identification.noise import iterate
+from air_hockey_agent.core.identification.sysid import loss_report
 from air_hockey_agent.params import yaml_float
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
-from air_hockey_agent.core.ekf import PuckEKF
-from air_hockey_agent.core.evaluation import prediction_series
-from air_hockey_agent.core.sysid import loss_report
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.estimation.evaluation import prediction_series
+from air_hockey_agent.core.identification.sysid import loss_report
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 from air_hockey_agent.tracker_params import load_tracker_params

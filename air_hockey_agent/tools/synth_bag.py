@@ -24,9 +24,9 @@ import numpy as np
 
 from air_hockey_agent.bags.types import typestore
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
-from air_hockey_agent.core.ekf import PuckEKF
+from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.frames import quaternion_from_yaw, table_to_mocap
-from air_hockey_agent.core.synthetic import MocapImperfections, ShotRanges, synthetic_session
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
 from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import load_tracker_params
 

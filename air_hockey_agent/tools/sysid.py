@@ -21,7 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from air_hockey_agent.bags.trajectories import split_train_validation
-from air_hockey_agent.core.sysid import LOSSES, PHYSICAL, combine, identify, loss_report, partial_loss
+from air_hockey_agent.core.identification.sysid import LOSSES, PHYSICAL, combine, identify, loss_report, partial_loss
 from air_hockey_agent.params import yaml_float
 from air_hockey_agent.sysid_params import bounds
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error

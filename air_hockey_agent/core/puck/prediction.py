@@ -26,7 +26,7 @@ from typing import Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.puck_model import PuckModel, as_floats, wrap_angle
+from air_hockey_agent.core.puck.model import PuckModel, as_floats, wrap_angle
 
 STEP_EPS = 1e-9  # [-] fraction of a step below which a horizon remainder is dropped (float rounding)
 

@@ -12,7 +12,7 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.puck_model import PuckModel, wrap_angle
+from air_hockey_agent.core.puck.model import PuckModel, wrap_angle
 
 
 @dataclass(frozen=True)

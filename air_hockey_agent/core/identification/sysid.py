@@ -16,9 +16,9 @@ from typing import Any, Callable, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.ekf import PuckEKF
-from air_hockey_agent.core.evaluation import EvaluationTotals, evaluate_stream, horizon_key
-from air_hockey_agent.core.preprocess import GridTrajectory
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream, horizon_key
+from air_hockey_agent.core.identification.preprocess import GridTrajectory
 
 PHYSICAL = ("friction_surface", "damping", "restitution", "friction_rim")
 LOSSES = ("position", "loglik")
@@ -161,7 +161,7 @@ def errors_through_steps(traj: GridTrajectory, horizon: float, step: StepFn) -> 
     The same comparison as :func:`loss_report`: from every fused frame (not a re-initialisation) to the
     measurement ``horizon`` later, on the model grid.
     """
-    from air_hockey_agent.core.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED
+    from air_hockey_agent.core.estimation.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED
     steps = int(round(horizon / traj.dt))
     predictions: dict[int, tuple[float, float]] = {}
     errors = []

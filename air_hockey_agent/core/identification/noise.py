@@ -16,9 +16,9 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED, PuckEKF
-from air_hockey_agent.core.preprocess import GridTrajectory
-from air_hockey_agent.core.puck_model import wrap_angle
+from air_hockey_agent.core.estimation.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED, PuckEKF
+from air_hockey_agent.core.identification.preprocess import GridTrajectory
+from air_hockey_agent.core.puck.model import wrap_angle
 
 
 @dataclass

@@ -1,6 +1,6 @@
 """Offline prediction accuracy of the puck tracker on a recorded mocap stream (thesis sec. 4.3).
 
-The stream goes through the same :class:`~air_hockey_agent.core.ekf.PuckEKF` as the live node, frame
+The stream goes through the same :class:`~air_hockey_agent.core.estimation.ekf.PuckEKF` as the live node, frame
 by frame. From every frame whose measurement the filter fused (not a re-initialisation), the mean is
 predicted ``h`` seconds ahead and compared with the measurement of the frame nearest to ``t + h``
 (within half a frame period; the prediction runs to that frame's exact stamp). Frames the filter
@@ -14,8 +14,8 @@ from typing import Iterable, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED, FilterStats, PuckEKF
-from air_hockey_agent.core.prediction import predict_fast
+from air_hockey_agent.core.estimation.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED, FilterStats, PuckEKF
+from air_hockey_agent.core.puck.prediction import predict_fast
 
 Frame = tuple[float, "Sequence[float] | None"]  # (stamp [s], table-frame (x, y, theta) or None if lost)
 

@@ -23,7 +23,7 @@ from typing import Any, Mapping, NamedTuple
 
 import numpy as np
 
-from air_hockey_agent.core.impact import rim_impact
+from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
 
 TWO_PI = 2.0 * math.pi

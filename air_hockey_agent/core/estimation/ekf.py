@@ -21,8 +21,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.prediction import Prediction, predict_fast
-from air_hockey_agent.core.puck_model import PuckModel, PuckParams, wrap_angle
+from air_hockey_agent.core.puck.prediction import Prediction, predict_fast
+from air_hockey_agent.core.puck.model import PuckModel, PuckParams, wrap_angle
 from air_hockey_agent.core.table import TableGeometry
 
 MEASURED = (0, 1, 4)  # state indices of the measurement (x, y, theta)

@@ -1,0 +1,1 @@
+"""Game layer: referee rules (and the tactics that play)."""
