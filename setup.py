@@ -9,7 +9,7 @@ PACKAGE = "air_hockey_agent"
 NODES = {
     "puck_tracker": "air_hockey_agent.nodes.puck_tracker:main",
     "tactics": "air_hockey_agent.nodes.not_implemented:tactics",
-    "trajectory_generator": "air_hockey_agent.nodes.not_implemented:trajectory_generator",
+    "trajectory_generator": "air_hockey_agent.nodes.trajectory_generator:main",
     "referee": "air_hockey_agent.nodes.referee:main",
     "table_sim": "air_hockey_agent.nodes.table_sim:main",
     "bag_player": "air_hockey_agent.nodes.bag_player:main",

@@ -12,7 +12,6 @@ from air_hockey_agent.nodes.runtime import run_not_implemented
 
 PENDING = {
     "tactics": "tactics state machine (thesis 4.6): Init/Home/Ready/Smash/Cut/Prepare/Repel -> HitCommand",
-    "trajectory_generator": "trajectory generator: pinocchio IK and task-space planning -> JointTrajectory",
     "strategy_test": "strategy test: forces one tactic, sets puck states through the sim, scores each trial",
 }
 
@@ -25,5 +24,4 @@ def _entry(name: str) -> Callable[[list[str] | None], int]:
 
 
 tactics = _entry("tactics")
-trajectory_generator = _entry("trajectory_generator")
 strategy_test = _entry("strategy_test")

@@ -226,6 +226,16 @@ class TableWorld:
             self._command(robot, robot.home, np.zeros(len(robot.arm)))
             self._keep_mallet_vertical(robot)
 
+    def set_joint_positions(self, name: str, q: Sequence[float]) -> None:
+        """Put robot ``name`` at rest at joint positions ``q`` [rad] (arm joints), holding them."""
+        robot = self.robots[name]
+        q = np.asarray(q, float)
+        for j, value in zip(robot.arm, q):
+            self.client.resetJointState(robot.body, j, float(value), 0.0)
+        robot.trajectory = None
+        self._command(robot, q, np.zeros(len(robot.arm)))
+        self._keep_mallet_vertical(robot)
+
     def _command(self, robot: _Robot, q: np.ndarray, dq: np.ndarray) -> None:
         pybullet.setJointMotorControlArray(robot.body, robot.arm, pybullet.POSITION_CONTROL,
                                            targetPositions=q.tolist(), targetVelocities=dq.tolist(),

@@ -45,3 +45,47 @@ def base_to_table(point: Sequence[float], base_pose: Sequence[float]) -> np.ndar
     # the planar child-to-parent transform of core.frames (written for the table in the mocap frame)
     x, y, _ = table_to_mocap(point[0], point[1], 0.0, base_pose)
     return np.array([x, y, base_pose[2] + point[2]])
+
+
+class MalletKinematics:
+    """The mallet of one arm as the motion layer sees it: 7 arm joints, the striker held vertical.
+
+    The simulation (and the real striker's universal joint) keeps the mallet axis vertical, so the
+    mallet's bottom centre is the universal joint's centre less ``tip_length`` straight down. Positions
+    and the 3x7 translational Jacobian are in the robot's own table frame (x toward the opponent,
+    README "Frames and units"), given the base pose ``base`` = (x, y, z [m], yaw [rad]) in that frame;
+    both robots share this code path.
+    """
+
+    def __init__(self, urdf_path: str, base: Sequence[float], joint_frame: str = "striker_link_1",
+                 tip_frame: str = "striker_tip") -> None:
+        full = pin.buildModelFromUrdf(urdf_path)
+        striker = [full.getJointId(n) for n in full.names if n.startswith("striker_joint")]
+        self.model = pin.buildReducedModel(full, striker, pin.neutral(full))
+        self.data = self.model.createData()
+        self.frame = self.model.getFrameId(joint_frame)
+        full_data = full.createData()
+        pin.framesForwardKinematics(full, full_data, pin.neutral(full))
+        offset = full_data.oMf[full.getFrameId(tip_frame)].translation - \
+            full_data.oMf[full.getFrameId(joint_frame)].translation
+        self.tip_length = float(np.linalg.norm(offset))  # [m] universal joint centre -> mallet bottom
+        self.q_lower = self.model.lowerPositionLimit.copy()
+        self.q_upper = self.model.upperPositionLimit.copy()
+        self.joint_names = tuple(self.model.names[i] for i in range(1, self.model.njoints))
+        x, y, z, yaw = (float(v) for v in base)
+        c, s = np.cos(yaw), np.sin(yaw)
+        self._rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        self._offset = np.array([x, y, z - self.tip_length])
+        self.base_xy = (x, y)
+
+    def position(self, q: np.ndarray) -> np.ndarray:
+        """Mallet bottom centre [m] in the robot's own table frame."""
+        pin.forwardKinematics(self.model, self.data, q)
+        pin.updateFramePlacement(self.model, self.data, self.frame)
+        return self._rotation @ self.data.oMf[self.frame].translation + self._offset
+
+    def position_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mallet position [m] and its 3x7 Jacobian d(position)/dq [m/rad], both in the own table frame."""
+        jac = pin.computeFrameJacobian(self.model, self.data, q, self.frame, pin.LOCAL_WORLD_ALIGNED)[:3]
+        p = self._rotation @ self.data.oMf[self.frame].translation + self._offset
+        return p, self._rotation @ jac

@@ -1,0 +1,125 @@
+"""``trajectory_generator`` node (one per robot namespace): HitCommand -> JointTrajectory.
+
+Subscribes ``hit_command`` (air_hockey_msgs/HitCommand, the robot's own table frame: x toward the
+opponent) and ``joint_states``; publishes ``joint_trajectory`` (trajectory_msgs/JointTrajectory with a
+start stamp, the seven arm joints with positions and velocities) and ``trajectory_status``
+(air_hockey_msgs/TrajectoryStatus: accepted, or refused and why, with the planned hit time and speed).
+A hit velocity of zero asks to reach the point and stop there by the hit time. A new command replaces
+the running motion from its planned state ``planning_delay`` ahead, so the arm never jumps. A refused
+command moves nothing. The planning lives in :mod:`air_hockey_agent.core.motion.planner`; run with
+``use_sim_time`` under the simulation.
+"""
+from __future__ import annotations
+
+import math
+import time
+
+import numpy as np
+from builtin_interfaces.msg import Duration
+from sensor_msgs.msg import JointState
+from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
+from trajectory_msgs.msg import JointTrajectoryPoint
+
+from air_hockey_msgs.msg import HitCommand, TrajectoryStatus
+from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.motion.planner import INVALID, ArmState, Command, Plan, refused
+from air_hockey_agent.motion_params import MOTION_PARAMS, PARAM_FILES, build_planner
+from air_hockey_agent.nodes.messages import to_seconds, to_stamp
+from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
+
+ARM_JOINTS = tuple(f"iiwa_joint_{i}" for i in range(1, 8))
+
+
+def _duration(seconds: float) -> Duration:
+    sec = math.floor(seconds)
+    return Duration(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+
+
+class TrajectoryGeneratorNode(AirHockeyNode):
+    NAME = "trajectory_generator"
+    DESCRIPTION = __doc__
+    PARAM_FILES = PARAM_FILES
+    PARAMS = MOTION_PARAMS
+
+    def __init__(self) -> None:
+        super().__init__()
+        try:
+            self.planner = build_planner(self.params, self.params["robot"])
+        except ValueError as exc:
+            raise NodeStartupError(f"parameter 'robot': {exc}") from exc
+        self.measured: ArmState | None = None
+        self.running: JointTrajectory | None = None
+        self.trajectory_pub = self.create_publisher(JointTrajectoryMsg, "joint_trajectory", 10)
+        self.status_pub = self.create_publisher(TrajectoryStatus, "trajectory_status", 10)
+        self.create_subscription(JointState, "joint_states", self.on_joint_state, 10)
+        self.create_subscription(HitCommand, "hit_command", self.on_command, 10)
+
+    def now_seconds(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    def on_joint_state(self, msg: JointState) -> None:
+        try:
+            by_name = dict(zip(msg.name, zip(msg.position, msg.velocity or [0.0] * len(msg.name))))
+            q = np.array([by_name[n][0] for n in ARM_JOINTS], float)
+            dq = np.array([by_name[n][1] for n in ARM_JOINTS], float)
+            if np.all(np.isfinite(q)) and np.all(np.isfinite(dq)):
+                self.measured = ArmState(to_seconds(msg.header.stamp), q, dq)
+        except (KeyError, TypeError, ValueError) as exc:
+            self.get_logger().error(f"joint_states: message ignored ({type(exc).__name__}: {exc})",
+                                    throttle_duration_sec=5.0)
+
+    def start_state(self, now: float) -> ArmState | None:
+        """Where the new motion starts: the running plan's state ``planning_delay`` ahead, or the measured
+        state when nothing runs."""
+        if self.running is not None and now < self.running.start + self.running.duration:
+            t = now + self.params["planning_delay"]
+            q, dq = self.running.sample(t)
+            return ArmState(t, q, dq)
+        if self.measured is None:
+            return None
+        return ArmState(now, self.measured.q, np.zeros(7))
+
+    def on_command(self, msg: HitCommand) -> None:
+        wall = time.perf_counter()
+        now = self.now_seconds()
+        try:
+            command = Command(np.array([msg.hit_point.x, msg.hit_point.y], float),
+                              np.array([msg.hit_velocity.x, msg.hit_velocity.y], float), to_seconds(msg.hit_time))
+            start = self.start_state(now)
+            plan = refused(INVALID, "no joint_states received yet") if start is None else self.planner.plan(command, start)
+        except Exception as exc:  # a malformed command must never stop the node
+            plan = refused(INVALID, f"{type(exc).__name__}: {exc}")
+        elapsed = time.perf_counter() - wall
+        if plan.ok:
+            self.publish_trajectory(plan, now)
+            self.get_logger().info(f"hit_command (tactic {msg.tactic}): {plan.message}, {elapsed * 1000:.1f} ms")
+        else:
+            self.get_logger().warn(f"hit_command (tactic {msg.tactic}) refused: {plan.message}")
+        self.publish_status(msg, plan, now, elapsed)
+
+    def publish_trajectory(self, plan: Plan, now: float) -> None:
+        times = np.concatenate([[plan.start.t], plan.times]) - now
+        q = np.vstack([plan.start.q, plan.q])
+        dq = np.vstack([plan.start.dq, plan.dq])
+        if times[0] <= 1e-9:  # the plan starts now: the controller's implicit first point is the start
+            times, q, dq = times[1:], q[1:], dq[1:]
+        msg = JointTrajectoryMsg(joint_names=list(ARM_JOINTS))
+        msg.header.stamp = to_stamp(now)
+        msg.points = [JointTrajectoryPoint(positions=qi.tolist(), velocities=dqi.tolist(),
+                                           time_from_start=_duration(ti)) for ti, qi, dqi in zip(times, q, dq)]
+        self.trajectory_pub.publish(msg)
+        current_q, current_dq = self.running.sample(now) if self.running is not None else (plan.start.q, plan.start.dq)
+        self.running = JointTrajectory.from_points(ARM_JOINTS, now, times, q, dq, current_q, current_dq)
+
+    def publish_status(self, command: HitCommand, plan: Plan, now: float, elapsed: float) -> None:
+        status = TrajectoryStatus(command_stamp=command.header.stamp, tactic=command.tactic, outcome=plan.outcome,
+                                  reason=plan.message, hit_speed=float(plan.hit_speed),
+                                  max_hit_speed=float(plan.max_speed), planning_time=elapsed)
+        status.header.stamp = to_stamp(now)
+        if math.isfinite(plan.hit_time):
+            status.hit_time = to_stamp(plan.hit_time)
+        self.status_pub.publish(status)
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run(TrajectoryGeneratorNode, argv)
