@@ -36,6 +36,7 @@ OUTCOME_NAMES = ("accepted", "invalid", "outside the region", "too late", "unrea
 AT_REST = 1e-6  # [m/s] a hit velocity below this is a reach-and-stop command
 REACH_RETRIES = 6
 REACH_SLOWDOWN = 1.25  # duration factor per retry of a reach motion that broke a joint limit
+SETTLE_TIME = 0.3      # [s] longest hold at a reach target while the arm comes to rest in its posture
 
 
 @dataclass(frozen=True)
@@ -108,6 +109,14 @@ class MotionSettings:
                    p["height_transition"], p["hit_posture_range"], np.asarray(p["reference_posture"], float))
 
 
+def _without_repeats(q: np.ndarray, keep: int) -> np.ndarray:
+    """Knots ``q`` without the trailing copies of the last one (a settled hold), keeping at least ``keep``."""
+    end = len(q)
+    while end > max(keep, 1) and np.array_equal(q[end - 1], q[end - 2]):
+        end -= 1
+    return q[:end]
+
+
 def refused(outcome: int, message: str, **extra: float) -> Plan:
     return Plan(outcome, f"{OUTCOME_NAMES[outcome]}: {message}", **extra)
 
@@ -150,11 +159,15 @@ class MotionPlanner:
                                          f"{available:.2f} s are left" + (f" ({reason})" if reason else ""))
             steps = tm.steps_for(duration, dt)
             pos, _ = tm.hermite(p0, v0, target, np.zeros(2), steps, dt)
+            # then hold the target until the arm is at rest in the IK posture (the cubic ends decelerating)
+            hold = min(tm.steps_for(SETTLE_TIME, dt), max(0, int((available - steps * dt) / dt)))
+            pos = np.vstack([pos, np.repeat(target[None], hold, axis=0)])
             tracked = track(self.kin, self.limits, self.qp, start.q, start.dq, self._from_start(pos, start), dt,
-                            ik.q, s.posture_gain)
+                            ik.q, s.posture_gain, settle=s.posture_tolerance)
             if tracked.ok:
-                times = start.t + np.arange(1, steps + 1) * dt
-                return self._finish(start, times, tracked.q, math.nan, math.nan, math.nan, "reach")
+                q = _without_repeats(tracked.q, steps)
+                times = start.t + np.arange(1, len(q) + 1) * dt
+                return self._finish(start, times, q, math.nan, math.nan, math.nan, "reach")
             reason = tracked.reason
             duration *= REACH_SLOWDOWN
         return refused(LIMITS, reason)
@@ -210,12 +223,18 @@ class MotionPlanner:
                      q_hit, s.posture_gain)
         if not back.ok:
             return refused(LIMITS, f"the strike {back.reason}")
-        stop_pos, _ = tm.stop(hit, direction, speed, n_stop, dt)
-        fwd = track(self.kin, self.limits, self.qp, q_hit, dq_hit, self._at_height(stop_pos), dt,
-                    q_hit, s.posture_gain)
+        fwd = self._follow_through(hit, direction, speed, q_hit, dq_hit, n_stop)
+        if isinstance(fwd, Plan):
+            return fwd
+        return back.q[::-1], run_start, fwd
+
+    def _follow_through(self, hit, direction, speed, q_hit, dq_hit, n_stop):
+        """Joint knots of the stop after the hit (no posture pull: the arm just brakes), or a refusal."""
+        stop_pos, _ = tm.stop(hit, direction, speed, n_stop, self.s.dt)
+        fwd = track(self.kin, self.limits, self.qp, q_hit, dq_hit, self._at_height(stop_pos), self.s.dt, q_hit, 0.0)
         if not fwd.ok:
             return refused(LIMITS, f"the follow-through {fwd.reason}")
-        return back.q[::-1], run_start, fwd.q
+        return fwd.q
 
     def _staged_hit(self, hit, direction, speed, config, start: ArmState, grid) -> Plan:
         s, dt = self.s, self.s.dt
@@ -268,12 +287,10 @@ class MotionPlanner:
         if ahead < s.follow_through[0]:
             return refused(LIMITS, f"no room to stop: {ahead:.3f} m ahead of the hit point")
         n_stop = max(1, int(2 * min(ahead, s.follow_through[1]) / speed / dt))
-        stop_pos, _ = tm.stop(hit, direction, speed, n_stop, dt)
-        fwd = track(self.kin, self.limits, self.qp, q_hit, dq_hit, self._at_height(stop_pos), dt, q_hit,
-                    s.posture_gain)
-        if not fwd.ok:
-            return refused(LIMITS, f"the follow-through {fwd.reason}")
-        q = np.vstack([approach.q, fwd.q])
+        fwd = self._follow_through(hit, direction, speed, q_hit, dq_hit, n_stop)
+        if isinstance(fwd, Plan):
+            return fwd
+        q = np.vstack([approach.q, fwd])
         times = origin + np.arange(1, len(q) + 1) * dt
         return self._finish(start, times, q, origin + steps * dt, speed, math.nan, "direct", steps - 1, dq_hit)
 

@@ -54,7 +54,7 @@ class StepQP:
         """min ||dq - ref||^2 s.t. jac dq = dx, lo <= dq <= hi; None when infeasible."""
         data = np.vstack([jac, np.ones((1, JOINTS))]).T.ravel()
         self._solver.update(q=-ref, l=np.concatenate([dx, lo]), u=np.concatenate([dx, hi]), Ax=data)
-        result = self._solver.solve()
+        result = self._solver.solve(raise_error=False)
         if result.info.status_val not in (1, 2):  # solved, solved inaccurate
             return None
         dq = result.x
@@ -79,7 +79,9 @@ def track(kin: MalletKinematics, limits: JointLimits, qp: StepQP, q0: np.ndarray
         dx = target - p
         ref = np.clip(pull * (anchor - q), -pull_cap, pull_cap)
         step = ref + jac.T @ _solve3(jac @ jac.T, dx - jac @ ref)
-        lo, hi = _bounds(q, previous, limits, v_step, a_step, dt)
+        # the first step gets half the acceleration room: knot velocities are central differences,
+        # and the one at the first knot spans this step and the next
+        lo, hi = _bounds(q, previous, limits, v_step, a_step if k else 0.5 * a_step, dt)
         if (lo > hi).any():
             j = int(np.argmax(lo - hi))
             return Tracked(out[:k], False, f"cannot brake joint {j + 1} before its position limit", k)

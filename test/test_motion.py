@@ -1,0 +1,229 @@
+"""Motion layer (core/motion): kinematics, IK, fastest-hit posture, planned trajectories.
+
+Independent references: central finite differences for the Jacobian, pybullet's forward kinematics
+for the mallet position, the LP's own constraints and optimality for the hit speed, and dense
+sampling of each planned trajectory (as the robots' controller interpolates it) for the limits, the
+plane and the hit.
+"""
+import math
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.frames import table_to_robot
+from air_hockey_agent.core.motion.hit_config import best_hit_configuration, max_speed_along
+from air_hockey_agent.core.motion.ik import solve_ik
+from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.motion.planner import (ACCEPTED, INVALID, OUTSIDE_REGION, TOO_FAST, TOO_LATE,
+                                                  UNREACHABLE, ArmState, Command)
+from air_hockey_agent.motion_params import build_planner, load_motion_params
+
+ROBOTS = ("iiwa_front", "iiwa_back")
+JOINTS = tuple(f"iiwa_joint_{i}" for i in range(1, 8))
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_motion_params()
+
+
+@pytest.fixture(scope="module", params=ROBOTS)
+def planner(request, params):
+    return build_planner(params, request.param)
+
+
+@pytest.fixture(scope="module")
+def front(params):
+    return build_planner(params, "iiwa_front")
+
+
+def _ready(planner):
+    s = planner.s
+    ik = solve_ik(planner.kin, planner.limits, np.array([-0.7, 0.0, s.height]), s.reference, s.reference,
+                  s.ik_iterations, s.ik_tolerance)
+    assert ik.ok
+    return ArmState(0.0, ik.q, np.zeros(7))
+
+
+def _random_region_point(planner, rng):
+    r = planner.region
+    while True:
+        p = np.array([rng.uniform(r.x_min, r.x_max), rng.uniform(-r.y_max, r.y_max)])
+        if r.contains(p):
+            return p
+
+
+def test_jacobian_matches_central_differences(planner):
+    rng = np.random.default_rng(1)
+    for _ in range(20):
+        q = rng.uniform(planner.limits.q_min, planner.limits.q_max)
+        _, jac = planner.kin.position_and_jacobian(q)
+        eps = 1e-6
+        numeric = np.column_stack([(planner.kin.position(q + eps * e) - planner.kin.position(q - eps * e)) / (2 * eps)
+                                   for e in np.eye(7)])
+        assert np.max(np.abs(jac - numeric)) < 1e-7
+
+
+def test_mallet_position_matches_pybullet_for_both_robots(params):
+    from air_hockey_agent.sim.params import load_sim_params
+    from air_hockey_agent.sim.world import SimSettings, TableWorld
+    world = TableWorld(SimSettings.from_params(load_sim_params()))
+    try:
+        rng = np.random.default_rng(2)
+        for robot in ROBOTS:
+            planner = build_planner(params, robot)
+            for _ in range(3):  # playing postures (the striker hangs vertical only with the flange pointing down)
+                q = np.asarray(planner.s.reference) + rng.uniform(-0.3, 0.3, 7)
+                world.set_joint_positions(robot, q)
+                for _ in range(300):  # the striker's universal joint settles vertical
+                    world.step()
+                x, y, z = world.mallet_position(robot)
+                own_x, own_y, _ = table_to_robot(x, y, 0.0, robot)
+                q_now, _ = world.joint_state(robot)
+                assert np.linalg.norm(planner.kin.position(q_now) - [own_x, own_y, z]) < 1e-3
+    finally:
+        world.close()
+
+
+def test_ik_reaches_random_region_points_within_a_millimetre(planner):
+    rng = np.random.default_rng(3)
+    s = planner.s
+    for _ in range(100):
+        target = np.array([*_random_region_point(planner, rng), s.height])
+        result = solve_ik(planner.kin, planner.limits, target, s.reference, s.reference, s.ik_iterations,
+                          s.ik_tolerance)
+        assert result.ok, result.reason
+        assert np.linalg.norm(planner.kin.position(result.q) - target) < 1e-3
+        assert np.all(result.q >= planner.limits.q_min - 1e-12) and np.all(result.q <= planner.limits.q_max + 1e-12)
+
+
+def test_ik_refuses_a_point_out_of_reach_with_a_reason(front):
+    s = front.s
+    result = solve_ik(front.kin, front.limits, np.array([0.5, 0.0, s.height]), s.reference, s.reference,
+                      s.ik_iterations, s.ik_tolerance)
+    assert not result.ok and result.reason.startswith("unreachable") and result.error > 0.05
+
+
+def test_max_speed_lp_is_feasible_and_tight(front):
+    rng = np.random.default_rng(4)
+    for _ in range(20):
+        q = rng.uniform(front.limits.q_min, front.limits.q_max) * 0.5
+        _, jac = front.kin.position_and_jacobian(q)
+        angle = rng.uniform(-math.pi, math.pi)
+        d = np.array([math.cos(angle), math.sin(angle)])
+        speed, dq = max_speed_along(jac, d, front.limits.dq_max)
+        assert speed > 0
+        assert np.allclose(jac @ dq, speed * np.array([*d, 0.0]), atol=1e-7)
+        assert np.all(np.abs(dq) <= front.limits.dq_max + 1e-9)
+        # no faster motion along d exists: 1 % more needs some joint beyond its limit
+        faster, _ = max_speed_along(jac, d, front.limits.dq_max / 1.01)
+        assert faster == pytest.approx(speed / 1.01, rel=1e-6)
+
+
+def test_hit_posture_is_at_least_as_fast_as_the_ik_posture_and_on_the_point(front):
+    rng = np.random.default_rng(5)
+    s = front.s
+    for _ in range(20):
+        point = np.array([*_random_region_point(front, rng), s.height])
+        ik = solve_ik(front.kin, front.limits, point, s.reference, s.reference, s.ik_iterations, s.ik_tolerance)
+        d = np.array([1.0, rng.uniform(-0.5, 0.5)])
+        d /= np.linalg.norm(d)
+        config = best_hit_configuration(front.kin, front.limits, ik.q, d, s.ik_tolerance, s.hit_posture_range)
+        before, _ = max_speed_along(front.kin.position_and_jacobian(ik.q)[1], d, front.limits.dq_max)
+        assert config.max_speed >= before - 1e-9
+        assert np.linalg.norm(front.kin.position(config.q) - point) <= s.ik_tolerance
+
+
+def _dense(plan, start):
+    """The plan as the robot's controller executes it (cubic Hermite between knots), every millisecond."""
+    traj = JointTrajectory.from_points(JOINTS, start.t, plan.times - start.t, plan.q, plan.dq, start.q, start.dq)
+    t = np.arange(start.t, plan.times[-1] + 1e-9, 1e-3)
+    samples = [traj.sample(ti) for ti in t]
+    return t, np.array([q for q, _ in samples]), np.array([dq for _, dq in samples])
+
+
+def _check_limits_and_plane(planner, plan, start):
+    t, q, dq = _dense(plan, start)
+    limits, s = planner.limits, planner.s
+    assert limits.position_use(q) <= 100.0 and limits.velocity_use(dq) <= 100.0
+    knot_acc = np.diff(np.vstack([start.dq, plan.dq]), axis=0) / s.dt
+    assert np.max(np.abs(knot_acc) / limits.ddq_max) <= 1.05
+    mallet = np.array([planner.kin.position(qi) for qi in q])
+    moving = t >= start.t + s.height_transition  # after leaving the start's height
+    assert np.all(mallet[:, 2] >= 0.0)
+    assert np.all(np.abs(mallet[moving, 2] - s.height) <= 0.01)
+    assert planner.region.contains(mallet[:, :2], tol=0.005)
+    return t, q, dq, mallet
+
+
+def test_random_hits_meet_point_time_speed_and_limits(planner):
+    rng = np.random.default_rng(6)
+    start, accepted = _ready(planner), 0
+    for _ in range(40):
+        point = _random_region_point(planner, rng)
+        angle = rng.uniform(-1.0, 1.0)
+        direction = np.array([math.cos(angle), math.sin(angle)])
+        plan0 = planner.plan(Command(point, 0.1 * direction, 1.2), start)
+        if plan0.outcome != ACCEPTED:
+            continue
+        speed = 0.6 * plan0.max_speed
+        plan = planner.plan(Command(point, speed * direction, 1.2), start)
+        if plan.outcome != ACCEPTED:
+            continue
+        accepted += 1
+        t, q, dq, mallet = _check_limits_and_plane(planner, plan, start)
+        k = int(np.argmin(np.abs(t - plan.hit_time)))
+        assert abs(t[k] - 1.2) < 1e-6 and plan.hit_time == pytest.approx(1.2)
+        assert np.linalg.norm(mallet[k, :2] - point) < 1e-3
+        _, jac = planner.kin.position_and_jacobian(q[k])
+        velocity = jac @ dq[k]
+        assert np.linalg.norm(velocity[:2] - speed * direction) < 0.02 * speed
+    assert accepted >= 15
+
+
+def test_reach_and_stop_arrives_at_rest_by_its_time(planner):
+    rng = np.random.default_rng(7)
+    start = _ready(planner)
+    for _ in range(20):
+        point = _random_region_point(planner, rng)
+        plan = planner.plan(Command(point, np.zeros(2), 1.5), start)
+        assert plan.outcome == ACCEPTED, plan.message
+        _check_limits_and_plane(planner, plan, start)
+        assert plan.times[-1] <= 1.5 + 1e-9
+        assert np.linalg.norm(planner.kin.position(plan.q[-1])[:2] - point) < 1e-3
+        assert np.all(plan.dq[-1] == 0.0)
+
+
+def test_bad_commands_are_refused_with_their_reason(front):
+    start = _ready(front)
+    cases = [
+        (Command(np.array([math.nan, 0.0]), np.array([1.0, 0.0]), 1.0), INVALID, "non-finite"),
+        (Command(np.array([0.3, 0.0]), np.array([1.0, 0.0]), 1.0), OUTSIDE_REGION, "own half"),
+        (Command(np.array([-0.5, 0.0]), np.array([1.0, 0.0]), -0.5), TOO_LATE, "hit time"),
+        (Command(np.array([-0.5, 0.0]), np.array([9.0, 0.0]), 1.0), TOO_FAST, "at most"),
+        (Command(np.array([-0.5, 0.3]), np.zeros(2), 0.05), TOO_LATE, "needs"),
+    ]
+    for command, outcome, words in cases:
+        plan = front.plan(command, start)
+        assert plan.outcome == outcome and words in plan.message, plan.message
+        assert len(plan.q) == 0
+
+
+def test_a_point_the_arm_cannot_reach_is_refused(params):
+    params = dict(params, max_reach=1.6)  # let the region include points beyond the arm's reach
+    planner = build_planner(params, "iiwa_front")
+    plan = planner.plan(Command(np.array([-0.08, 0.0]), np.zeros(2), 1.5), _ready(planner))
+    assert plan.outcome == UNREACHABLE and "unreachable" in plan.message
+
+
+def test_a_new_command_continues_from_the_running_plan_without_a_jump(front):
+    start = _ready(front)
+    first = front.plan(Command(np.array([-0.45, 0.2]), np.zeros(2), 1.5), start)
+    assert first.ok
+    traj = JointTrajectory.from_points(JOINTS, 0.0, first.times, first.q, first.dq, start.q, start.dq)
+    q, dq = traj.sample(0.3)
+    second = front.plan(Command(np.array([-0.6, -0.2]), np.array([1.0, 0.3]), 1.4), ArmState(0.3, q, dq))
+    assert second.ok, second.message
+    step = second.q[0] - q
+    assert np.max(np.abs(step) / (second.times[0] - 0.3)) <= front.limits.dq_max_real.max()
+    assert np.max(np.abs((second.q[0] - q) / (second.times[0] - 0.3) - dq)) < 0.5
