@@ -25,6 +25,7 @@ from air_hockey_agent.core.motion.limits import JointLimits
 
 JOINTS = 7
 DAMPING = 1e-8  # [m^2] regularises J J^T at the (excluded) singular configurations
+LIMIT_ZONE = 0.1  # outer fraction of a joint's planning range the null space pushes out of
 
 
 @dataclass
@@ -99,6 +100,13 @@ def track(kin: MalletKinematics, limits: JointLimits, qp: StepQP, q0: np.ndarray
     return Tracked(out, True)
 
 
+def _away_from_limits(q: np.ndarray, limits: JointLimits, pull: float) -> np.ndarray:
+    """Null-space push out of the outer ``LIMIT_ZONE`` of each joint's planning range, proportional to
+    the depth in the zone (a joint that reaches its limit can no longer help the others)."""
+    zone = LIMIT_ZONE * (limits.q_max - limits.q_min)
+    return pull * (np.maximum(limits.q_min + zone - q, 0.0) - np.maximum(q - (limits.q_max - zone), 0.0))
+
+
 def _settled(targets: np.ndarray, k: int, step: np.ndarray, q: np.ndarray, anchor: np.ndarray,
              tolerance: float) -> bool:
     """At rest (steps below a tenth of ``tolerance``) within ``tolerance`` [rad] of the anchor posture,
@@ -143,7 +151,9 @@ def _why(step: np.ndarray, previous: np.ndarray, q: np.ndarray, limits: JointLim
     if np.max(acceleration) > 1.0:
         j = int(np.argmax(acceleration))
         return f"needs joint {j + 1} at {acceleration[j] * 100:.0f} % of its acceleration limit"
-    return "a joint would leave its position range"
+    room = np.minimum(limits.q_max - q, q - limits.q_min)
+    j = int(np.argmin(room))
+    return f"cannot follow the path within the joint limits (joint {j + 1} is {room[j]:.3f} rad from its limit)"
 
 
 def knot_velocities(q: np.ndarray, dt: float, first: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
