@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 from air_hockey_msgs.msg import PuckState
-from builtin_interfaces.msg import Time
+from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import PoseStamped
 
 from air_hockey_agent.core.frames import pose_to_measurement
@@ -21,6 +21,12 @@ def to_stamp(seconds: float) -> Time:
     """Seconds -> ROS time (nanoseconds rounded, never 1e9)."""
     sec = math.floor(seconds)
     return Time(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
+
+
+def to_duration(seconds: float) -> Duration:
+    """Seconds (>= 0) -> ROS duration, e.g. a trajectory point's time_from_start."""
+    stamp = to_stamp(seconds)
+    return Duration(sec=stamp.sec, nanosec=stamp.nanosec)
 
 
 def pose_measurement(msg: PoseStamped, table_pose) -> tuple[float, float, float] | None:

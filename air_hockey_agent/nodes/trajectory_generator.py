@@ -15,7 +15,6 @@ import math
 import time
 
 import numpy as np
-from builtin_interfaces.msg import Duration
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 from trajectory_msgs.msg import JointTrajectoryPoint
@@ -24,15 +23,10 @@ from air_hockey_msgs.msg import HitCommand, TrajectoryStatus
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
 from air_hockey_agent.core.motion.planner import INVALID, ArmState, Command, Plan, refused
 from air_hockey_agent.motion_params import MOTION_PARAMS, PARAM_FILES, build_planner
-from air_hockey_agent.nodes.messages import to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import to_duration, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 
 ARM_JOINTS = tuple(f"iiwa_joint_{i}" for i in range(1, 8))
-
-
-def _duration(seconds: float) -> Duration:
-    sec = math.floor(seconds)
-    return Duration(sec=int(sec), nanosec=min(int(round((seconds - sec) * 1e9)), 999_999_999))
 
 
 class TrajectoryGeneratorNode(AirHockeyNode):
@@ -106,7 +100,7 @@ class TrajectoryGeneratorNode(AirHockeyNode):
         msg = JointTrajectoryMsg(joint_names=list(ARM_JOINTS))
         msg.header.stamp = to_stamp(now)
         msg.points = [JointTrajectoryPoint(positions=qi.tolist(), velocities=dqi.tolist(),
-                                           time_from_start=_duration(ti)) for ti, qi, dqi in zip(times, q, dq)]
+                                           time_from_start=to_duration(ti)) for ti, qi, dqi in zip(times, q, dq)]
         self.trajectory_pub.publish(msg)
         current_q, current_dq = self.running.sample(now) if self.running is not None else (plan.start.q, plan.start.dq)
         self.running = JointTrajectory.from_points(ARM_JOINTS, now, times, q, dq, current_q, current_dq)
