@@ -45,14 +45,6 @@ def _ready(planner):
     return ArmState(0.0, ik.q, np.zeros(7))
 
 
-def _random_region_point(planner, rng):
-    r = planner.region
-    while True:
-        p = np.array([rng.uniform(r.x_min, r.x_max), rng.uniform(-r.y_max, r.y_max)])
-        if r.contains(p):
-            return p
-
-
 def test_jacobian_matches_central_differences(planner):
     rng = np.random.default_rng(1)
     for _ in range(20):
@@ -89,7 +81,7 @@ def test_ik_reaches_random_region_points_within_a_millimetre(planner):
     rng = np.random.default_rng(3)
     s = planner.s
     for _ in range(100):
-        target = np.array([*_random_region_point(planner, rng), s.height])
+        target = np.array([*planner.region.random_point(rng), s.height])
         result = solve_ik(planner.kin, planner.limits, target, s.reference, s.reference, s.ik_iterations,
                           s.ik_tolerance)
         assert result.ok, result.reason
@@ -124,7 +116,7 @@ def test_hit_posture_is_at_least_as_fast_as_the_ik_posture_and_on_the_point(fron
     rng = np.random.default_rng(5)
     s = front.s
     for _ in range(20):
-        point = np.array([*_random_region_point(front, rng), s.height])
+        point = np.array([*front.region.random_point(rng), s.height])
         ik = solve_ik(front.kin, front.limits, point, s.reference, s.reference, s.ik_iterations, s.ik_tolerance)
         d = np.array([1.0, rng.uniform(-0.5, 0.5)])
         d /= np.linalg.norm(d)
@@ -160,7 +152,7 @@ def test_random_hits_meet_point_time_speed_and_limits(planner):
     rng = np.random.default_rng(6)
     start, accepted = _ready(planner), 0
     for _ in range(40):
-        point = _random_region_point(planner, rng)
+        point = planner.region.random_point(rng)
         angle = rng.uniform(-1.0, 1.0)
         direction = np.array([math.cos(angle), math.sin(angle)])
         plan0 = planner.plan(Command(point, 0.1 * direction, 1.2), start)
@@ -185,7 +177,7 @@ def test_reach_and_stop_arrives_at_rest_by_its_time(planner):
     rng = np.random.default_rng(7)
     start = _ready(planner)
     for _ in range(20):
-        point = _random_region_point(planner, rng)
+        point = planner.region.random_point(rng)
         plan = planner.plan(Command(point, np.zeros(2), 1.5), start)
         assert plan.outcome == ACCEPTED, plan.message
         _check_limits_and_plane(planner, plan, start)

@@ -21,13 +21,11 @@ from trajectory_msgs.msg import JointTrajectoryPoint
 
 from air_hockey_msgs.msg import HitCommand, TrajectoryStatus
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.motion.kinematics import in_order
 from air_hockey_agent.core.motion.planner import INVALID, ArmState, Command, Plan, refused
 from air_hockey_agent.motion_params import MOTION_PARAMS, PARAM_FILES, build_planner
 from air_hockey_agent.nodes.messages import to_duration, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
-
-ARM_JOINTS = tuple(f"iiwa_joint_{i}" for i in range(1, 8))
-
 
 class TrajectoryGeneratorNode(AirHockeyNode):
     NAME = "trajectory_generator"
@@ -53,12 +51,15 @@ class TrajectoryGeneratorNode(AirHockeyNode):
 
     def on_joint_state(self, msg: JointState) -> None:
         try:
-            by_name = dict(zip(msg.name, zip(msg.position, msg.velocity or [0.0] * len(msg.name))))
-            q = np.array([by_name[n][0] for n in ARM_JOINTS], float)
-            dq = np.array([by_name[n][1] for n in ARM_JOINTS], float)
-            if np.all(np.isfinite(q)) and np.all(np.isfinite(dq)):
+            joints = self.planner.kin.joint_names
+            q = in_order(msg.name, msg.position, joints)
+            dq = in_order(msg.name, msg.velocity or [0.0] * len(msg.name), joints)
+            if q is None or dq is None:
+                self.get_logger().error(f"joint_states: message ignored (needs positions and velocities of "
+                                        f"{list(joints)})", throttle_duration_sec=5.0)
+            elif np.all(np.isfinite(q)) and np.all(np.isfinite(dq)):
                 self.measured = ArmState(to_seconds(msg.header.stamp), q, dq)
-        except (KeyError, TypeError, ValueError) as exc:
+        except (TypeError, ValueError) as exc:
             self.get_logger().error(f"joint_states: message ignored ({type(exc).__name__}: {exc})",
                                     throttle_duration_sec=5.0)
 
@@ -97,13 +98,13 @@ class TrajectoryGeneratorNode(AirHockeyNode):
         dq = np.vstack([plan.start.dq, plan.dq])
         if times[0] <= 1e-9:  # the plan starts now: the controller's implicit first point is the start
             times, q, dq = times[1:], q[1:], dq[1:]
-        msg = JointTrajectoryMsg(joint_names=list(ARM_JOINTS))
+        msg = JointTrajectoryMsg(joint_names=list(self.planner.kin.joint_names))
         msg.header.stamp = to_stamp(now)
         msg.points = [JointTrajectoryPoint(positions=qi.tolist(), velocities=dqi.tolist(),
                                            time_from_start=to_duration(ti)) for ti, qi, dqi in zip(times, q, dq)]
         self.trajectory_pub.publish(msg)
         current_q, current_dq = self.running.sample(now) if self.running is not None else (plan.start.q, plan.start.dq)
-        self.running = JointTrajectory.from_points(ARM_JOINTS, now, times, q, dq, current_q, current_dq)
+        self.running = JointTrajectory.from_points(self.planner.kin.joint_names, now, times, q, dq, current_q, current_dq)
 
     def publish_status(self, command: HitCommand, plan: Plan, now: float, elapsed: float) -> None:
         status = TrajectoryStatus(command_stamp=command.header.stamp, tactic=command.tactic, outcome=plan.outcome,

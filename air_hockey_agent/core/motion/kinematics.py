@@ -14,6 +14,16 @@ import pinocchio as pin
 from air_hockey_agent.core.frames import table_to_mocap
 
 
+def in_order(names: Sequence[str], values: Sequence[float], wanted: Sequence[str]) -> np.ndarray | None:
+    """``values`` given for ``names`` (e.g. a JointState's), rearranged into the order of ``wanted``;
+    None when one of ``wanted`` is missing or has no value."""
+    by_name: Mapping[str, float] = dict(zip(names, values))
+    try:
+        return np.array([by_name[n] for n in wanted], float)
+    except KeyError:
+        return None
+
+
 class ArmKinematics:
     """Forward kinematics of one arm model; joints in the model's order (7 arm joints, then the striker's 2)."""
 
@@ -28,11 +38,7 @@ class ArmKinematics:
     def positions_from_names(self, names: Sequence[str], values: Sequence[float]) -> np.ndarray | None:
         """Joint vector in model order from a (names, positions) pair, e.g. a JointState; None when a
         model joint is missing."""
-        by_name: Mapping[str, float] = dict(zip(names, values))
-        try:
-            return np.array([by_name[n] for n in self.joint_names], float)
-        except KeyError:
-            return None
+        return in_order(names, values, self.joint_names)
 
     def tip_position(self, q: np.ndarray) -> np.ndarray:
         """Mallet tip position in the robot base frame [m]."""

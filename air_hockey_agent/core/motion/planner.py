@@ -23,7 +23,7 @@ import numpy as np
 
 from air_hockey_agent.core.motion import task_motion as tm
 from air_hockey_agent.core.motion.hit_config import best_hit_configuration
-from air_hockey_agent.core.motion.ik import solve_ik
+from air_hockey_agent.core.motion.ik import solve_ik, weighted_pinv
 from air_hockey_agent.core.motion.kinematics import MalletKinematics
 from air_hockey_agent.core.motion.limits import JointLimits
 from air_hockey_agent.core.motion.region import Region
@@ -167,7 +167,7 @@ class MotionPlanner:
             if tracked.ok:
                 q = _without_repeats(tracked.q, steps)
                 times = start.t + np.arange(1, len(q) + 1) * dt
-                return self._finish(start, times, q, math.nan, math.nan, math.nan, "reach")
+                return self._finish(start, times, q, math.nan, math.nan, "reach")
             reason = tracked.reason
             duration *= REACH_SLOWDOWN
         return refused(LIMITS, reason)
@@ -202,31 +202,38 @@ class MotionPlanner:
         steps = max(1, int(round((hit_time - now) / self.s.dt)))
         return hit_time - steps * self.s.dt, steps
 
-    def _strike_and_stop(self, hit, direction, speed, config, q_hit, dq_hit):
-        """Backward-tracked strike (knots from the run-up start to the hit) and forward-tracked
-        follow-through from (q_hit, dq_hit); or a refusal."""
-        s, dt = self.s, self.s.dt
+    def _run_up(self, hit, direction, speed) -> tuple[int, Plan | None]:
+        """Grid steps of the strike (the longest run-up that fits behind the hit point), and a refusal
+        when even the shortest does not fit."""
+        s = self.s
         behind = self.region.distance_along(hit, -direction)
-        ahead = self.region.distance_along(hit, direction)
+        steps = max(1, int(2 * min(behind, s.run_up[1]) / speed / s.dt))
         if behind < s.run_up[0]:
-            return refused(LIMITS, f"no room for a run-up: {behind:.3f} m behind the hit point "
-                                   f"(at least {s.run_up[0]:.3f} m needed)")
+            return steps, refused(LIMITS, f"no room for a run-up: {behind:.3f} m behind the hit point "
+                                          f"(at least {s.run_up[0]:.3f} m needed)")
+        return steps, None
+
+    def _stop_steps(self, hit, direction, speed) -> int | Plan:
+        """Grid steps of the follow-through (the longest stop that fits ahead of the hit point), or a refusal."""
+        s = self.s
+        ahead = self.region.distance_along(hit, direction)
         if ahead < s.follow_through[0]:
             return refused(LIMITS, f"no room to stop: {ahead:.3f} m ahead of the hit point "
                                    f"(at least {s.follow_through[0]:.3f} m needed)")
-        n_strike = max(1, int(2 * min(behind, s.run_up[1]) / speed / dt))
-        n_stop = max(1, int(2 * min(ahead, s.follow_through[1]) / speed / dt))
+        return max(1, int(2 * min(ahead, s.follow_through[1]) / speed / s.dt))
+
+    def _strike(self, hit, direction, speed, n_strike, q_hit, dq_hit) -> np.ndarray | Plan:
+        """Joint knots of the strike, tracked backward from (q_hit, dq_hit): from the run-up start
+        (index 0) to just before the hit; or a refusal."""
+        dt = self.s.dt
         run_pos, _ = tm.strike(hit, direction, speed, n_strike, dt)
         run_start = hit - speed * n_strike * dt / 2 * direction
         backward = np.vstack([run_pos[-2::-1], run_start[None]]) if n_strike > 1 else run_start[None]
         back = track(self.kin, self.limits, self.qp, q_hit, -dq_hit, self._at_height(backward), dt,
-                     q_hit, s.posture_gain)
+                     q_hit, self.s.posture_gain)
         if not back.ok:
             return refused(LIMITS, f"the strike {back.reason}")
-        fwd = self._follow_through(hit, direction, speed, q_hit, dq_hit, n_stop)
-        if isinstance(fwd, Plan):
-            return fwd
-        return back.q[::-1], run_start, fwd
+        return back.q[::-1]
 
     def _follow_through(self, hit, direction, speed, q_hit, dq_hit, n_stop):
         """Joint knots of the stop after the hit (no posture pull: the arm just brakes), or a refusal."""
@@ -240,19 +247,25 @@ class MotionPlanner:
         s, dt = self.s, self.s.dt
         origin, steps = grid
         p0, v0 = self._mallet(start)
-        behind = self.region.distance_along(hit, -direction)
-        n_strike = max(1, int(2 * min(behind, s.run_up[1]) / speed / dt))
+        n_strike, no_room = self._run_up(hit, direction, speed)
         run_start = hit - speed * n_strike * dt / 2 * direction
         reach = tm.shortest_hermite_duration(p0, v0, run_start, s.reach_acceleration, dt)
         n_approach = steps - n_strike
         if n_approach * dt < reach:
             return refused(TOO_LATE, f"the run-up start is {reach:.2f} s away, "
                                      f"{n_approach * dt:.2f} s are left before the strike")
+        if no_room is not None:
+            return no_room
+        n_stop = self._stop_steps(hit, direction, speed)
+        if isinstance(n_stop, Plan):
+            return n_stop
         dq_hit = self._hit_joint_velocity(config, direction, speed)
-        parts = self._strike_and_stop(hit, direction, speed, config, config.q, dq_hit)
-        if isinstance(parts, Plan):
-            return parts
-        strike_q, run_start, stop_q = parts
+        strike_q = self._strike(hit, direction, speed, n_strike, config.q, dq_hit)
+        if isinstance(strike_q, Plan):
+            return strike_q
+        stop_q = self._follow_through(hit, direction, speed, config.q, dq_hit, n_stop)
+        if isinstance(stop_q, Plan):
+            return stop_q
         n_move = tm.steps_for(reach, dt)
         pos, _ = tm.hermite(p0, v0, run_start, np.zeros(2), n_move, dt)
         targets = np.vstack([pos, np.repeat(run_start[None], n_approach - n_move, axis=0)])
@@ -265,7 +278,7 @@ class MotionPlanner:
             return refused(TOO_LATE, f"the arm cannot take the hit posture in time ({gap:.3f} rad away)")
         q = np.vstack([approach.q[:-1], strike_q, [config.q], stop_q])
         times = origin + np.arange(1, len(q) + 1) * dt
-        return self._finish(start, times, q, origin + steps * dt, speed, math.nan, "staged", steps - 1, dq_hit)
+        return self._finish(start, times, q, origin + steps * dt, speed, "staged", steps - 1, dq_hit)
 
     def _direct_hit(self, hit, direction, speed, config, start: ArmState, grid) -> Plan:
         s, dt = self.s, self.s.dt
@@ -282,23 +295,22 @@ class MotionPlanner:
         q_hit = approach.q[-1]
         _, jac = self.kin.position_and_jacobian(q_hit)
         dq_hit = (approach.q[-1] - (approach.q[-2] if steps > 1 else start.q)) / dt
-        dq_hit = dq_hit + np.linalg.pinv(jac) @ (np.array([*velocity, 0.0]) - jac @ dq_hit)
-        ahead = self.region.distance_along(hit, direction)
-        if ahead < s.follow_through[0]:
-            return refused(LIMITS, f"no room to stop: {ahead:.3f} m ahead of the hit point")
-        n_stop = max(1, int(2 * min(ahead, s.follow_through[1]) / speed / dt))
+        dq_hit = dq_hit + weighted_pinv(jac) @ (np.array([*velocity, 0.0]) - jac @ dq_hit)
+        n_stop = self._stop_steps(hit, direction, speed)
+        if isinstance(n_stop, Plan):
+            return n_stop
         fwd = self._follow_through(hit, direction, speed, q_hit, dq_hit, n_stop)
         if isinstance(fwd, Plan):
             return fwd
         q = np.vstack([approach.q, fwd])
         times = origin + np.arange(1, len(q) + 1) * dt
-        return self._finish(start, times, q, origin + steps * dt, speed, math.nan, "direct", steps - 1, dq_hit)
+        return self._finish(start, times, q, origin + steps * dt, speed, "direct", steps - 1, dq_hit)
 
     def _hit_joint_velocity(self, config, direction, speed) -> np.ndarray:
         """Joint velocities at the hit: the smallest that give the hit velocity, or the LP's when those
         break a velocity limit."""
         _, jac = self.kin.position_and_jacobian(config.q)
-        dq = np.linalg.pinv(jac) @ np.array([*(speed * direction), 0.0])
+        dq = weighted_pinv(jac) @ np.array([*(speed * direction), 0.0])
         return dq if np.all(np.abs(dq) <= self.limits.dq_max) else config.dq_unit * speed
 
     # --- helpers -------------------------------------------------------------------------------
@@ -324,7 +336,7 @@ class MotionPlanner:
         return np.hstack([xy, np.full((len(xy), 1), self.s.height)])
 
     def _finish(self, start: ArmState, times: np.ndarray, q: np.ndarray, hit_time: float, hit_speed: float,
-                max_speed: float, mode: str, hit_index: int = -1, dq_hit: np.ndarray | None = None) -> Plan:
+                mode: str, hit_index: int = -1, dq_hit: np.ndarray | None = None) -> Plan:
         """Knot velocities (central differences; the start's velocity before, rest at the end, the exact
         hit velocity at the hit knot) and a last check against the real joint limits."""
         dt = self.s.dt
@@ -337,4 +349,4 @@ class MotionPlanner:
             return refused(LIMITS, f"the planned knots use {self.limits.velocity_use(dq):.0f} % of a velocity "
                                    f"limit and {self.limits.position_use(q):.0f} % of a position range")
         return Plan(ACCEPTED, f"{OUTCOME_NAMES[ACCEPTED]} ({mode})", start, times, q, dq, hit_time, hit_speed,
-                    max_speed, mode)
+                    mode=mode)

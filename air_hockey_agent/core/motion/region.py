@@ -38,6 +38,13 @@ class Region:
         inside_disc = np.hypot(p[:, 0] - self.base_xy[0], p[:, 1] - self.base_xy[1]) <= self.reach + tol
         return bool(np.all(inside_box & inside_disc))
 
+    def random_point(self, rng: np.random.Generator) -> np.ndarray:
+        """A point drawn uniformly from the region [m] (rejection sampling in its bounding box)."""
+        while True:
+            p = np.array([rng.uniform(self.x_min, self.x_max), rng.uniform(-self.y_max, self.y_max)])
+            if self.contains(p):
+                return p
+
     def why_outside(self, p: np.ndarray) -> str:
         """A short reason why the point ``p`` is outside ("" when inside)."""
         x, y = float(p[0]), float(p[1])

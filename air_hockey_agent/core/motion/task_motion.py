@@ -57,12 +57,6 @@ def hermite(p0: np.ndarray, v0: np.ndarray, p1: np.ndarray, v1: np.ndarray, step
     return pos, vel
 
 
-def hermite_control_points(p0: np.ndarray, v0: np.ndarray, p1: np.ndarray, v1: np.ndarray,
-                           duration: float) -> np.ndarray:
-    """The cubic's Bézier control points (4, 2): the curve lies in their convex hull."""
-    return np.array([p0, p0 + v0 * duration / 3, p1 - v1 * duration / 3, p1])
-
-
 def hermite_peak_acceleration(p0: np.ndarray, v0: np.ndarray, p1: np.ndarray, v1: np.ndarray,
                               duration: float) -> float:
     """Largest |acceleration| [m/s^2] of the cubic (it is linear in time, so at an end)."""

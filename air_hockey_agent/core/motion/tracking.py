@@ -25,17 +25,16 @@ from air_hockey_agent.core.motion.limits import JointLimits
 
 JOINTS = 7
 DAMPING = 1e-8  # [m^2] regularises J J^T at the (excluded) singular configurations
-LIMIT_ZONE = 0.1  # outer fraction of a joint's planning range the null space pushes out of
 
 
 @dataclass
 class Tracked:
-    """Joint positions (n, 7) [rad] at the samples; ``ok`` False with ``reason`` and the failing sample."""
+    """Joint positions (n, 7) [rad] at the samples; when ``ok`` is False, ``q`` ends before the sample
+    that failed and ``reason`` says why."""
 
     q: np.ndarray
     ok: bool
     reason: str = ""
-    failed_at: int = -1
 
 
 class StepQP:
@@ -44,9 +43,9 @@ class StepQP:
     def __init__(self) -> None:
         rows = np.concatenate([[0, 1, 2, 3 + j] for j in range(JOINTS)])
         indptr = np.arange(0, 4 * JOINTS + 1, 4)
-        self._a = sparse.csc_matrix((np.ones(4 * JOINTS), rows, indptr), shape=(3 + JOINTS, JOINTS))
+        pattern = sparse.csc_matrix((np.ones(4 * JOINTS), rows, indptr), shape=(3 + JOINTS, JOINTS))
         self._solver = osqp.OSQP()
-        self._solver.setup(sparse.identity(JOINTS, format="csc"), np.zeros(JOINTS), self._a,
+        self._solver.setup(sparse.identity(JOINTS, format="csc"), np.zeros(JOINTS), pattern,
                            -np.ones(3 + JOINTS), np.ones(3 + JOINTS), verbose=False, eps_abs=1e-9,
                            eps_rel=1e-9, polishing=True, max_iter=4000)
 
@@ -85,11 +84,11 @@ def track(kin: MalletKinematics, limits: JointLimits, qp: StepQP, q0: np.ndarray
         lo, hi = _bounds(q, previous, limits, v_step, a_step if k else 0.5 * a_step, dt)
         if (lo > hi).any():
             j = int(np.argmax(lo - hi))
-            return Tracked(out[:k], False, f"cannot brake joint {j + 1} before its position limit", k)
+            return Tracked(out[:k], False, f"cannot brake joint {j + 1} before its position limit")
         if (step < lo).any() or (step > hi).any():
             solved = qp.solve(jac, dx, ref, lo, hi)
             if solved is None:
-                return Tracked(out[:k], False, _why(step, previous, q, limits, dt), k)
+                return Tracked(out[:k], False, _why(step, previous, q, limits, dt))
             step = solved
         q = q + step
         out[k] = q
@@ -98,13 +97,6 @@ def track(kin: MalletKinematics, limits: JointLimits, qp: StepQP, q0: np.ndarray
             out[k + 1:] = q
             break
     return Tracked(out, True)
-
-
-def _away_from_limits(q: np.ndarray, limits: JointLimits, pull: float) -> np.ndarray:
-    """Null-space push out of the outer ``LIMIT_ZONE`` of each joint's planning range, proportional to
-    the depth in the zone (a joint that reaches its limit can no longer help the others)."""
-    zone = LIMIT_ZONE * (limits.q_max - limits.q_min)
-    return pull * (np.maximum(limits.q_min + zone - q, 0.0) - np.maximum(q - (limits.q_max - zone), 0.0))
 
 
 def _settled(targets: np.ndarray, k: int, step: np.ndarray, q: np.ndarray, anchor: np.ndarray,
@@ -154,13 +146,3 @@ def _why(step: np.ndarray, previous: np.ndarray, q: np.ndarray, limits: JointLim
     room = np.minimum(limits.q_max - q, q - limits.q_min)
     j = int(np.argmin(room))
     return f"cannot follow the path within the joint limits (joint {j + 1} is {room[j]:.3f} rad from its limit)"
-
-
-def knot_velocities(q: np.ndarray, dt: float, first: np.ndarray, last: np.ndarray | None = None) -> np.ndarray:
-    """Joint velocities [rad/s] at the knots ``q`` (n, 7): central differences inside, ``first`` before
-    the first knot (the start state's velocity) and ``last`` at the last knot (one-sided if None)."""
-    padded = np.vstack([q[:1] - first * dt, q])
-    v = np.gradient(padded, dt, axis=0)[1:]
-    if last is not None:
-        v[-1] = last
-    return v
