@@ -19,13 +19,15 @@ import math
 import sys
 import time
 from collections import Counter
+from dataclasses import replace
 
 import numpy as np
 
 from air_hockey_agent.core.motion.planner import OUTCOME_NAMES, ArmState, Command, MotionPlanner
-from air_hockey_agent.core.motion.hit_config import best_hit_configuration, max_speed_along
+from air_hockey_agent.core.motion.hit_config import best_hit_configuration
 from air_hockey_agent.core.motion.ik import solve_ik
 from air_hockey_agent.motion_params import build_planner, load_motion_params
+from air_hockey_agent.tools.progress import Progress
 
 ROBOT = "iiwa_front"
 READY_POINT = (-0.70, 0.0)       # [m] start of every command: in front of the own goal, like a ready pose
@@ -46,14 +48,6 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def _random_point(planner: MotionPlanner, rng: np.random.Generator) -> np.ndarray:
-    r = planner.region
-    while True:
-        p = np.array([rng.uniform(r.x_min, r.x_max), rng.uniform(-r.y_max, r.y_max)])
-        if r.contains(p):
-            return p
-
-
 def ready_state(planner: MotionPlanner) -> ArmState:
     s = planner.s
     ik = solve_ik(planner.kin, planner.limits, np.array([*READY_POINT, s.height]), s.reference, s.reference,
@@ -61,26 +55,35 @@ def ready_state(planner: MotionPlanner) -> ArmState:
     return ArmState(0.0, ik.q, np.zeros(7))
 
 
+def fastest_hit(planner: MotionPlanner, start: ArmState, point: np.ndarray, direction: np.ndarray) -> float | None:
+    """The fastest hit [m/s] the arm allows at ``point`` along ``direction`` (as the planner finds it:
+    IK from the start posture, then the hit posture search), or None where IK fails."""
+    s = planner.s
+    ik = solve_ik(planner.kin, planner.limits, np.array([*point, s.height]), start.q, s.reference,
+                  s.ik_iterations, s.ik_tolerance)
+    if not ik.ok:
+        return None
+    return best_hit_configuration(planner.kin, planner.limits, ik.q, direction, s.ik_tolerance,
+                                  s.hit_posture_range).max_speed
+
+
 def hit_commands(planner: MotionPlanner, start: ArmState, n: int, rng: np.random.Generator) -> list[Command]:
     """Random hits within the arm's speed at each point (its LP maximum along the direction)."""
-    s, out = planner.s, []
+    out = []
     while len(out) < n:
-        point = _random_point(planner, rng)
+        point = planner.region.random_point(rng)
         angle = rng.uniform(-DIRECTION_SPREAD, DIRECTION_SPREAD)
         direction = np.array([math.cos(angle), math.sin(angle)])
-        ik = solve_ik(planner.kin, planner.limits, np.array([*point, s.height]), start.q, s.reference,
-                      s.ik_iterations, s.ik_tolerance)
-        if not ik.ok:
+        top = fastest_hit(planner, start, point, direction)
+        if top is None:
             continue
-        top = best_hit_configuration(planner.kin, planner.limits, ik.q, direction, s.ik_tolerance,
-                                     s.hit_posture_range).max_speed
         speed = rng.uniform(*SPEED_FRACTION) * top
         out.append(Command(point, speed * direction, start.t + rng.uniform(*LEAD_TIME)))
     return out
 
 
 def reach_commands(planner: MotionPlanner, start: ArmState, n: int, rng: np.random.Generator) -> list[Command]:
-    return [Command(_random_point(planner, rng), np.zeros(2), start.t + rng.uniform(*LEAD_TIME)) for _ in range(n)]
+    return [Command(planner.region.random_point(rng), np.zeros(2), start.t + rng.uniform(*LEAD_TIME)) for _ in range(n)]
 
 
 def plan_all(planner: MotionPlanner, start: ArmState, commands: list[Command]) -> tuple[list, list[float]]:
@@ -99,7 +102,7 @@ def execute(planner: MotionPlanner, start: ArmState, commands: list[Command], pl
     from air_hockey_agent.sim.world import ARM_JOINTS, SimSettings, TableWorld
     params = load_sim_params()
     settings = SimSettings.from_params(params)
-    world = TableWorld(settings.__class__(**{**settings.__dict__, "robot_bases": {ROBOT: settings.robot_bases[ROBOT]}}))
+    world = TableWorld(replace(settings, robot_bases={ROBOT: settings.robot_bases[ROBOT]}))
     world.set_puck_state([0.6, 0.0, 0.0, 0.0, 0.0, 0.0])  # out of the way, on the other half
     limits, height = planner.limits, planner.s.height
     errors, speed_errors, pos_use, vel_use, heights = [], [], 0.0, 0.0, []
@@ -144,26 +147,14 @@ def _stats(values: np.ndarray) -> dict:
 
 def hit_speed_map(planner: MotionPlanner, start: ArmState, goal_x: float, n: int, rng: np.random.Generator) -> dict:
     """Fastest hit toward the opponent's goal centre at random points of the region [m/s]."""
-    s, speeds = planner.s, []
+    speeds = []
     goal = np.array([goal_x, 0.0])
     while len(speeds) < n:
-        point = _random_point(planner, rng)
-        ik = solve_ik(planner.kin, planner.limits, np.array([*point, s.height]), start.q, s.reference,
-                      s.ik_iterations, s.ik_tolerance)
-        if ik.ok:
-            d = (goal - point) / np.linalg.norm(goal - point)
-            speeds.append(best_hit_configuration(planner.kin, planner.limits, ik.q, d, s.ik_tolerance,
-                                                 s.hit_posture_range).max_speed)
+        point = planner.region.random_point(rng)
+        top = fastest_hit(planner, start, point, (goal - point) / np.linalg.norm(goal - point))
+        if top is not None:
+            speeds.append(top)
     return {"min": float(np.min(speeds)), "median": float(np.median(speeds)), "max": float(np.max(speeds))}
-
-
-def _bar(done: int, total: int, label: str) -> None:
-    width = 30
-    filled = int(width * done / max(total, 1))
-    print(f"\r[bench planner] {label} [{'#' * filled}{'.' * (width - filled)}] {done}/{total}", end="",
-          file=sys.stderr, flush=True)
-    if done == total:
-        print(file=sys.stderr)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -181,7 +172,7 @@ def run(args: argparse.Namespace) -> int:
     plans, times = hit_plans + reach_plans, np.array(hit_times + reach_times) * 1000
     accepted = [(c, p) for c, p in zip(hits, hit_plans) if p.ok][:args.execute]
     executed = execute(planner, start, [c for c, _ in accepted], [p for _, p in accepted],
-                       lambda d, t: _bar(d, t, "executing")) if accepted else {}
+                       Progress("[bench planner] executing hits", args.json)) if accepted else {}
     result = {"commands": len(plans), "feasible_rate": float(np.mean([p.ok for p in plans])),
               "hit_feasible_rate": float(np.mean([p.ok for p in hit_plans])),
               "reach_feasible_rate": float(np.mean([p.ok for p in reach_plans])),

@@ -15,7 +15,6 @@ import argparse
 import json
 import multiprocessing
 import os
-import sys
 import time
 from datetime import datetime, timezone
 from pathlib import Path
@@ -24,6 +23,7 @@ from air_hockey_agent.bags.trajectories import split_train_validation
 from air_hockey_agent.core.identification.sysid import LOSSES, PHYSICAL, combine, identify, loss_report, partial_loss
 from air_hockey_agent.params import yaml_float
 from air_hockey_agent.sysid_params import bounds
+from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 
 PROG = "air-hockey sysid"
@@ -72,27 +72,6 @@ class _Objective:
                 for i in range(len(candidates))]
 
 
-class _Progress:
-    """One line on stderr: a bar when stderr is a terminal, else a line every 10 %."""
-
-    def __init__(self, label: str, quiet: bool) -> None:
-        self.label, self.quiet, self.tty, self.shown = label, quiet, sys.stderr.isatty(), -1
-        self.start = time.monotonic()
-
-    def __call__(self, done: int, total: int, best: float) -> None:
-        if self.quiet and not self.tty:
-            return
-        tenth = 10 * done // max(total, 1)
-        bar = "#" * (30 * done // max(total, 1))
-        line = (f"{self.label} [{bar:<30}] {done}/{total} evaluations, best {best:.6g}, "
-                f"{time.monotonic() - self.start:.0f} s")
-        if self.tty:
-            print("\r" + line, end="\n" if done >= total else "", file=sys.stderr, flush=True)
-        elif tenth != self.shown:
-            self.shown = tenth
-            print(line, file=sys.stderr, flush=True)
-
-
 def run(args: argparse.Namespace) -> int:
     if args.out is not None and args.out.is_dir():
         return report_error(PROG, f"--out {args.out} is a directory")
@@ -127,7 +106,10 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
     try:
         runs = {}
         for h in learn_at:
-            progress = _Progress(f"sysid {args.loss} @ {h} s", args.json)
+            bar = Progress(f"sysid {args.loss} @ {h} s", args.json)
+
+            def progress(done: int, total: int, best: float, bar: Progress = bar) -> None:
+                bar(done, total, f"evaluations, best {best:.6g}")
             ident = identify(_Objective(pool, workers, h, args.loss), bounds(settings),
                              {n: tracker[n] for n in PHYSICAL}, args.iterations, args.batch, args.seed,
                              settings["random_samples"], settings["polish_evaluations"], progress)
