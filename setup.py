@@ -8,7 +8,7 @@ PACKAGE = "air_hockey_agent"
 # One console script per node, named as the node (`ros2 run air_hockey_agent <node>`).
 NODES = {
     "puck_tracker": "air_hockey_agent.nodes.puck_tracker:main",
-    "tactics": "air_hockey_agent.nodes.not_implemented:tactics",
+    "tactics": "air_hockey_agent.nodes.tactics:main",
     "trajectory_generator": "air_hockey_agent.nodes.trajectory_generator:main",
     "referee": "air_hockey_agent.nodes.referee:main",
     "table_sim": "air_hockey_agent.nodes.table_sim:main",

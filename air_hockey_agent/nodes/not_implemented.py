@@ -11,7 +11,6 @@ from typing import Callable
 from air_hockey_agent.nodes.runtime import run_not_implemented
 
 PENDING = {
-    "tactics": "tactics state machine (thesis 4.6): Init/Home/Ready/Smash/Cut/Prepare/Repel -> HitCommand",
     "strategy_test": "strategy test: forces one tactic, sets puck states through the sim, scores each trial",
 }
 
@@ -23,5 +22,4 @@ def _entry(name: str) -> Callable[[list[str] | None], int]:
     return main
 
 
-tactics = _entry("tactics")
 strategy_test = _entry("strategy_test")

@@ -2,10 +2,13 @@
 
 Publishes ``/clock`` (simulated time; run every other node with ``use_sim_time``), ``/optitrack/puck``
 (geometry_msgs/PoseStamped, mocap frame, 120 Hz with the lab's imperfections), ``/sim/puck_true_state``
-(PuckState, table frame, at every mocap tick) and ``/<robot>/joint_states`` (sensor_msgs/JointState).
+(PuckState, table frame, at every mocap tick), ``/sim/contacts`` (MalletContact: which mallet touched the
+puck, when, and the puck's velocity after) and ``/<robot>/joint_states`` (sensor_msgs/JointState).
 Executes ``/<robot>/joint_trajectory`` (trajectory_msgs/JointTrajectory). Services: ``set_puck_state``
 (SetPuckState, table frame) and ``reset_robots`` (std_srvs/Trigger). ``real_time_factor`` 1.0 is
-watchable, larger is faster, 0 is as fast as possible; ``gui:=true`` opens the pybullet window.
+watchable, larger is faster, 0 is as fast as possible: then, while agents publish their clocks on
+``/<robot>/sim_sync`` (rosgraph_msgs/Clock), it stays at most ``lockstep_lead`` ahead of the slowest.
+``gui:=true`` opens the pybullet window.
 The world and the output schedule are :mod:`air_hockey_agent.sim`; this module only translates.
 """
 from __future__ import annotations
@@ -16,7 +19,7 @@ import time
 
 import numpy as np
 import rclpy
-from air_hockey_msgs.msg import PuckState
+from air_hockey_msgs.msg import MalletContact, PuckState
 from air_hockey_msgs.srv import SetPuckState
 from geometry_msgs.msg import PoseStamped
 from rclpy._rclpy_pybind11 import RCLError
@@ -53,10 +56,15 @@ class TableSimNode(AirHockeyNode):
         self.clock_pub = self.create_publisher(Clock, "/clock", 10)
         self.mocap_pub = self.create_publisher(PoseStamped, "/optitrack/puck", 10)
         self.truth_pub = self.create_publisher(PuckState, "/sim/puck_true_state", 10)
+        self.contact_pub = self.create_publisher(MalletContact, "/sim/contacts", 10)
         self.joint_pubs = {r: self.create_publisher(JointState, f"/{r}/joint_states", 10) for r in ROBOTS}
         for robot in ROBOTS:
             self.create_subscription(JointTrajectoryMsg, f"/{robot}/joint_trajectory",
                                      lambda msg, r=robot: self.on_trajectory(r, msg), 10)
+        self.agent_clocks: dict[str, tuple[float, float]] = {}  # robot -> (sim time, wall time received)
+        for robot in ROBOTS:
+            self.create_subscription(Clock, f"/{robot}/sim_sync",
+                                     lambda msg, r=robot: self.on_agent_clock(r, msg), 10)
         self.create_service(SetPuckState, "set_puck_state", self.on_set_puck_state)
         self.create_service(Trigger, "reset_robots", self.on_reset_robots)
         self.started = time.monotonic()
@@ -73,6 +81,9 @@ class TableSimNode(AirHockeyNode):
         while rclpy.ok(context=self.context):
             try:
                 executor.spin_once(timeout_sec=0.0)
+                if self.waiting_for_agents():
+                    executor.spin_once(timeout_sec=0.001)
+                    continue
                 for _ in range(steps_per_round):
                     self.publish(self.runner.step())
             except (RCLError, ExternalShutdownException):
@@ -83,6 +94,19 @@ class TableSimNode(AirHockeyNode):
             if report.due(time.monotonic() - self.started) is not None:
                 self.get_logger().info(f"sim time {self.world.time:.1f} s, real-time factor "
                                        f"{self.world.time / max(time.monotonic() - self.started, 1e-9):.2f}")
+
+    def on_agent_clock(self, robot: str, msg: Clock) -> None:
+        self.agent_clocks[robot] = (to_seconds(msg.clock), time.monotonic())
+
+    def waiting_for_agents(self) -> bool:
+        """As fast as possible with lockstep: True while the simulation is more than ``lockstep_lead``
+        ahead of an agent that is still publishing its clock."""
+        p = self.params
+        if p["real_time_factor"] > 0.0 or p["lockstep_lead"] <= 0.0:
+            return False
+        wall = time.monotonic()
+        live = [t for t, received in self.agent_clocks.values() if wall - received < p["lockstep_timeout"]]
+        return bool(live) and self.world.time > min(live) + p["lockstep_lead"]
 
     def _pace(self, wall0: float, sim0: float) -> tuple[float, float]:
         """Sleep to keep ``real_time_factor``; returns the (possibly re-anchored) reference times."""
@@ -107,6 +131,10 @@ class TableSimNode(AirHockeyNode):
         if out.joint_states:
             for robot in ROBOTS:
                 self.joint_pubs[robot].publish(self.joint_state_msg(robot, stamp))
+        for c in out.contacts:
+            msg = MalletContact(robot=c.robot, duration=c.duration, x=c.x, y=c.y, vx=c.vx, vy=c.vy, speed=c.speed)
+            msg.header.stamp, msg.header.frame_id = to_stamp(c.time), "table"
+            self.contact_pub.publish(msg)
         if out.true_state is not None:
             self.truth_pub.publish(state_msg(out.true_state, np.zeros((6, 6)), out.time))
         if out.mocap is not None:
@@ -155,7 +183,7 @@ class TableSimNode(AirHockeyNode):
                 f"refused: ({request.x:.3f}, {request.y:.3f}) m is not on the playing surface "
                 f"(|x| <= {table.x_limit:.3f}, |y| <= {table.y_limit:.3f})")
         else:
-            self.world.set_puck_state(state)
+            self.world.move_puck(state)
             response.success, response.message = True, f"puck set at t = {self.world.time:.3f} s"
         return response
 

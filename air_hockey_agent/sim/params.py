@@ -40,6 +40,10 @@ SIM_PARAMS = TABLE_PARAMS + (
     ParamSpec("status_period", float, "[s] wall time between two progress lines in the log", 0.1, 3600.0),
     ParamSpec("max_lag", float, "[s] lag behind real_time_factor after which pacing re-anchors", 0.01, 60.0),
     ParamSpec("seed", int, "random seed of the mocap imperfections", 0, 2**31 - 1),
+    ParamSpec("lockstep_lead", float, "[s] as fast as possible: stay at most this far ahead of the agents' "
+              "<robot>/sim_sync clocks (0: off)", 0.0, 10.0),
+    ParamSpec("lockstep_timeout", float, "[s] wall time after which a silent agent is no longer waited for",
+              0.01, 600.0),
 ) + ROBOT_BASE_PARAMS + tuple(
     ParamSpec(f"mocap.{name}", float, "OptiTrack stand-in imperfection (config/sim.yaml)", 0.0, 10.0)
     for name in MOCAP_FIELDS)

@@ -7,7 +7,7 @@ them into messages. Rates are in simulated time, so the output does not depend o
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Sequence
 
 import numpy as np
@@ -42,6 +42,7 @@ class StepOutput:
     joint_states: bool = False
     true_state: np.ndarray | None = None          # with every mocap tick, lost frames included
     mocap: tuple | None = None                    # (stamp [s], (x, y, z, yaw) in the mocap frame)
+    contacts: list = field(default_factory=list)  # mallet-puck contacts that ended at this step
 
 
 class SimRunner:
@@ -57,7 +58,8 @@ class SimRunner:
     def step(self) -> StepOutput:
         self.world.step()
         t = self.world.time
-        out = StepOutput(t, clock=self._clock.due(t) is not None, joint_states=self._joints.due(t) is not None)
+        out = StepOutput(t, clock=self._clock.due(t) is not None, joint_states=self._joints.due(t) is not None,
+                         contacts=self.world.take_contacts())
         if self._mocap.due(t) is not None:  # the frame is taken now; its stamp carries the jitter
             truth = self.world.puck_state()
             out.true_state = truth

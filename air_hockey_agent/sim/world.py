@@ -31,6 +31,7 @@ from air_hockey_agent.core.frames import quaternion_from_yaw, yaw_from_quaternio
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory, TrajectoryError
 from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.paths import model_path
+from air_hockey_agent.sim.contacts import ContactLog, MalletContact
 from air_hockey_agent.sim.params import ROBOTS
 from air_hockey_agent.sim.rim_contact import PuckBody, RimContacts
 
@@ -117,6 +118,8 @@ class TableWorld:
         self.settings = settings
         self.dt = 1.0 / settings.physics_rate
         self.time, self._steps = 0.0, 0
+        self.contact_log = ContactLog()
+        self.contacts: list[MalletContact] = []  # ended contacts not yet taken by the caller
         self._striker_every = max(1, round(settings.physics_rate / settings.striker_control_rate))
         with _c_stdout_silenced():
             self.client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
@@ -181,6 +184,23 @@ class TableWorld:
         pybullet.resetBasePositionAndOrientation(self.puck, [x, y, self.settings.puck_height / 2],
                                                  quaternion_from_yaw(theta), physicsClientId=self.cid)
         pybullet.resetBaseVelocity(self.puck, [vx, vy, 0.0], [0.0, 0.0, omega], physicsClientId=self.cid)
+
+    def move_puck(self, state: Sequence[float]) -> None:
+        """Put the puck at ``state`` by hand: like :meth:`set_puck_state`, and open contacts are forgotten."""
+        self.contact_log.reset()
+        self.set_puck_state(state)
+
+    def take_contacts(self) -> list[MalletContact]:
+        """Mallet-puck contacts that ended since the last call."""
+        out, self.contacts = self.contacts, []
+        return out
+
+    def _track_contacts(self) -> None:
+        touching = {name: bool(pybullet.getContactPoints(self.puck, robot.body, -1, robot.mallet,
+                                                         physicsClientId=self.cid))
+                    for name, robot in self.robots.items()}
+        if touching:
+            self.contacts += self.contact_log.step(self.time, touching, self._puck_state())
 
     def _puck_dynamics(self) -> None:
         """After a physics step: rim impacts, eq. 3.1's friction and damping over the step, the planar
@@ -271,6 +291,7 @@ class TableWorld:
             pybullet.stepSimulation(physicsClientId=self.cid)
             self._steps += 1
             self.time = self._steps * self.dt
+            self._track_contacts()
             self._puck_dynamics()
 
     def mallet_position(self, name: str) -> np.ndarray:

@@ -1,19 +1,25 @@
-"""``air-hockey game``: launch the simulated two-robot game (headless by default).
+"""``air-hockey game``: the simulated two-robot game (headless by default).
 
-The node graph is the one in README "Architecture": one table simulation and referee, and per robot
-a puck tracker, tactics and trajectory generator, each robot in its own namespace. The launcher
-starts every node, reports which are running and which are not implemented yet, and never pretends
-a game is being played when a node it needs is missing.
+Starts the node graph of README "Architecture", each node in its own process: ``table_sim`` and
+``referee``, and for each robot its ``puck_tracker``, ``tactics`` and ``trajectory_generator`` in the
+robot's namespace, all on simulated time. Starts the game through the referee and follows it: a
+progress line while it runs (sim time, score, hits), and at the end the score, the hits per robot
+(mallet-puck contacts reported by the simulation), the referee's faults by reason and how often each
+tactic was entered. ``--json`` prints exactly one JSON object instead. Every process it started is
+stopped at the end, on Ctrl-C, or when any node dies.
 """
 from __future__ import annotations
 
 import argparse
+import json
+import math
+import os
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from air_hockey_agent.nodes.runtime import EXIT_NOT_IMPLEMENTED, READY_MARKER
+from air_hockey_agent.nodes.runtime import READY_MARKER
 from air_hockey_agent.params import ParamSpec, load_defaults
 from air_hockey_agent.paths import config_file
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
@@ -22,20 +28,38 @@ from air_hockey_agent.tools.ros_env import node_executable, ros_environment
 ROBOTS = ("iiwa_front", "iiwa_back")
 SHARED_NODES = ("table_sim", "referee")
 PER_ROBOT_NODES = ("puck_tracker", "tactics", "trajectory_generator")
+RECORDED_TOPICS = {
+    "/optitrack/puck": "geometry_msgs/msg/PoseStamped",
+    "/sim/puck_true_state": "air_hockey_msgs/msg/PuckState",
+    "/sim/contacts": "air_hockey_msgs/msg/MalletContact",
+    "/game_status": "air_hockey_msgs/msg/GameStatus",
+    **{f"/{r}/{t}": m for r in ROBOTS for t, m in (
+        ("joint_states", "sensor_msgs/msg/JointState"), ("puck/state", "air_hockey_msgs/msg/PuckState"),
+        ("tactic", "air_hockey_msgs/msg/TacticState"), ("hit_command", "air_hockey_msgs/msg/HitCommand"),
+        ("trajectory_status", "air_hockey_msgs/msg/TrajectoryStatus"))},
+}
 
 GAME_PARAMS = (
     ParamSpec("startup_timeout", float, "[s] time for all nodes to come up", 1.0, 600.0),
     ParamSpec("shutdown_grace", float, "[s] grace per shutdown signal", 0.1, 60.0),
+    ParamSpec("progress_period", float, "[s] wall time between progress lines", 0.1, 3600.0),
+    ParamSpec("start_timeout", float, "[s] wall time to wait for the referee's start service", 1.0, 600.0),
 )
 
 
-def game_processes(gui: bool, real_time_factor: float) -> list[ProcessSpec]:
+class GameError(Exception):
+    """The game cannot run (bad argument, node failure); the message is one line."""
+
+
+def game_processes(gui: bool, real_time_factor: float, seed: int) -> list[ProcessSpec]:
     """The node processes of one game, all on sim time."""
-    specs = []
-    for node in SHARED_NODES:
-        extra = ["-p", f"gui:={str(gui).lower()}", "-p", f"real_time_factor:={real_time_factor}"] \
-            if node == "table_sim" else ["-p", "use_sim_time:=true"]
-        specs.append(ProcessSpec(node, [*node_executable(node), "--ros-args", *extra]))
+    shared = {
+        "table_sim": ["-p", f"gui:={str(gui).lower()}", "-p", f"real_time_factor:={real_time_factor}",
+                      "-p", f"seed:={seed}"],
+        # unattended: a robot fault pauses and resets instead of stopping the game for a person
+        "referee": ["-p", "use_sim_time:=true", "-p", f"seed:={seed}", "-p", "restart_after_fault:=true"],
+    }
+    specs = [ProcessSpec(node, [*node_executable(node), "--ros-args", *shared[node]]) for node in SHARED_NODES]
     for robot in ROBOTS:
         for node in PER_ROBOT_NODES:
             specs.append(ProcessSpec(f"{robot}/{node}", [*node_executable(node), "--ros-args", "-r",
@@ -47,73 +71,129 @@ def game_processes(gui: bool, real_time_factor: float) -> list[ProcessSpec]:
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("game", help="run the simulated two-robot game (headless by default)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--duration", type=float, default=60.0,
+                        help="seconds of simulated time to play (default 60)")
+    parser.add_argument("--goals", type=int, default=0, help="stop after this many goals instead (0: off)")
+    parser.add_argument("--real-time-factor", type=float, default=None,
+                        help="simulation speed: 1 watchable, >1 faster, 0 as fast as possible "
+                             "(default: 1 with --gui, else 0)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed of the simulation and the referee (default 0)")
     parser.add_argument("--gui", action="store_true", help="open the pybullet window (table seen from above)")
-    parser.add_argument("--real-time-factor", type=float, default=1.0,
-                        help="simulation speed: 1.0 watchable, >1 faster, 0 as fast as possible (default 1.0)")
-    parser.add_argument("--duration", type=float, default=0.0,
-                        help="stop after this many seconds of wall time (default 0: until Ctrl-C)")
+    parser.add_argument("--record", type=Path, default=None, metavar="OUT.mcap",
+                        help="record the game's topics to this MCAP bag (Foxglove opens it)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of the summary table")
+    parser.add_argument("--log", type=Path, default=None, metavar="FILE",
+                        help="write every node's output to FILE (default: only errors, on stderr)")
     parser.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (1..101; default: inherited)")
     parser.set_defaults(run=run)
 
 
-def _summarise(launcher: Launcher) -> tuple[list[str], list[str], list[str]]:
-    running, pending, failed = [], [], []
-    for label, proc in launcher.processes.items():
-        code = proc.returncode
-        (running if code is None else pending if code == EXIT_NOT_IMPLEMENTED else failed).append(
-            label if code is None or code == EXIT_NOT_IMPLEMENTED else f"{label} (exit {code})")
-    return running, pending, failed
+def _check_args(args: argparse.Namespace) -> None:
+    if not (math.isfinite(args.duration) and args.duration > 0.0):
+        raise GameError(f"--duration must be a positive number of seconds, got {args.duration}")
+    if args.goals < 0:
+        raise GameError(f"--goals must be 0 (off) or more, got {args.goals}")
+    if args.real_time_factor is not None and not (math.isfinite(args.real_time_factor) and args.real_time_factor >= 0):
+        raise GameError(f"--real-time-factor must be 0 or more, got {args.real_time_factor}")
+    if not 0 <= args.seed < 2 ** 31:
+        raise GameError(f"--seed must be in 0..{2 ** 31 - 1}, got {args.seed}")
+    if args.log is not None and not args.log.parent.is_dir():
+        raise GameError(f"--log {args.log}: directory {args.log.parent} does not exist")
+    if args.record is not None:
+        bag = args.record.with_suffix("") if args.record.suffix == ".mcap" else args.record
+        if bag.exists():
+            raise GameError(f"--record {args.record}: {bag} exists already, not overwriting")
+        if not bag.parent.is_dir():
+            raise GameError(f"--record {args.record}: directory {bag.parent} does not exist")
 
 
-def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
-    """Wait until every process has either exited or logged that it is ready, or timeout."""
-    deadline = time.monotonic() + timeout
-    while time.monotonic() < deadline:
-        if all(p.returncode is not None or any(READY_MARKER in line for line in p.lines)
-               for p in launcher.processes.values()):
-            return
-        time.sleep(0.1)
+def _prepare_speed_map(say) -> None:
+    """Build the tactics' fastest-hit table once here, so the two tactics nodes do not both build it."""
+    from air_hockey_agent.agent_params import load_agent_params
+    from air_hockey_agent.core.game.speed_map import load_or_build
+    from air_hockey_agent.motion_params import build_planner, load_motion_params
+    motion = load_motion_params()
+    load_or_build(build_planner(motion, ROBOTS[0]), motion, load_agent_params()["speed_map_grid"], log=say)
 
 
 def run(args: argparse.Namespace) -> int:
-    settings = load_defaults([config_file("game.yaml")], "/game", GAME_PARAMS)
-    with tempfile.TemporaryDirectory(prefix="air_hockey_game_") as tmp:
-        env = ros_environment(domain_id=args.domain_id, ros_home=Path(tmp))
-        specs = game_processes(args.gui, args.real_time_factor)
-        print(f"[game] starting {len(specs)} nodes: {', '.join(s.label for s in specs)}", flush=True)
-        with Launcher(env) as launcher:
-            for spec in specs:
-                launcher.start(spec)
-            _wait_for_lineup(launcher, settings["startup_timeout"])
-            running, pending, failed = _summarise(launcher)
-            print(f"[game] running: {', '.join(running) or 'none'}", flush=True)
-            if pending:
-                print(f"[game] not implemented yet: {', '.join(pending)}", flush=True)
-            if failed:
-                print(f"[game] failed: {', '.join(failed)}", flush=True)
-            if pending or failed:
-                print("[game] cannot play a game: the nodes above are missing. Nothing was simulated; "
-                      "shutting down.", flush=True)
-                launcher.shutdown(settings["shutdown_grace"])
-                return EXIT_NOT_IMPLEMENTED if pending and not failed else 1
-            return _play(launcher, args.duration, settings["shutdown_grace"])
-
-
-def _play(launcher: Launcher, duration: float, grace: float) -> int:
-    print("[game] all nodes running" + (f" for {duration:.0f} s" if duration > 0 else "; Ctrl-C to stop"), flush=True)
-    start = time.monotonic()
+    say = (lambda text: print(f"[game] {text}", file=sys.stderr, flush=True)) if args.json else \
+        (lambda text: print(f"[game] {text}", flush=True))
     try:
-        while duration <= 0 or time.monotonic() - start < duration:
-            ended = launcher.wait_any_exit(timeout=0.5)
-            if ended:
-                print(f"[game] node ended unexpectedly: {ended}; stopping the game", flush=True)
-                launcher.shutdown(grace)
-                return 1
+        _check_args(args)
+        settings = load_defaults([config_file("game.yaml")], "/game", GAME_PARAMS)
+        rtf = args.real_time_factor if args.real_time_factor is not None else (1.0 if args.gui else 0.0)
+        _prepare_speed_map(say)
+        with tempfile.TemporaryDirectory(prefix="air_hockey_game_") as tmp:
+            env = ros_environment(domain_id=args.domain_id, ros_home=Path(tmp))
+            result = _play(args, settings, env, rtf, say)
+    except GameError as exc:
+        print(f"air-hockey game: error: {exc}", file=sys.stderr)
+        return 2 if "must" in str(exc) or "--record" in str(exc) else 1
     except KeyboardInterrupt:
-        print("\n[game] interrupted; shutting down", flush=True)
-    launcher.shutdown(grace)
+        print("\n[game] interrupted", file=sys.stderr)
+        return 130
+    if args.json:
+        print(json.dumps(result))
     return 0
 
 
+def _play(args, settings, env: dict, rtf: float, say) -> dict:
+    from air_hockey_agent.tools.game_monitor import GameMonitor
+    errors: list[str] = []
+    log = open(args.log, "w", buffering=1) if args.log is not None else None
+
+    def on_line(label: str, line: str) -> None:
+        if log is not None:
+            log.write(f"[{label}] {line}\n")
+        if "[ERROR]" in line or "[FATAL]" in line or "Traceback" in line:
+            errors.append(f"[{label}] {line}")
+            print(f"[{label}] {line}", file=sys.stderr, flush=True)
+
+    specs = game_processes(args.gui, rtf, args.seed)
+    say(f"starting {len(specs)} nodes (real-time factor {rtf:g}, seed {args.seed})")
+    with Launcher(env, echo=None, on_line=on_line) as launcher:
+        for spec in specs:
+            launcher.start(spec)
+        _wait_for_lineup(launcher, settings["startup_timeout"])
+        monitor = GameMonitor(env, ROBOTS, args.record, RECORDED_TOPICS)
+        try:
+            monitor.start_game(settings["start_timeout"])
+            say(f"game started: {args.duration:g} s of simulated time" + (f" or {args.goals} goals" if args.goals else ""))
+            ended = monitor.follow(args.duration, args.goals, settings["progress_period"], launcher, say,
+                                   tty=not args.json and sys.stdout.isatty())
+        finally:
+            recording = monitor.close()
+        codes = launcher.shutdown(settings["shutdown_grace"])
+    if log is not None:
+        log.close()
+    if ended:
+        raise GameError(f"node ended during the game: {ended}; see the errors above")
+    bad = {label: code for label, code in codes.items() if code not in (0, -2, 130)}
+    if bad:
+        say(f"nodes that did not exit cleanly: {bad}")
+    result = monitor.board.result(str(recording) if recording else None)
+    if not args.json:
+        print(monitor.board.table(result["recording"]), flush=True)
+    return result
+
+
+def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
+    """Wait until every process logged that it is ready; a process that exits first fails the game."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        dead = launcher.exited()
+        if dead:
+            tail = "; ".join(f"{label} exit {code}: {launcher.processes[label].lines[-1:] or ''}"
+                             for label, code in dead.items())
+            raise GameError(f"nodes failed to start: {tail}")
+        if all(any(READY_MARKER in line for line in p.lines) for p in launcher.processes.values()):
+            return
+        time.sleep(0.1)
+    missing = [label for label, p in launcher.processes.items() if not any(READY_MARKER in line for line in p.lines)]
+    raise GameError(f"nodes not ready after {timeout:g} s: {', '.join(missing)}")
+
+
 if __name__ == "__main__":  # pragma: no cover
-    sys.exit(run(argparse.Namespace(gui=False, real_time_factor=1.0, duration=0.0, domain_id=None)))
+    sys.exit(run(argparse.Namespace(duration=60.0, goals=0, real_time_factor=None, seed=0, gui=False, record=None,
+                                    json=False, log=None, domain_id=None)))

@@ -1,0 +1,88 @@
+"""Parameters of the tactics layer (ROS-free declarations; defaults in ``config/table.yaml`` and
+``config/agent.yaml``), and the puck model and arm planner the tactics read from the tracker's and the
+trajectory generator's own files, so each number has one home."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterable
+
+from air_hockey_agent.params import ParamSpec, load_node_params
+from air_hockey_agent.sim.params import ROBOT_BASE_PARAMS
+from air_hockey_agent.tracker_params import TABLE_PARAMS
+
+NODE_NAME = "/tactics"
+PARAM_FILES = ("table.yaml", "agent.yaml")
+
+AGENT_PARAMS = TABLE_PARAMS + (
+    ParamSpec("mallet.radius", float, "[m] mallet radius", 0.005, 0.2),
+    ParamSpec("robot", str, "which robot this node plays (iiwa_front or iiwa_back)"),
+    ParamSpec("rate", float, "[Hz] decisions per simulated second", 1.0, 1000.0),
+    ParamSpec("status_period", float, "[s] re-publication period of the current tactic", 0.01, 3600.0),
+    ParamSpec("defend_line", float, "[m] depth of the defend line from the own goal line", 0.0, 1.0),
+    ParamSpec("ready_point", list, "[m] depth, y of the waiting point", -1.0, 1.0, 2),
+    ParamSpec("home_point", list, "[m] depth, y of the home point (pause)", -1.0, 1.0, 2),
+    ParamSpec("smash_depth", list, "[m] depth range of the smash area", 0.0, 1.0, 2),
+    ParamSpec("smash_rim_margin", float, "[m] smash area distance from the long rims beyond the puck radius", 0.0, 0.5),
+    ParamSpec("static_speed", float, "[m/s] puck at rest below this speed", 0.0, 1.0),
+    ParamSpec("smash_puck_speed", float, "[m/s] smash a puck slower than this", 0.0, 5.0),
+    ParamSpec("approach_speed", float, "[m/s] puck approaches when vx < -this", 0.0, 1.0),
+    ParamSpec("min_plan_time", float, "[s] shortest time before a crossing a defence is planned for", 0.0, 2.0),
+    ParamSpec("repel_time", list, "[s] crossing time range in which Repel is chosen", 0.0, 5.0, 2),
+    ParamSpec("repel_line", float, "[m] depth at which a Repel meets the puck", 0.0, 1.0),
+    ParamSpec("repel_width", float, "[m] Repel a puck crossing the defend line within |y| < this", 0.0, 1.0),
+    ParamSpec("repel_speed", float, "[m/s] mallet speed of a Repel", 0.05, 5.0),
+    ParamSpec("smash_lead_time", float, "[s] a smash is planned at least this far ahead", 0.05, 5.0),
+    ParamSpec("lead_time_step", float, "[s] lead time added after 'too late'", 0.01, 2.0),
+    ParamSpec("hit_speed_fraction", float, "fraction of the fastest hit the arm allows", 0.1, 1.0),
+    ParamSpec("max_hit_speed", float, "[m/s] fastest hit ever asked for", 0.1, 10.0),
+    ParamSpec("speed_cap_fraction", float, "fraction of the reported maximum after 'too fast'", 0.1, 1.0),
+    ParamSpec("prepare_speed", list, "[m/s] mallet speed range of a Prepare", 0.01, 5.0, 2),
+    ParamSpec("mallet_restitution", float, "[-] puck-mallet restitution of the shot model", 0.0, 1.0),
+    ParamSpec("aim_noise", float, "[rad] shot direction spread used to rank shots", 1e-4, 1.0),
+    ParamSpec("shot_horizon", float, "[s] a shot that needs longer to reach the goal line misses", 0.1, 10.0),
+    ParamSpec("goal_aim_margin", float, "[m] aim at least this far inside the goal mouth's edge", 0.0, 0.2),
+    ParamSpec("resend_distance", float, "[m] command change that is sent again", 0.0, 1.0),
+    ParamSpec("resend_time", float, "[s] hit time change that is sent again", 0.0, 1.0),
+    ParamSpec("resend_speed", float, "[m/s] hit velocity change that is sent again", 0.0, 5.0),
+    ParamSpec("retry_delay", float, "[s] wait after a refused command", 0.0, 5.0),
+    ParamSpec("settle_time", float, "[s] time after a hit before re-deciding", 0.0, 5.0),
+    ParamSpec("speed_map_grid", list, "points along depth, along y, hit directions of the fastest-hit table",
+              2, 100, 3),
+) + ROBOT_BASE_PARAMS
+
+
+def load_agent_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
+    """Tactics parameters: the defaults, overridden by ``extra_files`` (ROS 2 parameter YAML)."""
+    return load_node_params(PARAM_FILES, NODE_NAME, AGENT_PARAMS, extra_files)
+
+
+def puck_model_for_tactics():
+    """The tracker's puck model (``config/table.yaml``, ``config/tracker.yaml``): shots are predicted
+    with the physics the filter uses."""
+    from air_hockey_agent.core.puck.model import PuckModel, PuckParams
+    from air_hockey_agent.core.table import TableGeometry
+    from air_hockey_agent.tracker_params import load_tracker_params
+    p = load_tracker_params()
+    return PuckModel(TableGeometry.from_params(p), PuckParams.from_params(p))
+
+
+def build_selector(params: dict[str, Any], robot: str, log=None):
+    """The tactics state machine of ``robot`` with its puck model (the tracker's), arm (the trajectory
+    generator's region and the cached fastest-hit table) and settings. Returns (selector, kinematics)."""
+    from air_hockey_agent.core.game.arm_reach import ArmReach
+    from air_hockey_agent.core.game.shots import ShotPredictor
+    from air_hockey_agent.core.game.speed_map import load_or_build
+    from air_hockey_agent.core.game.tactics.selector import TacticsSelector
+    from air_hockey_agent.core.game.tactics.settings import TacticsSettings
+    from air_hockey_agent.motion_params import build_planner, load_motion_params
+    from air_hockey_agent.tracker_params import load_tracker_params
+    motion = load_motion_params()
+    planner = build_planner(motion, robot)
+    speeds = load_or_build(planner, motion, params["speed_map_grid"], log=log)
+    s = planner.s
+    reach = ArmReach(planner.region, s.run_up[0], s.follow_through[0], s.reach_acceleration,
+                     s.planning_delay + s.height_transition, speeds)
+    settings = TacticsSettings.from_params(params)
+    dt = 1.0 / load_tracker_params()["frequency"]
+    shots = ShotPredictor(puck_model_for_tactics(), settings, dt, reach.max_speed)
+    return TacticsSelector(settings, reach, shots), planner.kin

@@ -1,0 +1,53 @@
+"""What the tactics know of the arm (ROS-free): where it may put the mallet, how fast it can hit there,
+and how long a reach takes. All from the motion layer's own region, settings and speed table, so the
+tactics only ask the trajectory generator for what it can do."""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from air_hockey_agent.core.game.speed_map import SpeedMap
+from air_hockey_agent.core.motion.region import Region
+
+REACH_TIME_MARGIN = 1.25  # [-] reach time = this x the shortest cubic time (the planner's tracking settles after it)
+
+
+@dataclass(frozen=True)
+class ArmReach:
+    region: Region            # the planner's allowed region (own frame)
+    run_up: float             # [m] shortest run-up the planner needs behind a hit point
+    follow_through: float     # [m] shortest follow-through it needs ahead of it
+    reach_acceleration: float  # [m/s^2] task acceleration of reach-and-stop motions
+    min_reach_time: float     # [s] shortest time a reach is given: the planner's delay plus its height transition
+    speeds: SpeedMap
+
+    def can_hit(self, point: np.ndarray, direction: np.ndarray) -> bool:
+        """The hit point is in the region with room for the run-up behind it and the follow-through ahead."""
+        if not self.region.contains(point):
+            return False
+        return (self.region.distance_along(point, -direction) >= self.run_up
+                and self.region.distance_along(point, direction) >= self.follow_through)
+
+    def max_speed(self, point: np.ndarray, direction: np.ndarray) -> float:
+        """Fastest hit [m/s] at ``point`` along ``direction``; 0 where the arm cannot hit."""
+        return self.speeds.max_speed(point, direction) if self.can_hit(point, direction) else 0.0
+
+    def clamp(self, point: np.ndarray) -> np.ndarray:
+        """The nearest point of the region's box, pulled toward the base until inside the reach disc."""
+        r = self.region
+        p = np.array([min(max(point[0], r.x_min), r.x_max), min(max(point[1], -r.y_max), r.y_max)])
+        base = np.asarray(r.base_xy)
+        rel = p - base
+        dist = float(np.hypot(*rel))
+        if dist > r.reach:
+            p = base + rel * (r.reach - 1e-6) / dist
+        return p
+
+    def reach_time(self, start: np.ndarray | None, target: np.ndarray) -> float:
+        """Time [s] a reach-and-stop from rest at ``start`` to ``target`` needs (cubic within the reach
+        acceleration: T = sqrt(6 D / a)), with a margin, and never less than ``min_reach_time``; 0.5 m
+        when the start is unknown."""
+        distance = 0.5 if start is None else float(np.hypot(*(np.asarray(target) - np.asarray(start))))
+        return max(self.min_reach_time, REACH_TIME_MARGIN * math.sqrt(6.0 * distance / self.reach_acceleration))

@@ -1,0 +1,89 @@
+"""What a game produced (ROS-free): sim time, score, hits from physics, faults by reason, tactics.
+
+``air-hockey game`` feeds it the referee's ``/game_status``, the simulation's ``/sim/contacts`` and each
+robot's ``tactic`` topic, and prints :meth:`Scoreboard.result` at the end.
+"""
+from __future__ import annotations
+
+import re
+from collections import Counter
+from typing import Sequence
+
+from air_hockey_agent.core.game.referee import (EVENT_GOAL_BACK, EVENT_GOAL_FRONT, EVENT_NONE, EVENT_PUCK_OUT,
+                                                EVENT_PUCK_STUCK, EVENT_RESET, EVENT_ROBOT_FAULT)
+
+FAULT_EVENTS = {EVENT_PUCK_OUT: "puck_out", EVENT_PUCK_STUCK: "puck_stuck", EVENT_ROBOT_FAULT: "robot_fault"}
+
+
+def fault_key(event: int, reason: str) -> str:
+    """A stable name for a referee event's reason (its numbers dropped), e.g.
+    ``robot_fault: iiwa_front's mallet crossed the centre line``."""
+    text = re.sub(r"\s*\([^)]*\)", "", reason)          # "(0.123 m)" details
+    text = re.sub(r"\bat \([^)]*\) m\b", "", text)
+    text = re.sub(r"\s+", " ", text).strip()
+    return f"{FAULT_EVENTS[event]}: {text}"
+
+
+class Scoreboard:
+    def __init__(self, robots: Sequence[str]) -> None:
+        self.robots = tuple(robots)
+        self.sim_time = 0.0
+        self.score = {r: 0 for r in self.robots}
+        self.hits = {r: 0 for r in self.robots}
+        self.faults: Counter = Counter()
+        self.tactics = {r: Counter() for r in self.robots}
+        self._last_tactic: dict[str, str] = {}
+        self._events: set[tuple[int, float]] = set()
+
+    @property
+    def goals(self) -> int:
+        return sum(self.score.values())
+
+    @property
+    def robot_faults(self) -> int:
+        return sum(n for k, n in self.faults.items() if k.startswith("robot_fault"))
+
+    def on_clock(self, t: float) -> None:
+        self.sim_time = max(self.sim_time, t)
+
+    def on_status(self, score_front: int, score_back: int, event: int, reason: str, event_time: float) -> None:
+        front, back = self.robots
+        self.score[front], self.score[back] = int(score_front), int(score_back)
+        if event in (EVENT_NONE, EVENT_RESET, EVENT_GOAL_FRONT, EVENT_GOAL_BACK) or (event, event_time) in self._events:
+            return
+        self._events.add((event, event_time))
+        self.faults[fault_key(event, reason)] += 1
+
+    def on_contact(self, robot: str) -> None:
+        if robot in self.hits:
+            self.hits[robot] += 1
+
+    def on_tactic(self, robot: str, name: str) -> None:
+        """Counts each time a robot enters a tactic."""
+        if robot in self.tactics and self._last_tactic.get(robot) != name:
+            self._last_tactic[robot] = name
+            self.tactics[robot][name] += 1
+
+    def result(self, recording: str | None) -> dict:
+        return {"duration_s": round(self.sim_time, 3), "score": dict(self.score), "hits": dict(self.hits),
+                "faults": dict(self.faults), "tactics": {r: dict(c) for r, c in self.tactics.items()},
+                "recording": recording}
+
+    def progress(self) -> str:
+        front, back = self.robots
+        return (f"sim {self.sim_time:6.1f} s  score {front} {self.score[front]} : {self.score[back]} {back}  "
+                f"hits {self.hits[front]} / {self.hits[back]}  faults {sum(self.faults.values())}")
+
+    def table(self, recording: str | None) -> str:
+        front, back = self.robots
+        names = sorted(set(self.tactics[front]) | set(self.tactics[back]))
+        rows = [("", front, back), ("score", self.score[front], self.score[back]),
+                ("hits", self.hits[front], self.hits[back])]
+        rows += [(f"tactic {n}", self.tactics[front][n], self.tactics[back][n]) for n in names]
+        width = max(len(str(r[0])) for r in rows) + 2
+        lines = [f"game over after {self.sim_time:.1f} s of simulated time"]
+        lines += [f"  {str(a):<{width}}{str(b):>12}{str(c):>12}" for a, b, c in rows]
+        lines.append("  faults: " + (", ".join(f"{k} x{n}" for k, n in sorted(self.faults.items())) or "none"))
+        if recording:
+            lines.append(f"  recording: {recording} (open it in Foxglove)")
+        return "\n".join(lines)

@@ -1,0 +1,123 @@
+"""Shot prediction (ROS-free): where a hit sends the puck, predicted with the project's puck model.
+
+The earlier stack chose among a straight smash and two bank shots at random and aimed the banks with
+the reflection law (REFERENCE_FACTS 2.2, 8.9-11), which ignores the rim's restitution, friction and the
+spin a sliding impact gives (thesis eq. 3.2-3.4): fig. 5.8 of the thesis shows the resulting bias. Here
+every candidate is aimed by solving "the predicted puck reaches the opponent's goal line at y = 0" for
+the hit direction (secant iterations on the model's prediction, Routh impacts and spin included),
+with the hit speed the arm allows along that direction, and the candidates are ranked by the
+probability that the puck enters the goal when the direction is off by ``aim_noise``.
+
+Own frame: x toward the opponent; the opponent's goal line is x = +L/2.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from air_hockey_agent.core.game.tactics.settings import TacticsSettings
+from air_hockey_agent.core.puck.model import PuckModel
+from air_hockey_agent.core.puck.prediction import predict_fast
+
+VARIANTS = ("straight", "left_bank", "right_bank")  # left: off the y = +W/2 rim, right: off y = -W/2
+SECANT_ITERATIONS = 4
+FIRST_STEP = 0.02      # [rad] second secant point
+MAX_STEP = 0.15        # [rad] largest secant step
+LINE_INSET = 1e-4      # [m] the goal line is sampled this far in front of the short rim
+NO_Q = np.zeros(6)
+
+
+def puck_after_hit(v_puck: np.ndarray, v_mallet: np.ndarray, normal: np.ndarray, restitution: float) -> np.ndarray:
+    """Puck velocity [m/s] after a collision with a (much heavier) mallet along the unit centre line
+    ``normal`` (from mallet to puck): the relative normal velocity is reversed and scaled by e."""
+    closing = float((v_puck - v_mallet) @ normal)
+    if closing >= 0.0:
+        return np.asarray(v_puck, float).copy()
+    return v_puck - (1.0 + restitution) * closing * normal
+
+
+@dataclass(frozen=True)
+class Shot:
+    variant: str
+    direction: np.ndarray      # unit hit direction (mallet velocity and centre line)
+    hit_point: np.ndarray      # [m] mallet centre at the hit
+    mallet_speed: float        # [m/s]
+    puck_velocity: np.ndarray  # [m/s] right after the hit
+    goal_y: float              # [m] predicted y at the opponent's goal line
+    arrival: float             # [s] from the hit to the goal line
+    success: float             # probability of entering the goal under the aim noise
+
+
+def _normal_cdf(z: float) -> float:
+    return 0.5 * (1.0 + math.erf(z / math.sqrt(2.0)))
+
+
+class ShotPredictor:
+    """Aims and ranks shots at a puck for one robot (own frame)."""
+
+    def __init__(self, model: PuckModel, settings: TacticsSettings, dt: float,
+                 speed_at: Callable[[np.ndarray, np.ndarray], float]) -> None:
+        self.model, self.s, self.dt, self.speed_at = model, settings, dt, speed_at
+        table = model.table
+        self.line = table.length / 2 - table.puck_radius - LINE_INSET
+        self.mouth = table.goal_mouth
+
+    # --- one candidate ---------------------------------------------------------------------------
+    def _evaluate(self, puck: np.ndarray, angle: float, speed: float | None) -> tuple | None:
+        """(goal y, arrival, hit point, mallet speed, puck velocity) of a hit along ``angle``; None when
+        the arm cannot hit there or the puck does not reach the goal line within the shot horizon."""
+        d = np.array([math.cos(angle), math.sin(angle)])
+        hit = puck[:2] - d * self.s.contact_distance
+        top = self.speed_at(hit, d)
+        if top <= 0.0:
+            return None
+        v = min(top * self.s.hit_speed_fraction, self.s.max_hit_speed) if speed is None else min(speed, top)
+        vp = puck_after_hit(puck[2:4], v * d, d, self.s.mallet_restitution)
+        state = np.array([puck[0], puck[1], vp[0], vp[1], 0.0, puck[5]])
+        crossing = predict_fast(self.model, state, None, self.s.shot_horizon, self.dt, NO_Q,
+                                lines=(self.line,)).crossings.get(self.line)
+        if crossing is None:
+            return None
+        return crossing.y, crossing.time, hit, v, vp
+
+    def aim(self, puck: np.ndarray, variant: str, speed: float | None = None) -> Shot | None:
+        """The hit that sends ``puck`` (own-frame state, 6) into the goal centre by ``variant``: secant
+        iterations on the direction, starting from the reflection-law guess."""
+        x, y = float(puck[0]), float(puck[1])
+        ylim = self.model.table.y_limit
+        mirror = {"straight": 0.0, "left_bank": 2.0 * ylim, "right_bank": -2.0 * ylim}[variant]
+        a = math.atan2(mirror - y, self.line - x)
+        r = self._evaluate(puck, a, speed)
+        b = a + FIRST_STEP
+        rb = self._evaluate(puck, b, speed)
+        slope = None
+        for _ in range(SECANT_ITERATIONS):
+            if r is None or rb is None or rb[0] == r[0]:
+                break
+            slope = (rb[0] - r[0]) / (b - a)
+            step = max(-MAX_STEP, min(MAX_STEP, -rb[0] / slope))
+            a, r = b, rb
+            if abs(step) < 1e-4:
+                break
+            b = b + step
+            rb = self._evaluate(puck, b, speed)
+        best = [(angle, res) for angle, res in ((a, r), (b, rb)) if res is not None]
+        if slope is None or not best:
+            return None
+        angle, (goal_y, arrival, hit, v, vp) = min(best, key=lambda item: abs(item[1][0]))
+        spread = max(abs(slope) * self.s.aim_noise, 1e-9)
+        edge = self.mouth - self.s.goal_aim_margin
+        success = _normal_cdf((edge - goal_y) / spread) - _normal_cdf((-edge - goal_y) / spread)
+        return Shot(variant, np.array([math.cos(angle), math.sin(angle)]), hit, v, vp, goal_y, arrival, success)
+
+    def best(self, puck: np.ndarray, variants: tuple[str, ...] = VARIANTS, speed: float | None = None,
+             tie: float = 0.05) -> Shot | None:
+        """The most likely goal among ``variants``; within ``tie`` of it, the one that arrives first."""
+        shots = [s for s in (self.aim(puck, v, speed) for v in variants) if s is not None and s.success > 0.0]
+        if not shots:
+            return None
+        top = max(s.success for s in shots)
+        return min((s for s in shots if s.success >= top - tie), key=lambda s: s.arrival)

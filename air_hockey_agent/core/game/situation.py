@@ -1,0 +1,119 @@
+"""What the tactics see (ROS-free): the tracker's estimate and prediction in the robot's own frame.
+
+Own frame (README "Frames and units"): x toward the opponent, origin at the table centre; the own goal
+line is x = -L/2. ``iiwa_front``'s own frame is the table frame; ``iiwa_back``'s is rotated by pi.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Sequence
+
+import numpy as np
+
+from air_hockey_agent.core.frames import ROBOT_YAW
+
+
+def to_own_frame(states: np.ndarray, robot: str) -> np.ndarray:
+    """Puck states (..., 6) = (x, y, vx, vy, theta, omega) from the table frame to ``robot``'s frame."""
+    out = np.array(states, float, copy=True)
+    if ROBOT_YAW[robot] != 0.0:  # rotation by pi: x, y, vx, vy change sign; theta turns by pi
+        out[..., :4] *= -1.0
+        out[..., 4] = (out[..., 4] + 2 * math.pi) % (2 * math.pi) - math.pi
+    return out
+
+
+def point_to_table(point: Sequence[float], robot: str) -> np.ndarray:
+    """An own-frame point or vector (x, y) in the table frame (the rotation by pi is its own inverse)."""
+    p = np.array(point, float)
+    return -p if ROBOT_YAW[robot] != 0.0 else p
+
+
+@dataclass(frozen=True)
+class DefendCrossing:
+    """A predicted first crossing of a line x = const toward the own goal: absolute time [s], y [m],
+    velocity [m/s] (own frame), and how many rim impacts the puck makes before it."""
+
+    time: float
+    y: float
+    vx: float
+    vy: float
+    impacts_before: int
+
+
+@dataclass
+class Situation:
+    """Estimate at ``t`` and predicted states at ``times`` (absolute [s], increasing), own frame."""
+
+    t: float
+    puck: np.ndarray                 # (6,) estimate
+    times: np.ndarray                # (n,) prediction sample times, after t
+    states: np.ndarray               # (n, 6)
+    impact_times: np.ndarray = field(default_factory=lambda: np.empty(0))  # absolute [s], predicted rim impacts
+    enters_own_goal: bool = False
+
+    @property
+    def speed(self) -> float:
+        return math.hypot(self.puck[2], self.puck[3])
+
+    @property
+    def horizon_end(self) -> float:
+        return float(self.times[-1]) if len(self.times) else self.t
+
+    def approaching(self, threshold: float) -> bool:
+        return self.puck[2] < -threshold
+
+    def at(self, t: float) -> np.ndarray:
+        """Predicted state at ``t`` [s]: linear between samples (the estimate is the first), the last
+        sample beyond the horizon."""
+        if t <= self.t or not len(self.times):
+            return self.puck.copy()
+        if t >= self.times[-1]:
+            return self.states[-1].copy()
+        i = int(np.searchsorted(self.times, t))
+        t0, s0 = (self.t, self.puck) if i == 0 else (self.times[i - 1], self.states[i - 1])
+        w = (t - t0) / (self.times[i] - t0)
+        return (1.0 - w) * s0 + w * self.states[i]
+
+    def crossing(self, line_x: float) -> DefendCrossing | None:
+        """First predicted crossing of x = ``line_x`` toward the own goal (x decreasing), interpolated
+        between samples; None when it does not happen within the horizon."""
+        xs = np.concatenate([[self.puck[0]], self.states[:, 0]])
+        hits = np.nonzero((xs[:-1] > line_x) & (xs[1:] <= line_x))[0]
+        if not len(hits):
+            return None
+        i = int(hits[0])
+        t0, s0 = (self.t, self.puck) if i == 0 else (self.times[i - 1], self.states[i - 1])
+        t1, s1 = self.times[i], self.states[i]
+        w = (s0[0] - line_x) / (s0[0] - s1[0])
+        t = t0 + w * (t1 - t0)
+        return DefendCrossing(float(t), float(s0[1] + w * (s1[1] - s0[1])), float(s1[2]), float(s1[3]),
+                              int(np.count_nonzero(self.impact_times < t)))
+
+
+def build_situation(robot: str, t: float, estimate: Sequence[float], sample_times: Sequence[float],
+                    samples: np.ndarray, impacts: Sequence[tuple[float, float, float]] = (),
+                    enters_own_goal: bool = False) -> Situation:
+    """A :class:`Situation` from table-frame tracker output (thesis sec. 4.2).
+
+    ``sample_times``: absolute [s]; ``samples`` (n, 6): predicted states; ``impacts``: predicted rim
+    impacts as (absolute time [s], x, y). The impact points are merged into the samples (with the
+    velocity of the next sample), so that interpolating between samples follows the bounce.
+    """
+    times = np.asarray(sample_times, float)
+    states = to_own_frame(np.asarray(samples, float).reshape(-1, 6), robot)
+    impact_times = np.array([i[0] for i in impacts], float)
+    if len(impacts) and len(times):
+        extra_t, extra = [], []
+        for ti, x, y in impacts:
+            j = int(np.searchsorted(times, ti))
+            if j < len(times) and ti > t:
+                xy = to_own_frame(np.array([x, y, 0.0, 0.0, 0.0, 0.0]), robot)[:2]
+                extra_t.append(ti)
+                extra.append(np.concatenate([xy, states[j, 2:]]))
+        if extra_t:
+            times = np.concatenate([times, extra_t])
+            order = np.argsort(times, kind="stable")
+            times, states = times[order], np.vstack([states, extra])[order]
+    return Situation(t, to_own_frame(np.asarray(estimate, float), robot), times, states, impact_times,
+                     enters_own_goal)

@@ -1,0 +1,71 @@
+"""The common contract of the tactics (ROS-free): a tactic looks at the :class:`Situation` and either
+proposes one mallet command or says it does not apply now.
+
+Tactic ids are ``air_hockey_msgs/HitCommand.TACTIC_*``. A :class:`Proposal` is a command of the motion
+layer (hit: point, velocity and time; reach-and-stop: zero velocity) in the robot's own frame, with the
+puck position it was planned for, so the selector can tell when the prediction has moved away from it.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from air_hockey_agent.core.game.arm_reach import ArmReach
+from air_hockey_agent.core.game.shots import ShotPredictor
+from air_hockey_agent.core.game.situation import Situation
+from air_hockey_agent.core.game.tactics.settings import TacticsSettings
+
+INIT, HOME, READY, SMASH, CUT, PREPARE, REPEL = range(7)  # air_hockey_msgs/HitCommand.TACTIC_*
+NAMES = {INIT: "init", HOME: "home", READY: "ready", SMASH: "smash", CUT: "cut", PREPARE: "prepare", REPEL: "repel"}
+
+
+@dataclass(frozen=True)
+class Proposal:
+    """One command for the trajectory generator (own frame)."""
+
+    tactic: int
+    point: np.ndarray                 # [m] mallet centre at ``time``
+    velocity: np.ndarray              # [m/s] mallet velocity there (zeros: reach and stop)
+    time: float                       # [s] absolute
+    reason: str
+    puck: np.ndarray | None = None    # [m] predicted puck position at ``time`` the command was planned for
+    target: np.ndarray = field(default_factory=lambda: np.zeros(2))  # [m] where the puck should go
+    flexible_time: bool = False       # the tactic chose the time itself (it may slide while nothing else changes)
+
+    @property
+    def is_hit(self) -> bool:
+        return bool(np.any(self.velocity != 0.0))
+
+
+@dataclass
+class Context:
+    """What a tactic may use besides the situation."""
+
+    now: float
+    settings: TacticsSettings
+    reach: ArmReach
+    shots: ShotPredictor
+    mallet: np.ndarray | None = None  # [m] current mallet position (own frame), if known
+    lead_extra: float = 0.0           # [s] added to flexible hit times after the planner said "too late"
+    speed_cap: float = float("inf")   # [m/s] after the planner said "faster than the arm allows"
+
+
+class Tactic:
+    """Base class: ``tactic`` id, ``name``, and :meth:`propose`."""
+
+    tactic: int = INIT
+
+    @property
+    def name(self) -> str:
+        return NAMES[self.tactic]
+
+    def propose(self, situation: Situation | None, ctx: Context) -> Proposal | None:  # pragma: no cover
+        raise NotImplementedError
+
+
+def reach_proposal(tactic: int, point: np.ndarray, ctx: Context, reason: str) -> Proposal:
+    """Reach ``point`` and stop, with the time the arm needs (plus any "too late" extra)."""
+    p = ctx.reach.clamp(point)
+    t = ctx.now + ctx.reach.reach_time(ctx.mallet, p) + ctx.lead_extra
+    return Proposal(tactic, p, np.zeros(2), t, reason, flexible_time=True)

@@ -1,0 +1,184 @@
+"""The tactics state machine (thesis sec. 4.1, 4.6; the two-layer tactics of its reference [8]).
+
+Every decision period the selector looks at the referee's status and the tracker's :class:`Situation`:
+
+* game stopped: **Init** (no command); paused: **Home**; running: play.
+* While an accepted hit is still valid (the prediction still puts the puck where the command was
+  planned for) the selector keeps it, through the follow-through (``settle_time``); otherwise it
+  re-decides at once. S locked every switch for 1.5 s (REFERENCE_FACTS 8.9); here a tactic changes as
+  soon as the predicted situation does.
+* Re-deciding tries the tactics whose entry conditions hold, in priority order, and plays the first
+  that proposes a command: **Smash** (slow puck predicted in the smash area), **Repel** (puck straight
+  at the goal, no rim impact), **Cut** (any other approach with time to get there), **Prepare** (puck at
+  rest outside the smash area), else **Ready**.
+* The trajectory generator's answer steers the next try: "faster than the arm allows" caps the speed
+  at the reported maximum, "too late" adds lead time to tactics that choose their own hit time, and
+  any other refusal (or "too late" for a puck that will not wait) blocks that tactic for
+  ``retry_delay`` so the next one is tried. A hit is only committed to once the planner accepted it.
+* A forced tactic (strategy test) is the only one tried until released.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from air_hockey_agent.core.game.arm_reach import ArmReach
+from air_hockey_agent.core.game.shots import ShotPredictor
+from air_hockey_agent.core.game.situation import Situation
+from air_hockey_agent.core.game.tactics.base import (CUT, HOME, INIT, NAMES, PREPARE, READY, REPEL, SMASH, Context,
+                                                     Proposal, Tactic)
+from air_hockey_agent.core.game.tactics.cut import Cut
+from air_hockey_agent.core.game.tactics.home import Home
+from air_hockey_agent.core.game.tactics.init import Init
+from air_hockey_agent.core.game.tactics.prepare import Prepare
+from air_hockey_agent.core.game.tactics.ready import Ready
+from air_hockey_agent.core.game.tactics.repel import Repel
+from air_hockey_agent.core.game.tactics.settings import TacticsSettings
+from air_hockey_agent.core.game.tactics.smash import Smash
+
+STOPPED, PAUSED, RUNNING = 0, 1, 2           # air_hockey_msgs/GameStatus.STATUS_*
+ACCEPTED, TOO_FAST, TOO_LATE = 0, 5, 3       # air_hockey_msgs/TrajectoryStatus.OUTCOME_*
+MAX_LEAD_EXTRA = 1.0                          # [s] "too late" never pushes a self-timed hit further than this
+
+
+@dataclass
+class Decision:
+    tactic: int
+    reason: str
+    forced: bool
+    command: Proposal | None  # send this now (None: keep what runs)
+    changed: bool             # the tactic differs from the previous decision's
+
+    @property
+    def name(self) -> str:
+        return NAMES[self.tactic]
+
+
+@dataclass
+class _Sent:
+    proposal: Proposal
+    stamp: float                 # [s] when it was sent; the planner's answer carries it back
+    accepted: bool | None = None
+
+
+def default_tactics() -> dict[int, Tactic]:
+    return {t.tactic: t for t in (Init(), Home(), Ready(), Smash(), Cut(), Prepare(), Repel())}
+
+
+class TacticsSelector:
+    """One robot's tactics, in its own frame (ROS-free)."""
+
+    def __init__(self, settings: TacticsSettings, reach: ArmReach, shots: ShotPredictor,
+                 tactics: dict[int, Tactic] | None = None) -> None:
+        self.s, self.reach, self.shots = settings, reach, shots
+        self.tactics = tactics or default_tactics()
+        self.current, self.reason, self.forced = INIT, "game stopped", None
+        self.sent: _Sent | None = None
+        self.blocked: dict[int, float] = {}
+        self.lead_extra, self.speed_cap = 0.0, math.inf
+
+    # --- inputs ------------------------------------------------------------------------------------
+    def force(self, tactic: int | None) -> str:
+        """Force ``tactic`` (a ``TACTIC_*`` id) until released with None; returns what happened."""
+        if tactic is not None and tactic not in self.tactics:
+            raise ValueError(f"unknown tactic {tactic} (known: {', '.join(f'{k} {v}' for k, v in NAMES.items())})")
+        self.forced = tactic
+        self.sent, self.blocked = None, {}
+        return f"tactic {NAMES[tactic]} forced" if tactic is not None else "released to the state machine"
+
+    def on_status(self, stamp: float, outcome: int, max_speed: float, now: float) -> None:
+        """The trajectory generator's answer to the command sent at ``stamp``."""
+        sent = self.sent
+        if sent is None or abs(stamp - sent.stamp) > 1e-6:
+            return  # an answer to a command already replaced
+        if outcome == ACCEPTED:
+            sent.accepted = True
+            return
+        sent.accepted = False
+        proposal = sent.proposal
+        if outcome == TOO_FAST and math.isfinite(max_speed) and max_speed > 0.0:
+            self.speed_cap = max_speed * self.s.speed_cap_fraction
+        elif outcome == TOO_LATE and proposal.flexible_time and self.lead_extra < MAX_LEAD_EXTRA:
+            self.lead_extra = min(self.lead_extra + self.s.lead_time_step, MAX_LEAD_EXTRA)
+        else:
+            self.blocked[proposal.tactic] = now + self.s.retry_delay
+        self.sent = None
+
+    # --- decision ----------------------------------------------------------------------------------
+    def step(self, now: float, status: int, situation: Situation | None, mallet: np.ndarray | None = None) -> Decision:
+        if status == STOPPED:
+            self.sent, self.blocked = None, {}
+            return self._decide(INIT, "game stopped: holding", None)
+        if status == PAUSED:
+            wanted = [HOME]
+        elif self.forced is not None:
+            wanted = [self.forced]
+        else:
+            if self._committed(now, situation):
+                return Decision(self.current, self.reason, False, None, False)
+            wanted = self.candidates(situation)
+        ctx = Context(now, self.s, self.reach, self.shots, mallet, self.lead_extra, self.speed_cap)
+        for tactic in wanted:
+            if self.blocked.get(tactic, -math.inf) > now:
+                continue
+            proposal = self.tactics[tactic].propose(situation, ctx)
+            if proposal is not None:
+                return self._decide(tactic, proposal.reason, self._to_send(proposal, now))
+        if self.forced is not None and status == RUNNING:
+            return self._decide(self.forced, f"{NAMES[self.forced]} forced: waiting until it applies", None)
+        fallback = HOME if status == PAUSED else READY
+        return self._decide(fallback, "nothing to do" if fallback == READY else "game paused", None)
+
+    def candidates(self, situation: Situation | None) -> list[int]:
+        """Tactics whose entry conditions hold, in priority order (READY last, always)."""
+        if situation is None:
+            return [READY]
+        st, out = self.s, []
+        if situation.speed <= st.smash_puck_speed:
+            out.append(SMASH)
+        if situation.approaching(st.approach_speed):
+            out += [REPEL, CUT]
+        if situation.speed <= st.static_speed:
+            out.append(PREPARE)
+        out.append(READY)
+        return out
+
+    # --- bookkeeping -------------------------------------------------------------------------------
+    def _committed(self, now: float, situation: Situation | None) -> bool:
+        """An accepted hit (or cut) is running and the prediction still agrees with it."""
+        sent = self.sent
+        if sent is None or not sent.accepted or sent.proposal.tactic in (READY, HOME):
+            return False
+        p = sent.proposal
+        if now > p.time + self.s.settle_time:
+            return False
+        if now > p.time or p.puck is None or situation is None:
+            return True
+        return float(np.linalg.norm(situation.at(p.time)[:2] - p.puck)) <= self.s.resend_distance
+
+    def _to_send(self, proposal: Proposal, now: float) -> Proposal | None:
+        """The proposal if it should be sent now; None when the last command already says the same
+        (or is still waiting for its answer)."""
+        sent = self.sent
+        if sent is not None and sent.proposal.tactic == proposal.tactic:
+            if sent.accepted is None and now - sent.stamp < self.s.retry_delay:
+                return None
+            if sent.accepted is not False and self._similar(sent.proposal, proposal):
+                return None
+        self.sent = _Sent(proposal, now)
+        return proposal
+
+    def _similar(self, a: Proposal, b: Proposal) -> bool:
+        st = self.s
+        return (float(np.linalg.norm(a.point - b.point)) <= st.resend_distance
+                and float(np.linalg.norm(a.velocity - b.velocity)) <= st.resend_speed
+                and (b.flexible_time or abs(a.time - b.time) <= st.resend_time))
+
+    def _decide(self, tactic: int, reason: str, command: Proposal | None) -> Decision:
+        changed = tactic != self.current
+        if changed:
+            self.lead_extra, self.speed_cap = 0.0, math.inf
+        self.current, self.reason = tactic, reason
+        return Decision(tactic, reason, self.forced is not None, command, changed)

@@ -1,0 +1,75 @@
+"""Thresholds of the tactics layer (``config/agent.yaml``) in one frozen record.
+
+Lengths are in the robot's own frame (x toward the opponent, origin at the table centre; README
+"Frames and units"); a *depth* is a distance from the robot's own goal line (x = -L/2).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from air_hockey_agent.core.table import TableGeometry
+
+
+@dataclass(frozen=True)
+class TacticsSettings:
+    table: TableGeometry
+    mallet_radius: float
+    defend_line: float
+    ready_point: tuple[float, float]
+    home_point: tuple[float, float]
+    smash_depth: tuple[float, float]
+    smash_rim_margin: float
+    static_speed: float
+    smash_puck_speed: float
+    approach_speed: float
+    min_plan_time: float
+    repel_time: tuple[float, float]
+    repel_line: float
+    repel_width: float
+    repel_speed: float
+    smash_lead_time: float
+    lead_time_step: float
+    hit_speed_fraction: float
+    max_hit_speed: float
+    speed_cap_fraction: float
+    prepare_speed: tuple[float, float]
+    mallet_restitution: float
+    aim_noise: float
+    shot_horizon: float
+    goal_aim_margin: float
+    resend_distance: float
+    resend_time: float
+    resend_speed: float
+    retry_delay: float
+    settle_time: float
+
+    @classmethod
+    def from_params(cls, p: Mapping[str, Any]) -> "TacticsSettings":
+        names = [f for f in cls.__dataclass_fields__ if f not in ("table", "mallet_radius")]
+        values = {n: tuple(p[n]) if isinstance(p[n], list) else p[n] for n in names}
+        return cls(TableGeometry.from_params(p), p["mallet.radius"], **values)
+
+    # --- geometry in the own frame ---------------------------------------------------------------
+    def x_at_depth(self, depth: float) -> float:
+        """Own-frame x [m] of a point ``depth`` [m] in front of the own goal line."""
+        return -self.table.length / 2 + depth
+
+    def point(self, depth_y: tuple[float, float]) -> np.ndarray:
+        return np.array([self.x_at_depth(depth_y[0]), depth_y[1]])
+
+    @property
+    def defend_x(self) -> float:
+        return self.x_at_depth(self.defend_line)
+
+    @property
+    def contact_distance(self) -> float:
+        """Puck and mallet centres touch at this distance [m]."""
+        return self.table.puck_radius + self.mallet_radius
+
+    def in_smash_area(self, x: float, y: float) -> bool:
+        depth = x + self.table.length / 2
+        return (self.smash_depth[0] <= depth <= self.smash_depth[1]
+                and abs(y) <= self.table.y_limit - self.smash_rim_margin)

@@ -1,0 +1,53 @@
+"""Smash (thesis sec. 4.6): a puck at rest (or slow) in the smash area is shot at the opponent's goal,
+straight or off one of the long rims.
+
+Beyond the thesis and S (REFERENCE_FACTS 2.2: a variant drawn at random, banks aimed by the reflection
+law, a static puck only): the puck is taken where the tracker predicts it at the hit time, each variant
+is aimed with the puck model and the fastest speed the arm allows along its direction
+(:class:`~air_hockey_agent.core.game.shots.ShotPredictor`), and the most likely goal is played.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from air_hockey_agent.core.game.situation import Situation
+from air_hockey_agent.core.game.tactics.base import SMASH, Context, Proposal, Tactic
+
+CACHE_SIZE = 64
+KEY_POSITION = 0.005  # [m] puck positions closer than this share an aimed shot
+KEY_VELOCITY = 0.05   # [m/s]
+
+
+class Smash(Tactic):
+    tactic = SMASH
+
+    def __init__(self) -> None:
+        self._cache: dict[tuple, object] = {}
+
+    def propose(self, situation: Situation | None, ctx: Context) -> Proposal | None:
+        st = ctx.settings
+        if situation is None:
+            return None
+        t_hit = ctx.now + st.smash_lead_time + ctx.lead_extra
+        puck = situation.at(t_hit)
+        if not st.in_smash_area(puck[0], puck[1]) or math.hypot(puck[2], puck[3]) > st.smash_puck_speed:
+            return None
+        shot = self._shot(puck, ctx)
+        if shot is None:
+            return None
+        reason = (f"smash {shot.variant}: puck at ({puck[0]:.2f}, {puck[1]:.2f}), {shot.mallet_speed:.2f} m/s, "
+                  f"predicted goal y {shot.goal_y:+.3f} m in {shot.arrival:.2f} s, p(goal) {shot.success:.2f}")
+        return Proposal(SMASH, shot.hit_point, shot.mallet_speed * shot.direction, t_hit, reason, puck=puck[:2],
+                        target=np.array([st.table.length / 2, 0.0]), flexible_time=True)
+
+    def _shot(self, puck: np.ndarray, ctx: Context):
+        cap = None if math.isinf(ctx.speed_cap) else ctx.speed_cap
+        key = (round(puck[0] / KEY_POSITION), round(puck[1] / KEY_POSITION), round(puck[2] / KEY_VELOCITY),
+               round(puck[3] / KEY_VELOCITY), cap)
+        if key not in self._cache:
+            if len(self._cache) >= CACHE_SIZE:
+                self._cache.clear()
+            self._cache[key] = ctx.shots.best(puck, speed=cap)
+        return self._cache[key]
