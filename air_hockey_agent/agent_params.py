@@ -39,6 +39,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("prepare_speed", list, "[m/s] mallet speed range of a Prepare", 0.01, 5.0, 2),
     ParamSpec("mallet_restitution", float, "[-] puck-mallet restitution of the shot model", 0.0, 1.0),
     ParamSpec("aim_noise", float, "[rad] shot direction spread used to rank shots", 1e-4, 1.0),
+    ParamSpec("guard_margin", float, "[m] clearance of the opponent's ready point a shot needs", 0.0, 0.5),
+    ParamSpec("guarded_factor", float, "[-] goal likelihood factor of a shot at the opponent's mallet", 0.0, 1.0),
     ParamSpec("shot_horizon", float, "[s] a shot that needs longer to reach the goal line misses", 0.1, 10.0),
     ParamSpec("goal_aim_margin", float, "[m] aim at least this far inside the goal mouth's edge", 0.0, 0.2),
     ParamSpec("resend_distance", float, "[m] command change that is sent again", 0.0, 1.0),

@@ -40,6 +40,7 @@ MOTION_PARAMS = TABLE_PARAMS + (
     ParamSpec("ik_iterations", int, "IK iterations", 1, 10000),
     ParamSpec("ik_tolerance", float, "[m] accepted IK position error", 1e-7, 0.01),
     ParamSpec("planning_delay", float, "[s] a hit closer than this to now is too late", 0.0, 1.0),
+    ParamSpec("max_tracking_error", float, "[rad] measured-to-plan distance that drops the running plan", 0.001, 10.0),
     ParamSpec("height_transition", float, "[s] time to reach the playing height from elsewhere", 0.02, 5.0),
     ParamSpec("hit_posture_range", float, "fraction of the planning range a hit posture stays in", 0.1, 1.0),
 ) + ROBOT_BASE_PARAMS

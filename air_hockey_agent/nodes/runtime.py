@@ -5,12 +5,14 @@ A node subclasses :class:`AirHockeyNode`, lists its default parameter files and 
 """
 from __future__ import annotations
 
+import signal
 import sys
 from typing import Any, ClassVar, Sequence
 
 import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
+from rclpy._rclpy_pybind11 import RCLError
 from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 
@@ -107,6 +109,11 @@ def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int
     if any(a in ("-h", "--help") for a in _user_args(argv)):
         print(format_help(node_cls))
         return 0
+    # rclpy's own handlers (installed by init, chaining to the Python ones set here) shut the context
+    # down and wake the executor, which ends spin() with ExternalShutdownException; the Python handlers
+    # raise nothing, so no KeyboardInterrupt surfaces at an arbitrary line inside rclpy.
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: None)
     rclpy.init(args=argv)
     node = None
     try:
@@ -118,6 +125,10 @@ def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int
         return EXIT_BAD_PARAMETERS
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except (RCLError, RuntimeError):
+        if rclpy.ok():
+            raise
+        # handles invalidated by the shutdown while a callback was being taken: a normal stop
     finally:
         if node is not None:
             node.destroy_node()

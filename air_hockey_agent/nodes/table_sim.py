@@ -7,7 +7,8 @@ puck, when, and the puck's velocity after) and ``/<robot>/joint_states`` (sensor
 Executes ``/<robot>/joint_trajectory`` (trajectory_msgs/JointTrajectory). Services: ``set_puck_state``
 (SetPuckState, table frame) and ``reset_robots`` (std_srvs/Trigger). ``real_time_factor`` 1.0 is
 watchable, larger is faster, 0 is as fast as possible: then, while agents publish their clocks on
-``/<robot>/sim_sync`` (rosgraph_msgs/Clock), it stays at most ``lockstep_lead`` ahead of the slowest.
+``/<robot>/{tactics,trajectory_generator}/sim_sync`` (rosgraph_msgs/Clock), it stays at most
+``lockstep_lead`` ahead of the slowest.
 ``gui:=true`` opens the pybullet window.
 The world and the output schedule are :mod:`air_hockey_agent.sim`; this module only translates.
 """
@@ -40,6 +41,9 @@ from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, 
 
 
 
+SYNCED_NODES = ("tactics", "trajectory_generator")  # agents whose clocks the simulation waits for at rtf 0
+
+
 class TableSimNode(AirHockeyNode):
     NAME = "table_sim"
     DESCRIPTION = __doc__
@@ -61,10 +65,9 @@ class TableSimNode(AirHockeyNode):
         for robot in ROBOTS:
             self.create_subscription(JointTrajectoryMsg, f"/{robot}/joint_trajectory",
                                      lambda msg, r=robot: self.on_trajectory(r, msg), 10)
-        self.agent_clocks: dict[str, tuple[float, float]] = {}  # robot -> (sim time, wall time received)
-        for robot in ROBOTS:
-            self.create_subscription(Clock, f"/{robot}/sim_sync",
-                                     lambda msg, r=robot: self.on_agent_clock(r, msg), 10)
+        self.agent_clocks: dict[str, tuple[float, float]] = {}  # topic -> (sim time, wall time received)
+        for topic in (f"/{robot}/{node}/sim_sync" for robot in ROBOTS for node in SYNCED_NODES):
+            self.create_subscription(Clock, topic, lambda msg, t=topic: self.on_agent_clock(t, msg), 10)
         self.create_service(SetPuckState, "set_puck_state", self.on_set_puck_state)
         self.create_service(Trigger, "reset_robots", self.on_reset_robots)
         self.started = time.monotonic()
@@ -86,7 +89,7 @@ class TableSimNode(AirHockeyNode):
                     continue
                 for _ in range(steps_per_round):
                     self.publish(self.runner.step())
-            except (RCLError, ExternalShutdownException):
+            except (RCLError, RuntimeError, ExternalShutdownException):
                 if rclpy.ok(context=self.context):
                     raise
                 break  # shut down (Ctrl-C / SIGTERM) while publishing
@@ -94,9 +97,10 @@ class TableSimNode(AirHockeyNode):
             if report.due(time.monotonic() - self.started) is not None:
                 self.get_logger().info(f"sim time {self.world.time:.1f} s, real-time factor "
                                        f"{self.world.time / max(time.monotonic() - self.started, 1e-9):.2f}")
+        executor.shutdown()
 
-    def on_agent_clock(self, robot: str, msg: Clock) -> None:
-        self.agent_clocks[robot] = (to_seconds(msg.clock), time.monotonic())
+    def on_agent_clock(self, topic: str, msg: Clock) -> None:
+        self.agent_clocks[topic] = (to_seconds(msg.clock), time.monotonic())
 
     def waiting_for_agents(self) -> bool:
         """As fast as possible with lockstep: True while the simulation is more than ``lockstep_lead``

@@ -5,8 +5,8 @@ Subscribes ``puck/state`` and ``puck/prediction`` (the robot's puck tracker, tab
 paused -> Home, running -> play) and ``trajectory_status`` (the trajectory generator's answers).
 Publishes ``hit_command`` (air_hockey_msgs/HitCommand, the robot's own frame) and ``tactic``
 (air_hockey_msgs/TacticState: the current tactic and why, on every change and every ``status_period``)
-and ``sim_sync`` (rosgraph_msgs/Clock: its clock after every decision, which ``table_sim`` waits for when
-it runs as fast as possible).
+and ``~/sim_sync`` (rosgraph_msgs/Clock: its clock after every decision, which ``table_sim`` waits for
+when it runs as fast as possible).
 Service ``force_tactic`` (ForceTactic) forces one tactic until released (the strategy test). The
 decisions are :class:`air_hockey_agent.core.game.tactics.selector.TacticsSelector`; this node only
 translates. Run with ``use_sim_time`` under the simulation.
@@ -60,7 +60,7 @@ class TacticsNode(AirHockeyNode):
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.command_pub = self.create_publisher(HitCommand, "hit_command", 10)
         self.tactic_pub = self.create_publisher(TacticState, "tactic", latched)
-        self.sync_pub = self.create_publisher(Clock, "sim_sync", 10)
+        self.sync_pub = self.create_publisher(Clock, "~/sim_sync", 10)
         self.create_subscription(PuckState, "puck/state", self.on_state, 10)
         self.create_subscription(PuckPrediction, "puck/prediction", self.on_prediction, 10)
         self.create_subscription(JointState, "joint_states", self.on_joint_state, 10)

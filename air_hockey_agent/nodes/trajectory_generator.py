@@ -6,7 +6,10 @@ start stamp, the seven arm joints with positions and velocities) and ``trajector
 (air_hockey_msgs/TrajectoryStatus: accepted, or refused and why, with the planned hit time and speed).
 A hit velocity of zero asks to reach the point and stop there by the hit time. A new command replaces
 the running motion from its planned state ``planning_delay`` ahead, so the arm never jumps. A refused
-command moves nothing. The planning lives in :mod:`air_hockey_agent.core.motion.planner`; run with
+command moves nothing. When the measured joints leave the running plan by more than
+``max_tracking_error`` (the arm was reset), the next motion starts from the measured state. Publishes its
+clock on ``~/sim_sync`` with every joint state (``table_sim`` waits for it when it runs as fast as
+possible). The planning lives in :mod:`air_hockey_agent.core.motion.planner`; run with
 ``use_sim_time`` under the simulation.
 """
 from __future__ import annotations
@@ -15,6 +18,7 @@ import math
 import time
 
 import numpy as np
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 from trajectory_msgs.msg import JointTrajectoryPoint
@@ -43,6 +47,7 @@ class TrajectoryGeneratorNode(AirHockeyNode):
         self.running: JointTrajectory | None = None
         self.trajectory_pub = self.create_publisher(JointTrajectoryMsg, "joint_trajectory", 10)
         self.status_pub = self.create_publisher(TrajectoryStatus, "trajectory_status", 10)
+        self.sync_pub = self.create_publisher(Clock, "~/sim_sync", 10)
         self.create_subscription(JointState, "joint_states", self.on_joint_state, 10)
         self.create_subscription(HitCommand, "hit_command", self.on_command, 10)
 
@@ -59,9 +64,21 @@ class TrajectoryGeneratorNode(AirHockeyNode):
                                         f"{list(joints)})", throttle_duration_sec=5.0)
             elif np.all(np.isfinite(q)) and np.all(np.isfinite(dq)):
                 self.measured = ArmState(to_seconds(msg.header.stamp), q, dq)
+                self.check_tracking(self.measured)
         except (TypeError, ValueError) as exc:
             self.get_logger().error(f"joint_states: message ignored ({type(exc).__name__}: {exc})",
                                     throttle_duration_sec=5.0)
+        self.sync_pub.publish(Clock(clock=to_stamp(self.now_seconds())))
+
+    def check_tracking(self, measured: ArmState) -> None:
+        """Drop the running plan when the arm is not where it says (reset, stopped, collided)."""
+        if self.running is None or measured.t > self.running.start + self.running.duration:
+            return
+        error = float(np.max(np.abs(self.running.sample(measured.t)[0] - measured.q)))
+        if error > self.params["max_tracking_error"]:
+            self.get_logger().warn(f"joint_states: the arm is {error:.2f} rad from the running plan (reset?); "
+                                   "the next motion starts from the measured state")
+            self.running = None
 
     def start_state(self, now: float) -> ArmState | None:
         """Where the new motion starts: the running plan's state ``planning_delay`` ahead, or the measured

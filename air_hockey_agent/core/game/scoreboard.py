@@ -18,8 +18,8 @@ FAULT_EVENTS = {EVENT_PUCK_OUT: "puck_out", EVENT_PUCK_STUCK: "puck_stuck", EVEN
 def fault_key(event: int, reason: str) -> str:
     """A stable name for a referee event's reason (its numbers dropped), e.g.
     ``robot_fault: iiwa_front's mallet crossed the centre line``."""
-    text = re.sub(r"\s*\([^)]*\)", "", reason)          # "(0.123 m)" details
-    text = re.sub(r"\bat \([^)]*\) m\b", "", text)
+    text = re.sub(r"\s*at \([^)]*\) m\b", "", reason)   # "at (x, y) m"
+    text = re.sub(r"\s*\([^)]*\)", "", text)             # "(0.123 m)" details
     text = re.sub(r"\s+", " ", text).strip()
     return f"{FAULT_EVENTS[event]}: {text}"
 

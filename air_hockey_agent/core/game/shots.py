@@ -6,7 +6,10 @@ spin a sliding impact gives (thesis eq. 3.2-3.4): fig. 5.8 of the thesis shows t
 every candidate is aimed by solving "the predicted puck reaches the opponent's goal line at y = 0" for
 the hit direction (secant iterations on the model's prediction, Routh impacts and spin included),
 with the hit speed the arm allows along that direction, and the candidates are ranked by the
-probability that the puck enters the goal when the direction is off by ``aim_noise``.
+probability that the puck enters the goal when the direction is off by ``aim_noise``, scaled down by
+``guarded_factor`` when the puck passes the opponent's defend line within a mallet's reach of its ready
+point (the opponent runs the same agent, so its mallet waits there; a shot straight at the goal centre
+ends on it).
 
 Own frame: x toward the opponent; the opponent's goal line is x = +L/2.
 """
@@ -26,7 +29,8 @@ VARIANTS = ("straight", "left_bank", "right_bank")  # left: off the y = +W/2 rim
 SECANT_ITERATIONS = 4
 FIRST_STEP = 0.02      # [rad] second secant point
 MAX_STEP = 0.15        # [rad] largest secant step
-LINE_INSET = 1e-4      # [m] the goal line is sampled this far in front of the short rim
+HALVINGS = 2           # step halvings when a secant step leaves the shots that reach the goal line
+LINE_INSET = 0.01      # [m] the goal line is sampled this far in front of the short rim (in free flight)
 NO_Q = np.zeros(6)
 
 
@@ -64,6 +68,8 @@ class ShotPredictor:
         table = model.table
         self.line = table.length / 2 - table.puck_radius - LINE_INSET
         self.mouth = table.goal_mouth
+        self.defend_line = table.length / 2 - settings.defend_line   # the opponent's, in our frame
+        self.guard_y = -settings.ready_point[1]  # where the opponent's mallet waits (the same agent's ready point)
 
     # --- one candidate ---------------------------------------------------------------------------
     def _evaluate(self, puck: np.ndarray, angle: float, speed: float | None) -> tuple | None:
@@ -77,11 +83,12 @@ class ShotPredictor:
         v = min(top * self.s.hit_speed_fraction, self.s.max_hit_speed) if speed is None else min(speed, top)
         vp = puck_after_hit(puck[2:4], v * d, d, self.s.mallet_restitution)
         state = np.array([puck[0], puck[1], vp[0], vp[1], 0.0, puck[5]])
-        crossing = predict_fast(self.model, state, None, self.s.shot_horizon, self.dt, NO_Q,
-                                lines=(self.line,)).crossings.get(self.line)
+        crossings = predict_fast(self.model, state, None, self.s.shot_horizon, self.dt, NO_Q,
+                                 lines=(self.line, self.defend_line)).crossings
+        crossing, guard = crossings.get(self.line), crossings.get(self.defend_line)
         if crossing is None:
             return None
-        return crossing.y, crossing.time, hit, v, vp
+        return crossing.y, crossing.time, hit, v, vp, (crossing.y if guard is None else guard.y)
 
     def aim(self, puck: np.ndarray, variant: str, speed: float | None = None) -> Shot | None:
         """The hit that sends ``puck`` (own-frame state, 6) into the goal centre by ``variant``: secant
@@ -104,13 +111,20 @@ class ShotPredictor:
                 break
             b = b + step
             rb = self._evaluate(puck, b, speed)
+            for _ in range(HALVINGS):  # stepped off the shots that reach the line: come back halfway
+                if rb is not None:
+                    break
+                b = 0.5 * (a + b)
+                rb = self._evaluate(puck, b, speed)
         best = [(angle, res) for angle, res in ((a, r), (b, rb)) if res is not None]
         if slope is None or not best:
             return None
-        angle, (goal_y, arrival, hit, v, vp) = min(best, key=lambda item: abs(item[1][0]))
+        angle, (goal_y, arrival, hit, v, vp, guard_y) = min(best, key=lambda item: abs(item[1][0]))
         spread = max(abs(slope) * self.s.aim_noise, 1e-9)
         edge = self.mouth - self.s.goal_aim_margin
         success = _normal_cdf((edge - goal_y) / spread) - _normal_cdf((-edge - goal_y) / spread)
+        if abs(guard_y - self.guard_y) < self.s.contact_distance + self.s.guard_margin:
+            success *= self.s.guarded_factor  # straight into the opponent's waiting mallet
         return Shot(variant, np.array([math.cos(angle), math.sin(angle)]), hit, v, vp, goal_y, arrival, success)
 
     def best(self, puck: np.ndarray, variants: tuple[str, ...] = VARIANTS, speed: float | None = None,

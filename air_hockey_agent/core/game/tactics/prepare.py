@@ -16,7 +16,7 @@ import numpy as np
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import PREPARE, Context, Proposal, Tactic
 
-TURNS = (0.0, 0.3, -0.3, 0.6, -0.6)  # [rad] direction changes tried in order
+TURNS = (0.0, 0.3, -0.3, 0.6, -0.6, 0.9, -0.9, 1.2, -1.2)  # [rad] direction changes tried in order
 
 
 def _rotate(v: np.ndarray, angle: float) -> np.ndarray:

@@ -38,6 +38,8 @@ class TacticsSettings:
     prepare_speed: tuple[float, float]
     mallet_restitution: float
     aim_noise: float
+    guard_margin: float
+    guarded_factor: float
     shot_horizon: float
     goal_aim_margin: float
     resend_distance: float

@@ -1,0 +1,261 @@
+"""Tactics layer (ROS-free): situations, shots, the fastest-hit table and the state machine (thesis 4.6)."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.agent_params import load_agent_params, puck_model_for_tactics
+from air_hockey_agent.core.game.arm_reach import ArmReach
+from air_hockey_agent.core.game.shots import ShotPredictor, puck_after_hit
+from air_hockey_agent.core.game.situation import build_situation, to_own_frame
+from air_hockey_agent.core.game.speed_map import SpeedMap
+from air_hockey_agent.core.game.tactics.base import CUT, HOME, INIT, PREPARE, READY, REPEL, SMASH
+from air_hockey_agent.core.game.tactics.selector import PAUSED, RUNNING, STOPPED, TOO_FAST, TOO_LATE, TacticsSelector
+from air_hockey_agent.core.game.tactics.settings import TacticsSettings
+from air_hockey_agent.core.motion.region import Region
+from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise
+
+DT = 1.0 / 120.0
+TOP_SPEED = 2.0  # [m/s] a flat fastest-hit table: the state machine's tests do not depend on the arm
+BASE = (-1.504, 0.0)
+
+
+@pytest.fixture(scope="module")
+def settings():
+    return TacticsSettings.from_params(load_agent_params())
+
+
+@pytest.fixture(scope="module")
+def model():
+    return puck_model_for_tactics()
+
+
+def flat_reach(settings) -> ArmReach:
+    t = settings.table
+    region = Region.for_table(t.length, t.width, settings.mallet_radius, 0.02, BASE, 1.30)
+    xs, ys, angles = np.linspace(-1.0, 0.0, 5), np.linspace(-0.6, 0.6, 5), np.linspace(-math.pi / 2, math.pi / 2, 5)
+    return ArmReach(region, 0.12, 0.06, 5.0, 0.26, SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)))
+
+
+@pytest.fixture
+def selector(settings, model):
+    reach = flat_reach(settings)
+    return TacticsSelector(settings, reach, ShotPredictor(model, settings, DT, reach.max_speed))
+
+
+def situation(model, state, t0=0.0, robot="iiwa_front", horizon=1.0):
+    """What the tracker would publish for a table-frame ``state``: its own model's prediction."""
+    pred = predict_fast(model, np.asarray(state, float), None, horizon, DT, np.zeros(6), sample_every=6)
+    times = [t0 + t for t, _, _ in pred.samples]
+    states = np.array([s for _, s, _ in pred.samples])
+    return build_situation(robot, t0, state, times, states, [(t0 + t, x, y) for t, _, x, y, _ in pred.impacts])
+
+
+# --- building blocks --------------------------------------------------------------------------------
+def test_own_frame_of_the_back_robot_is_the_table_turned_by_pi():
+    s = to_own_frame(np.array([0.5, -0.2, 1.0, 0.3, 0.1, 2.0]), "iiwa_back")
+    np.testing.assert_allclose(s, [-0.5, 0.2, -1.0, -0.3, 0.1 - math.pi, 2.0])
+    np.testing.assert_allclose(to_own_frame(np.array([0.5, -0.2, 1, 0.3, 0.1, 2]), "iiwa_front"), [0.5, -0.2, 1, 0.3, 0.1, 2])
+
+
+def test_line_crossing_matches_straight_flight(model):
+    sit = situation(model, [0.3, 0.1, -2.0, -0.2, 0.0, 0.0])
+    c = sit.crossing(-0.5)
+    # closed form of the damped flight: x(t) = x0 + v0 (1 - exp(-d t)) / d (friction ~ 0)
+    d = model.params.damping
+    t = -math.log(1.0 - 0.8 * d / 2.0) / d
+    assert c is not None and c.impacts_before == 0
+    assert c.time == pytest.approx(t, abs=2e-3)
+    assert c.y == pytest.approx(0.1 - 0.1 * 0.8, abs=2e-3)
+
+
+def test_mallet_impact_reverses_the_relative_normal_velocity():
+    n = np.array([1.0, 0.0])
+    v = puck_after_hit(np.array([-1.0, 0.5]), np.array([1.0, 0.0]), n, 1.0)
+    np.testing.assert_allclose(v, [3.0, 0.5])  # elastic: relative normal speed 2 -> -2, tangential kept
+    np.testing.assert_allclose(puck_after_hit(np.array([1.0, 0.0]), np.zeros(2), n, 0.8), [1.0, 0.0])  # separating
+
+
+def test_speed_map_interpolates_and_marks_unreachable_cells():
+    xs, ys, angles = [0.0, 1.0], [0.0, 1.0], [-1.0, 1.0]
+    table = np.array([[[1.0, 2.0], [3.0, 4.0]], [[5.0, 6.0], [7.0, 8.0]]])
+    m = SpeedMap(xs, ys, angles, table)
+    # trilinear: value = 1 + 4 x + 2 y + (a + 1) / 2
+    assert m.max_speed((0.5, 0.25), (math.cos(0.0), math.sin(0.0))) == pytest.approx(1 + 2 + 0.5 + 0.5)
+    table[1, 1, 1] = 0.0
+    assert SpeedMap(xs, ys, angles, table).max_speed((0.9, 0.9), (math.cos(0.9), math.sin(0.9))) == 0.0
+
+
+def test_speed_map_agrees_with_the_planners_search():
+    from air_hockey_agent.core.motion.hit_config import best_hit_configuration
+    from air_hockey_agent.core.motion.ik import solve_ik
+    from air_hockey_agent.motion_params import build_planner, load_motion_params
+    planner = build_planner(load_motion_params(), "iiwa_front")
+    table = SpeedMap.build(planner, (6, 5, 7))
+    s, rng = planner.s, np.random.default_rng(3)
+    checked = 0
+    for _ in range(20):
+        p = np.array([rng.uniform(-0.75, -0.35), rng.uniform(-0.3, 0.3)])
+        a = rng.uniform(-1.0, 1.0)
+        d = np.array([math.cos(a), math.sin(a)])
+        ik = solve_ik(planner.kin, planner.limits, np.array([*p, s.height]), s.reference, s.reference,
+                      s.ik_iterations, s.ik_tolerance)
+        looked_up = table.max_speed(p, d)
+        if not ik.ok or looked_up == 0.0:
+            continue
+        exact = best_hit_configuration(planner.kin, planner.limits, ik.q, d, s.ik_tolerance, s.hit_posture_range).max_speed
+        assert looked_up == pytest.approx(exact, rel=0.2)
+        checked += 1
+    assert checked >= 10
+
+
+# --- shots -----------------------------------------------------------------------------------------
+@pytest.mark.parametrize("variant", ["straight", "left_bank", "right_bank"])
+def test_aimed_shot_enters_the_goal_by_the_stepwise_model(variant, settings, model):
+    shots = ShotPredictor(model, settings, DT, lambda p, d: TOP_SPEED)
+    puck = np.array([-0.5, 0.1, 0.0, 0.0, 0.0, 0.0])
+    shot = shots.aim(puck, variant)
+    assert shot is not None and abs(shot.goal_y) < 0.01
+    # independent check: the step-by-step reference predictor from the post-hit state
+    state = np.array([puck[0], puck[1], *shot.puck_velocity, 0.0, 0.0])
+    pred = predict_stepwise(model, state, np.eye(6), shot.arrival + 0.1, DT, np.zeros((6, 6)), lines=(shots.line,))
+    assert abs(pred.crossings[shots.line].y) < 0.01
+    walls = {w for t, w, x, y, s in pred.impacts if t < shot.arrival}
+    assert walls == {"straight": set(), "left_bank": {2}, "right_bank": {0}}[variant]
+
+
+def test_bank_shot_corrects_the_reflection_law(settings, model):
+    """The reflection law (S) ignores restitution and rim friction; aimed with the model the goal is hit."""
+    shots = ShotPredictor(model, settings, DT, lambda p, d: TOP_SPEED)
+    puck = np.array([-0.6, -0.2, 0.0, 0.0, 0.0, 0.0])
+    y_lim = model.table.y_limit
+    mirror = math.atan2(2 * y_lim + 0.2, shots.line + 0.6)
+    naive = shots._evaluate(puck, mirror, None)
+    aimed = shots.aim(puck, "left_bank")
+    assert abs(naive[0]) > 0.02   # the reflection law misses the centre by centimetres...
+    assert abs(aimed.goal_y) < 0.005  # ...the model-aimed shot does not
+
+
+def test_shot_in_the_pybullet_table_enters_the_goal(settings, model):
+    """Against another implementation of the physics: the simulated table (pybullet, its own rim contacts)."""
+    from dataclasses import replace
+
+    from air_hockey_agent.sim.params import load_sim_params
+    from air_hockey_agent.sim.world import SimSettings, TableWorld, simulate_shot
+    sim = SimSettings.from_params(load_sim_params())
+    world = TableWorld(replace(sim, robot_bases={}))
+    try:
+        shots = ShotPredictor(model, settings, DT, lambda p, d: TOP_SPEED)
+        for variant in ("straight", "left_bank", "right_bank"):
+            puck = np.array([-0.45, 0.15, 0.0, 0.0, 0.0, 0.0])
+            shot = shots.aim(puck, variant)
+            _, states = simulate_shot(world, [puck[0], puck[1], *shot.puck_velocity, 0.0, 0.0], shot.arrival + 0.3)
+            crossed = states[states[:, 0] > model.table.length / 2 - 0.01]
+            assert len(crossed), variant
+            assert abs(crossed[0, 1]) < model.table.goal_mouth, variant
+    finally:
+        world.close()
+
+
+# --- the state machine (thesis 4.6 situations) ---------------------------------------------------------
+def test_static_puck_in_the_smash_area_is_smashed_at_the_goal(selector, model, settings):
+    d = selector.step(0.0, RUNNING, situation(model, [-0.5, 0.1, 0, 0, 0, 0]))
+    assert d.tactic == SMASH and d.command is not None
+    c = d.command
+    assert np.linalg.norm(c.velocity) > 0.5 and c.time >= settings.smash_lead_time
+    direction = c.velocity / np.linalg.norm(c.velocity)
+    np.testing.assert_allclose(c.point + direction * settings.contact_distance, [-0.5, 0.1], atol=1e-6)
+
+
+def test_static_puck_near_the_goal_is_prepared_toward_the_smash_area(selector, model, settings):
+    d = selector.step(0.0, RUNNING, situation(model, [-0.76, 0.25, 0, 0, 0, 0]))  # in front of the goal
+    assert d.tactic == PREPARE and d.command is not None
+    v = d.command.velocity
+    assert v[1] < 0.0 and settings.prepare_speed[0] <= np.linalg.norm(v) <= settings.prepare_speed[1]
+
+
+def test_puck_straight_at_the_goal_is_repelled_toward_the_opponent(selector, model):
+    d = selector.step(0.0, RUNNING, situation(model, [0.6, 0.05, -1.8, -0.05, 0, 0]))
+    assert d.tactic == REPEL and d.command is not None and d.command.velocity[0] > 0.5
+
+
+def test_banked_puck_is_cut_before_it_reaches_the_defend_line(selector, model, settings):
+    sit = situation(model, [0.2, -0.1, -1.5, -1.6, 0, 0])
+    c = sit.crossing(settings.defend_x)
+    assert c is not None and c.impacts_before >= 1
+    d = selector.step(0.0, RUNNING, sit)
+    assert d.tactic == CUT and np.all(d.command.velocity == 0.0) and d.command.time < c.time
+
+
+def test_no_defence_is_planned_with_too_little_time(selector, model, settings):
+    sit = situation(model, [-0.55, 0.0, -2.0, 0.3, 0, 0])  # crosses the defend line in ~0.12 s
+    d = selector.step(0.0, RUNNING, sit)
+    assert d.tactic not in (CUT, REPEL)
+
+
+def test_puck_leaving_on_the_opponents_half_means_ready(selector, model, settings):
+    d = selector.step(0.0, RUNNING, situation(model, [0.4, 0.0, 1.0, 0.2, 0, 0]))
+    assert d.tactic == READY
+    np.testing.assert_allclose(d.command.point, settings.point(settings.ready_point))
+
+
+def test_the_back_robot_plays_in_its_own_frame(selector, model):
+    d = selector.step(0.0, RUNNING, situation(model, [0.5, -0.1, 0, 0, 0, 0], robot="iiwa_back"))
+    assert d.tactic == SMASH  # (0.5, -0.1) in the table is (-0.5, 0.1) on the back robot's own half
+
+
+def test_referee_commands_are_obeyed(selector, model, settings):
+    sit = situation(model, [-0.5, 0.1, 0, 0, 0, 0])
+    d = selector.step(0.0, STOPPED, sit)
+    assert d.tactic == INIT and d.command is None
+    d = selector.step(0.01, PAUSED, sit)
+    assert d.tactic == HOME and d.command is not None
+    np.testing.assert_allclose(d.command.point, settings.point(settings.home_point))
+    assert selector.step(0.02, RUNNING, sit).tactic == SMASH
+
+
+def test_forced_tactic_stays_until_released(selector, model):
+    sit = situation(model, [-0.5, 0.1, 0, 0, 0, 0])
+    selector.force(CUT)
+    for k in range(5):
+        d = selector.step(0.01 * k, RUNNING, sit)
+        assert d.tactic == CUT and d.forced and d.command is None  # waits for a puck to cut
+    selector.force(None)
+    assert selector.step(0.1, RUNNING, sit).tactic == SMASH
+    with pytest.raises(ValueError):
+        selector.force(42)
+
+
+def test_accepted_hit_is_kept_until_the_prediction_moves(selector, model):
+    sit = situation(model, [-0.5, 0.1, 0, 0, 0, 0])
+    first = selector.step(0.0, RUNNING, sit)
+    selector.on_status(0.0, 0, 3.0, 0.01)
+    again = selector.step(0.02, RUNNING, sit)
+    assert again.tactic == SMASH and again.command is None  # committed: nothing re-sent
+    moved = situation(model, [-0.4, -0.2, 0, 0, 0, 0], t0=0.03)
+    new = selector.step(0.03, RUNNING, moved)
+    assert new.tactic == SMASH and new.command is not None  # no lock: re-planned at once
+    assert not np.allclose(new.command.point, first.command.point)
+
+
+def test_switches_as_soon_as_the_situation_changes(selector, model):
+    sit = situation(model, [-0.5, 0.1, 0, 0, 0, 0])
+    selector.step(0.0, RUNNING, sit)
+    selector.on_status(0.0, 0, 3.0, 0.01)
+    attacked = situation(model, [0.6, 0.05, -1.8, -0.05, 0, 0], t0=0.05)  # (a new puck state, e.g. after a reset)
+    assert selector.step(0.05, RUNNING, attacked).tactic == REPEL
+
+
+def test_planner_answers_steer_the_next_command(selector, model):
+    sit = situation(model, [-0.5, 0.1, 0, 0, 0, 0])
+    first = selector.step(0.0, RUNNING, sit).command
+    selector.on_status(0.0, TOO_FAST, 1.0, 0.01)
+    capped = selector.step(0.02, RUNNING, sit).command
+    assert capped is not None and np.linalg.norm(capped.velocity) <= 0.95 * 1.0 + 1e-9
+    selector.on_status(0.02, TOO_LATE, math.nan, 0.03)
+    later = selector.step(0.04, RUNNING, sit).command
+    assert later.time - 0.04 > first.time - 0.0 + 0.1
+    selector.on_status(0.04, 4, math.nan, 0.05)  # unreachable: smash blocked for retry_delay
+    assert selector.step(0.06, RUNNING, sit).tactic != SMASH
