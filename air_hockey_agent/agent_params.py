@@ -47,6 +47,11 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("resend_time", float, "[s] hit time change that is sent again", 0.0, 1.0),
     ParamSpec("resend_speed", float, "[m/s] hit velocity change that is sent again", 0.0, 5.0),
     ParamSpec("retry_delay", float, "[s] wait after a refused command", 0.0, 5.0),
+    ParamSpec("max_lead_extra", float, "[s] largest lead time added after 'too late'", 0.0, 10.0),
+    ParamSpec("limits_slowdown", float, "[-] speed factor after a joint-limit refusal", 0.1, 1.0),
+    ParamSpec("cut_arrive_early", float, "[s] a Cut's mallet stops this long before the puck arrives", 0.0, 1.0),
+    ParamSpec("reach_time_margin", float, "[-] multiple of the shortest reach time given to a reach", 1.0, 10.0),
+    ParamSpec("stale_estimate", float, "[s] no estimate for this long: puck unseen", 0.01, 60.0),
     ParamSpec("settle_time", float, "[s] time after a hit before re-deciding", 0.0, 5.0),
     ParamSpec("speed_map_grid", list, "points along depth, along y, hit directions of the fastest-hit table",
               2, 100, 3),
@@ -83,7 +88,7 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
     speeds = load_or_build(planner, motion, params["speed_map_grid"], log=log)
     s = planner.s
     reach = ArmReach(planner.region, s.run_up[0], s.follow_through[0], s.reach_acceleration,
-                     s.planning_delay + s.height_transition, speeds)
+                     s.planning_delay + s.height_transition, params["reach_time_margin"], speeds)
     settings = TacticsSettings.from_params(params)
     dt = 1.0 / load_tracker_params()["frequency"]
     shots = ShotPredictor(puck_model_for_tactics(), settings, dt, reach.max_speed)

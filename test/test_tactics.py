@@ -36,7 +36,7 @@ def flat_reach(settings) -> ArmReach:
     t = settings.table
     region = Region.for_table(t.length, t.width, settings.mallet_radius, 0.02, BASE, 1.30)
     xs, ys, angles = np.linspace(-1.0, 0.0, 5), np.linspace(-0.6, 0.6, 5), np.linspace(-math.pi / 2, math.pi / 2, 5)
-    return ArmReach(region, 0.12, 0.06, 5.0, 0.26, SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)))
+    return ArmReach(region, 0.12, 0.06, 5.0, 0.26, 1.25, SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)))
 
 
 @pytest.fixture

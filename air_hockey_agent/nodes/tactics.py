@@ -32,8 +32,6 @@ from air_hockey_agent.nodes.messages import to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.sim.params import ROBOTS
 
-STALE_ESTIMATE = 0.5  # [s] without a puck estimate for this long the puck counts as unseen
-
 
 def _state(msg: PuckState) -> list[float]:
     return [msg.x, msg.y, msg.vx, msg.vy, msg.theta, msg.omega]
@@ -116,7 +114,7 @@ class TacticsNode(AirHockeyNode):
     # --- decisions ---------------------------------------------------------------------------------
     def on_tick(self) -> None:
         now = self.now_seconds()
-        situation = self.situation if now - self.last_estimate <= STALE_ESTIMATE else None
+        situation = self.situation if now - self.last_estimate <= self.params["stale_estimate"] else None
         decision = self.selector.step(now, self.status, situation, self.mallet)
         if decision.command is not None:
             self.publish_command(decision.command, now)

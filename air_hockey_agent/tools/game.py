@@ -48,7 +48,11 @@ GAME_PARAMS = (
 
 
 class GameError(Exception):
-    """The game cannot run (bad argument, node failure); the message is one line."""
+    """The game cannot run; the message is one line. ``code``: 2 for a bad argument, 1 for a failure."""
+
+    def __init__(self, message: str, code: int = 1) -> None:
+        super().__init__(message)
+        self.code = code
 
 
 def game_processes(gui: bool, real_time_factor: float, seed: int) -> list[ProcessSpec]:
@@ -90,21 +94,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def _check_args(args: argparse.Namespace) -> None:
     if not (math.isfinite(args.duration) and args.duration > 0.0):
-        raise GameError(f"--duration must be a positive number of seconds, got {args.duration}")
+        raise GameError(f"--duration must be a positive number of seconds, got {args.duration}", 2)
     if args.goals < 0:
-        raise GameError(f"--goals must be 0 (off) or more, got {args.goals}")
+        raise GameError(f"--goals must be 0 (off) or more, got {args.goals}", 2)
     if args.real_time_factor is not None and not (math.isfinite(args.real_time_factor) and args.real_time_factor >= 0):
-        raise GameError(f"--real-time-factor must be 0 or more, got {args.real_time_factor}")
+        raise GameError(f"--real-time-factor must be 0 or more, got {args.real_time_factor}", 2)
     if not 0 <= args.seed < 2 ** 31:
-        raise GameError(f"--seed must be in 0..{2 ** 31 - 1}, got {args.seed}")
+        raise GameError(f"--seed must be in 0..{2 ** 31 - 1}, got {args.seed}", 2)
     if args.log is not None and not args.log.parent.is_dir():
-        raise GameError(f"--log {args.log}: directory {args.log.parent} does not exist")
+        raise GameError(f"--log {args.log}: directory {args.log.parent} does not exist", 2)
     if args.record is not None:
         bag = args.record.with_suffix("") if args.record.suffix == ".mcap" else args.record
         if bag.exists():
-            raise GameError(f"--record {args.record}: {bag} exists already, not overwriting")
+            raise GameError(f"--record {args.record}: {bag} exists already, not overwriting", 2)
         if not bag.parent.is_dir():
-            raise GameError(f"--record {args.record}: directory {bag.parent} does not exist")
+            raise GameError(f"--record {args.record}: directory {bag.parent} does not exist", 2)
 
 
 def _prepare_speed_map(say) -> None:
@@ -129,7 +133,7 @@ def run(args: argparse.Namespace) -> int:
             result = _play(args, settings, env, rtf, say)
     except GameError as exc:
         print(f"air-hockey game: error: {exc}", file=sys.stderr)
-        return 2 if "must" in str(exc) or "--record" in str(exc) else 1
+        return exc.code
     except KeyboardInterrupt:
         print("\n[game] interrupted", file=sys.stderr)
         return 130

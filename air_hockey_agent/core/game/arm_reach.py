@@ -11,8 +11,6 @@ import numpy as np
 from air_hockey_agent.core.game.speed_map import SpeedMap
 from air_hockey_agent.core.motion.region import Region
 
-REACH_TIME_MARGIN = 1.25  # [-] reach time = this x the shortest cubic time (the planner's tracking settles after it)
-
 
 @dataclass(frozen=True)
 class ArmReach:
@@ -21,6 +19,7 @@ class ArmReach:
     follow_through: float     # [m] shortest follow-through it needs ahead of it
     reach_acceleration: float  # [m/s^2] task acceleration of reach-and-stop motions
     min_reach_time: float     # [s] shortest time a reach is given: the planner's delay plus its height transition
+    reach_time_margin: float  # [-] multiple of the shortest cubic time given to a reach
     speeds: SpeedMap
 
     def can_hit(self, point: np.ndarray, direction: np.ndarray) -> bool:
@@ -50,4 +49,4 @@ class ArmReach:
         acceleration: T = sqrt(6 D / a)), with a margin, and never less than ``min_reach_time``; 0.5 m
         when the start is unknown."""
         distance = 0.5 if start is None else float(np.hypot(*(np.asarray(target) - np.asarray(start))))
-        return max(self.min_reach_time, REACH_TIME_MARGIN * math.sqrt(6.0 * distance / self.reach_acceleration))
+        return max(self.min_reach_time, self.reach_time_margin * math.sqrt(6.0 * distance / self.reach_acceleration))

@@ -14,8 +14,6 @@ import numpy as np
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import CUT, Context, Proposal, Tactic
 
-ARRIVE_EARLY = 0.05  # [s] the mallet stops this long before the puck reaches the line
-
 
 class Cut(Tactic):
     tactic = CUT
@@ -35,4 +33,4 @@ class Cut(Tactic):
         point = ctx.reach.clamp(puck + n / np.linalg.norm(n) * st.contact_distance)
         reason = (f"cut: puck crosses the defend line at y {c.y:+.2f} m in {c.time - ctx.now:.2f} s "
                   f"after {c.impacts_before} rim impact(s)")
-        return Proposal(CUT, point, np.zeros(2), c.time - ARRIVE_EARLY, reason, puck=puck)
+        return Proposal(CUT, point, np.zeros(2), c.time - st.cut_arrive_early, reason, puck=puck)

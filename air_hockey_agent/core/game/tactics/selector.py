@@ -12,7 +12,7 @@ Every decision period the selector looks at the referee's status and the tracker
   at the goal, no rim impact), **Cut** (any other approach with time to get there), **Prepare** (puck at
   rest outside the smash area), else **Ready**.
 * The trajectory generator's answer steers the next try: "faster than the arm allows" caps the speed
-  at the reported maximum, "beyond the joint limits" slows a self-timed hit down by ``LIMITS_SLOWDOWN``,
+  at the reported maximum, "beyond the joint limits" slows a self-timed hit down by ``limits_slowdown``,
   "too late" adds lead time to tactics that choose their own hit time, and
   any other refusal (or "too late" for a puck that will not wait) blocks that tactic for
   ``retry_delay`` so the next one is tried. A hit is only committed to once the planner accepted it.
@@ -41,8 +41,6 @@ from air_hockey_agent.core.game.tactics.smash import Smash
 
 STOPPED, PAUSED, RUNNING = 0, 1, 2           # air_hockey_msgs/GameStatus.STATUS_*
 ACCEPTED, TOO_LATE, TOO_FAST, LIMITS = 0, 3, 5, 6  # air_hockey_msgs/TrajectoryStatus.OUTCOME_*
-LIMITS_SLOWDOWN = 0.8                         # a hit refused for joint limits is tried again this much slower
-MAX_LEAD_EXTRA = 1.0                          # [s] "too late" never pushes a self-timed hit further than this
 
 
 @dataclass
@@ -103,9 +101,9 @@ class TacticsSelector:
         if outcome == TOO_FAST and math.isfinite(max_speed) and max_speed > 0.0:
             self.speed_cap = max_speed * self.s.speed_cap_fraction
         elif outcome == LIMITS and proposal.is_hit and proposal.flexible_time:
-            self.speed_cap = LIMITS_SLOWDOWN * float(np.linalg.norm(proposal.velocity))
-        elif outcome == TOO_LATE and proposal.flexible_time and self.lead_extra < MAX_LEAD_EXTRA:
-            self.lead_extra = min(self.lead_extra + self.s.lead_time_step, MAX_LEAD_EXTRA)
+            self.speed_cap = self.s.limits_slowdown * float(np.linalg.norm(proposal.velocity))
+        elif outcome == TOO_LATE and proposal.flexible_time and self.lead_extra < self.s.max_lead_extra:
+            self.lead_extra = min(self.lead_extra + self.s.lead_time_step, self.s.max_lead_extra)
         else:
             self.blocked[proposal.tactic] = now + self.s.retry_delay
         self.sent = None

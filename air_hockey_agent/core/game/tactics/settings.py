@@ -46,6 +46,11 @@ class TacticsSettings:
     resend_time: float
     resend_speed: float
     retry_delay: float
+    max_lead_extra: float
+    limits_slowdown: float
+    cut_arrive_early: float
+    reach_time_margin: float
+    stale_estimate: float
     settle_time: float
 
     @classmethod

@@ -1,0 +1,67 @@
+"""Hits from physics (sim contact events) and the game's tally (ROS-free)."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.game.referee import EVENT_GOAL_BACK, EVENT_PUCK_STUCK, EVENT_ROBOT_FAULT
+from air_hockey_agent.core.game.scoreboard import Scoreboard, fault_key
+from air_hockey_agent.sim.contacts import ContactLog
+
+
+def test_contact_is_reported_once_when_it_ends_with_the_puck_velocity_then():
+    log = ContactLog(merge_steps=3)
+    puck = [0.1, 0.2, 0.0, 0.0]
+    assert log.step(0.001, {"iiwa_front": True}, puck) == []
+    assert log.step(0.002, {"iiwa_front": False}, [0.1, 0.2, 1.0, 0.0]) == []
+    assert log.step(0.003, {"iiwa_front": True}, [0.1, 0.2, 1.5, 0.0]) == []   # a short gap: the same contact
+    ended = []
+    for k in range(3):
+        ended += log.step(0.004 + 0.001 * k, {"iiwa_front": False}, [0.11, 0.2, 2.0, 0.5])
+    assert len(ended) == 1
+    c = ended[0]
+    assert (c.robot, c.time, c.duration, c.x, c.y) == ("iiwa_front", 0.001, pytest.approx(0.002), 0.1, 0.2)
+    assert c.speed == pytest.approx(np.hypot(2.0, 0.5))
+
+
+def test_world_reports_a_mallet_hitting_the_puck():
+    """The pybullet table: a robot's mallet driven into the puck gives one contact event for that robot."""
+    from air_hockey_agent.sim.params import load_sim_params
+    from air_hockey_agent.sim.world import SimSettings, TableWorld
+    from air_hockey_agent.motion_params import build_planner, load_motion_params
+    from air_hockey_agent.tools.bench_planner import ready_state
+    world = TableWorld(SimSettings.from_params(load_sim_params()))
+    try:
+        world.set_joint_positions("iiwa_front", ready_state(build_planner(load_motion_params(), "iiwa_front")).q)
+        world.step(20)  # the mallet at the playing height (home is raised above the puck)
+        mallet = world.mallet_position("iiwa_front")
+        world.move_puck([mallet[0] + 0.085, mallet[1], -1.0, 0.0, 0.0, 0.0])  # 5 mm away, sliding into it
+        world.take_contacts()
+        world.step(300)
+        contacts = world.take_contacts()
+        assert [c.robot for c in contacts] == ["iiwa_front"]
+        assert contacts[0].vx > 0.3  # bounced back off the (held) mallet
+    finally:
+        world.close()
+
+
+def test_scoreboard_counts_events_once_and_names_faults_without_numbers():
+    board = Scoreboard(("iiwa_front", "iiwa_back"))
+    reason = "iiwa_front's mallet at (-1.065, 0.030) m is in the rim"
+    board.on_status(0, 0, EVENT_ROBOT_FAULT, reason, 3.0)
+    board.on_status(0, 0, EVENT_ROBOT_FAULT, reason, 3.0)  # re-published status: same event
+    board.on_status(0, 1, EVENT_GOAL_BACK, "goal for iiwa_back", 9.0)
+    board.on_status(0, 1, EVENT_PUCK_STUCK, "iiwa_back kept the puck on its side for over 15 s", 30.0)
+    for robot, name in [("iiwa_front", "ready"), ("iiwa_front", "ready"), ("iiwa_front", "smash"),
+                        ("iiwa_front", "ready"), ("iiwa_back", "cut")]:
+        board.on_tactic(robot, name)
+    board.on_contact("iiwa_back")
+    board.on_clock(12.5)
+    r = board.result(None)
+    assert r["score"] == {"iiwa_front": 0, "iiwa_back": 1} and r["hits"] == {"iiwa_front": 0, "iiwa_back": 1}
+    assert r["faults"] == {"robot_fault: iiwa_front's mallet is in the rim": 1,
+                           "puck_stuck: iiwa_back kept the puck on its side for over 15 s": 1}
+    assert r["tactics"]["iiwa_front"] == {"ready": 2, "smash": 1}
+    assert board.robot_faults == 1 and r["duration_s"] == 12.5
+    assert fault_key(EVENT_ROBOT_FAULT, "iiwa_back's mallet crossed the centre line (0.071 m)") == \
+        "robot_fault: iiwa_back's mallet crossed the centre line"
