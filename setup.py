@@ -13,7 +13,7 @@ NODES = {
     "referee": "air_hockey_agent.nodes.referee:main",
     "table_sim": "air_hockey_agent.nodes.table_sim:main",
     "bag_player": "air_hockey_agent.nodes.bag_player:main",
-    "strategy_test": "air_hockey_agent.nodes.not_implemented:strategy_test",
+    "strategy_test": "air_hockey_agent.nodes.strategy_test:main",
     "prediction_optimizer": "air_hockey_agent.nodes.prediction_optimizer:main",
 }
 

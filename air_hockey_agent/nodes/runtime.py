@@ -20,7 +20,6 @@ from air_hockey_agent.params import ParameterFileError, ParameterValueError, Par
 from air_hockey_agent.paths import config_file
 
 EXIT_BAD_PARAMETERS = 2
-EXIT_NOT_IMPLEMENTED = 3
 READY_MARKER = "node ready:"  # logged once a node is constructed; the game launcher waits for it
 
 
@@ -134,20 +133,3 @@ def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int
             node.destroy_node()
         rclpy.try_shutdown()
     return 0
-
-
-def run_not_implemented(name: str, what: str, argv: Sequence[str] | None = None) -> int:
-    """Start a real rclpy node that reports it is not implemented yet and exits with code 3."""
-    argv = list(sys.argv if argv is None else argv)
-    if any(a in ("-h", "--help") for a in _user_args(argv)):
-        print(f"usage: {name} [-h] [--ros-args ...]\n\n{what}\n\nNOT IMPLEMENTED YET: this node only says so and exits "
-              f"with code {EXIT_NOT_IMPLEMENTED}.")
-        return 0
-    rclpy.init(args=argv)
-    try:
-        node = Node(name)
-        node.get_logger().error(f"{name} is not implemented yet ({what}); exiting with code {EXIT_NOT_IMPLEMENTED}")
-        node.destroy_node()
-    finally:
-        rclpy.try_shutdown()
-    return EXIT_NOT_IMPLEMENTED

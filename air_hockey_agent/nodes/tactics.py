@@ -104,7 +104,8 @@ class TacticsNode(AirHockeyNode):
 
     def on_force(self, request, response):
         try:
-            response.message = self.selector.force(int(request.tactic) if request.force else None)
+            response.message = self.selector.force(int(request.tactic) if request.force else None,
+                                                    request.variant if request.force else "")
             response.success = True
         except ValueError as exc:
             response.success, response.message = False, f"refused: {exc}"

@@ -8,6 +8,7 @@ import sys
 # Subcommand modules; each provides add_parser(subparsers) that sets `run` as the handler.
 TOOL_MODULES = (
     "air_hockey_agent.tools.game",
+    "air_hockey_agent.tools.strategy_test",
     "air_hockey_agent.tools.bench",
     "air_hockey_agent.tools.eval_prediction",
     "air_hockey_agent.tools.synth_bag",

@@ -49,6 +49,7 @@ class Context:
     mallet: np.ndarray | None = None  # [m] current mallet position (own frame), if known
     lead_extra: float = 0.0           # [s] added to flexible hit times after the planner said "too late"
     speed_cap: float = float("inf")   # [m/s] after the planner said "faster than the arm allows"
+    variant: str = ""                 # a forced Smash variant (strategy test); empty: the tactic chooses
 
 
 class Tactic:

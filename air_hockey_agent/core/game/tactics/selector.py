@@ -26,7 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from air_hockey_agent.core.game.arm_reach import ArmReach
-from air_hockey_agent.core.game.shots import ShotPredictor
+from air_hockey_agent.core.game.shots import VARIANTS, ShotPredictor
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import (CUT, HOME, INIT, NAMES, PREPARE, READY, REPEL, SMASH, Context,
                                                      Proposal, Tactic)
@@ -74,19 +74,25 @@ class TacticsSelector:
                  tactics: dict[int, Tactic] | None = None) -> None:
         self.s, self.reach, self.shots = settings, reach, shots
         self.tactics = tactics or default_tactics()
-        self.current, self.reason, self.forced = INIT, "game stopped", None
+        self.current, self.reason, self.forced, self.variant = INIT, "game stopped", None, ""
         self.sent: _Sent | None = None
         self.blocked: dict[int, float] = {}
         self.lead_extra, self.speed_cap = 0.0, math.inf
 
     # --- inputs ------------------------------------------------------------------------------------
-    def force(self, tactic: int | None) -> str:
-        """Force ``tactic`` (a ``TACTIC_*`` id) until released with None; returns what happened."""
+    def force(self, tactic: int | None, variant: str = "") -> str:
+        """Force ``tactic`` (a ``TACTIC_*`` id; for Smash optionally one ``variant`` of
+        :data:`~air_hockey_agent.core.game.shots.VARIANTS`) until released with None."""
         if tactic is not None and tactic not in self.tactics:
             raise ValueError(f"unknown tactic {tactic} (known: {', '.join(f'{k} {v}' for k, v in NAMES.items())})")
-        self.forced = tactic
+        if variant and (tactic != SMASH or variant not in VARIANTS):
+            raise ValueError(f"variant '{variant}' needs tactic smash and one of {', '.join(VARIANTS)}")
+        self.forced, self.variant = tactic, variant
         self.sent, self.blocked = None, {}
-        return f"tactic {NAMES[tactic]} forced" if tactic is not None else "released to the state machine"
+        self.lead_extra, self.speed_cap = 0.0, math.inf
+        if tactic is None:
+            return "released to the state machine"
+        return f"tactic {NAMES[tactic]} forced" + (f" ({variant})" if variant else "")
 
     def on_status(self, stamp: float, outcome: int, max_speed: float, now: float) -> None:
         """The trajectory generator's answer to the command sent at ``stamp``."""
@@ -121,7 +127,7 @@ class TacticsSelector:
             if self._committed(now, situation):
                 return Decision(self.current, self.reason, False, None, False)
             wanted = self.candidates(situation)
-        ctx = Context(now, self.s, self.reach, self.shots, mallet, self.lead_extra, self.speed_cap)
+        ctx = Context(now, self.s, self.reach, self.shots, mallet, self.lead_extra, self.speed_cap, self.variant)
         for tactic in wanted:
             if self.blocked.get(tactic, -math.inf) > now:
                 continue

@@ -12,6 +12,7 @@ import math
 
 import numpy as np
 
+from air_hockey_agent.core.game.shots import VARIANTS
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import SMASH, Context, Proposal, Tactic
 
@@ -45,9 +46,10 @@ class Smash(Tactic):
     def _shot(self, puck: np.ndarray, ctx: Context):
         cap = None if math.isinf(ctx.speed_cap) else ctx.speed_cap
         key = (round(puck[0] / KEY_POSITION), round(puck[1] / KEY_POSITION), round(puck[2] / KEY_VELOCITY),
-               round(puck[3] / KEY_VELOCITY), cap)
+               round(puck[3] / KEY_VELOCITY), cap, ctx.variant)
         if key not in self._cache:
             if len(self._cache) >= CACHE_SIZE:
                 self._cache.clear()
-            self._cache[key] = ctx.shots.best(puck, speed=cap)
+            variants = (ctx.variant,) if ctx.variant else VARIANTS
+            self._cache[key] = ctx.shots.best(puck, variants=variants, speed=cap)
         return self._cache[key]

@@ -1,0 +1,112 @@
+"""When a strategy-test trial ends and how it scored (thesis sec. 4.6 criteria), from the true puck
+states and the mallet-puck contacts the simulation reports. Table frame; the tested robot defends
+the goal at x = -L/2.
+
+* Smash (straight, left, right): success = a goal; the offset is the puck's y where it reaches the
+  opponent's goal line (its short rim when it misses).
+* Cut: success = hit, then at rest in the smash area; partial = hit and no goal conceded.
+* Prepare: success = at rest in the smash area; partial = at rest on the own half (success included);
+  crossing the centre line is a failure.
+* Repel: success = hit; also the puck's speed where it crosses the opponent's defend line, and goals.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import asdict, dataclass, field
+
+from air_hockey_agent.core.game.strategy.trials import Trial, TrialSettings
+
+CROSS_MARGIN = 0.005  # [m] the goal line is reached this close to the short rim (the puck's centre)
+
+
+@dataclass
+class TrialResult:
+    strategy: str
+    index: int
+    success: bool = False
+    partial: bool = False
+    hit: bool = False
+    goal: bool = False          # scored in the opponent's goal
+    conceded: bool = False      # the puck entered the own goal
+    offset: float | None = None         # [m] y at the opponent's goal line
+    defend_speed: float | None = None   # [m/s] speed at the opponent's defend line after the hit
+    rest: tuple | None = None           # [m] where the puck came to rest
+    reason: str = ""
+    duration: float = 0.0               # [s] simulated time of the trial
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+@dataclass
+class TrialWatcher:
+    """Feed it the true puck states and the tested robot's contacts of one trial; it says when the trial
+    is over (:attr:`done`) and scores it (:meth:`result`)."""
+
+    trial: Trial
+    s: TrialSettings
+    t0: float | None = None
+    done: bool = False
+    _result: TrialResult = field(init=False)
+    _last_hit: float | None = None
+    _crossed_centre: bool = False
+
+    def __post_init__(self) -> None:
+        self._result = TrialResult(self.trial.strategy, self.trial.index)
+
+    def contact(self, t: float) -> None:
+        if not self.done:
+            self._result.hit, self._last_hit = True, t
+
+    def state(self, t: float, x: float, y: float, vx: float, vy: float) -> None:
+        if self.done:
+            return
+        if self.t0 is None:
+            self.t0 = t
+        r, s, half = self._result, self.s, self.s.table.length / 2
+        r.duration = t - self.t0
+        if r.offset is None and x >= half - s.table.puck_radius - CROSS_MARGIN:
+            r.offset = y
+        if r.hit and r.defend_speed is None and x >= half - s.defend_line:
+            r.defend_speed = math.hypot(vx, vy)
+        if x > half:
+            return self._end("goal", goal=True)
+        if x < -half:
+            return self._end("conceded", conceded=True)
+        if x > 0.0 and not self._crossed_centre:
+            self._crossed_centre = True
+            if self.trial.strategy in ("prepare", "cut") and r.hit:
+                return self._end("crossed the centre line")
+        if math.hypot(vx, vy) < s.rest_speed and (r.hit or self.trial.strategy in ("cut", "repel")):
+            return self._end("at rest", rest=(x, y))
+        kind = self.trial.strategy
+        if (kind.startswith("smash") or kind == "repel") and r.hit and t - self._last_hit > s.after_hit:
+            return self._end(f"no goal {s.after_hit:g} s after the hit")
+        if r.duration > s.timeout:
+            return self._end(f"timeout after {s.timeout:g} s" + ("" if r.hit else " without a hit"))
+
+    def _end(self, reason: str, goal: bool = False, conceded: bool = False, rest: tuple | None = None) -> None:
+        r = self._result
+        r.reason, r.goal, r.conceded, r.rest = reason, goal, conceded, rest
+        self.done = True
+
+    def result(self) -> TrialResult:
+        return score(self.trial, self._result, self.s)
+
+
+def score(trial: Trial, r: TrialResult, s: TrialSettings) -> TrialResult:
+    """Apply the strategy's success criteria to an ended trial."""
+    in_area = r.rest is not None and s.in_smash_area(*r.rest)
+    own_half = r.rest is not None and r.rest[0] < 0.0
+    kind = trial.strategy
+    if kind.startswith("smash"):
+        r.success = r.goal
+    elif kind == "cut":
+        r.success = r.hit and in_area and not r.conceded
+        r.partial = r.hit and not r.conceded
+    elif kind == "prepare":
+        r.success = r.hit and in_area
+        r.partial = r.hit and own_half
+    elif kind == "repel":
+        r.success = r.hit
+    return r

@@ -1,0 +1,91 @@
+"""Initial puck states of strategy-test trials (thesis sec. 4.6), table frame, tested robot iiwa_front.
+
+A trial is (strategy, index); its initial state depends only on the seed, the strategy and the index,
+so a run gives the same trials whatever number of workers shares them.
+"""
+from __future__ import annotations
+
+import math
+import zlib
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+import numpy as np
+
+from air_hockey_agent.core.table import TableGeometry
+
+STRATEGIES = ("smash_straight", "smash_left", "smash_right", "cut", "prepare", "repel")
+FORCED = {"smash_straight": ("smash", "straight"), "smash_left": ("smash", "left_bank"),
+          "smash_right": ("smash", "right_bank"), "cut": ("cut", ""), "prepare": ("prepare", ""),
+          "repel": ("repel", "")}
+
+
+@dataclass(frozen=True)
+class TrialSettings:
+    table: TableGeometry
+    smash_depth: tuple[float, float]
+    smash_rim_margin: float
+    prepare_depth: tuple[float, float]
+    prepare_rim_margin: float
+    defend_line: float
+    start_y: float
+    shot_speed: float
+    cut_impact_x: tuple[float, float]
+    rest_speed: float
+    timeout: float
+    after_hit: float
+    settle: float
+
+    @classmethod
+    def from_params(cls, p: Mapping[str, Any]) -> "TrialSettings":
+        names = [f for f in cls.__dataclass_fields__ if f != "table"]
+        return cls(TableGeometry.from_params(p), **{n: tuple(p[n]) if isinstance(p[n], list) else p[n] for n in names})
+
+    def in_smash_area(self, x: float, y: float) -> bool:
+        depth = x + self.table.length / 2
+        return (self.smash_depth[0] <= depth <= self.smash_depth[1]
+                and abs(y) <= self.table.y_limit - self.smash_rim_margin)
+
+
+@dataclass(frozen=True)
+class Trial:
+    strategy: str
+    index: int
+    state: tuple  # (x, y, vx, vy, theta, omega), table frame
+
+    @property
+    def tactic(self) -> str:
+        return FORCED[self.strategy][0]
+
+    @property
+    def variant(self) -> str:
+        return FORCED[self.strategy][1]
+
+
+def make_trial(strategy: str, index: int, seed: int, s: TrialSettings) -> Trial:
+    if strategy not in FORCED:
+        raise ValueError(f"unknown strategy '{strategy}' (known: {', '.join(STRATEGIES)})")
+    rng = np.random.default_rng([seed, zlib.crc32(strategy.encode()), index])
+    t, half = s.table, s.table.length / 2
+    if strategy.startswith("smash"):
+        x = -half + rng.uniform(*s.smash_depth)
+        y = rng.uniform(-1, 1) * (t.y_limit - s.smash_rim_margin)
+        state = (x, y, 0.0, 0.0, 0.0, 0.0)
+    elif strategy == "prepare":
+        while True:
+            x = -half + rng.uniform(*s.prepare_depth)
+            y = rng.uniform(-1, 1) * (t.y_limit - s.prepare_rim_margin)
+            if not s.in_smash_area(x, y):
+                break
+        state = (x, y, 0.0, 0.0, 0.0, 0.0)
+    else:
+        x0, y0 = half - s.defend_line, rng.uniform(-s.start_y, s.start_y)
+        if strategy == "repel":
+            target = (-half, 0.0)
+        else:
+            side = 1.0 if rng.uniform() < 0.5 else -1.0
+            target = (rng.uniform(*s.cut_impact_x), side * t.y_limit)
+        d = np.array([target[0] - x0, target[1] - y0])
+        v = s.shot_speed * d / np.linalg.norm(d)
+        state = (x0, y0, float(v[0]), float(v[1]), 0.0, 0.0)
+    return Trial(strategy, index, tuple(float(v) for v in state))

@@ -1,0 +1,146 @@
+"""``strategy_test`` node: runs strategy-test trials against the agent of ``iiwa_front`` (thesis sec. 4.6).
+
+For each trial of the ``trials`` parameter ("strategy:index,..."; initial states from
+:mod:`air_hockey_agent.core.game.strategy.trials`): homes the robots (table_sim's ``/reset_robots``),
+forces the tactic through ``/iiwa_front/force_tactic`` (the agent's only test hook), sets the puck
+through ``/set_puck_state`` and follows ``/sim/puck_true_state`` and ``/sim/contacts`` until the trial
+ends (:class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher`). Each result is printed as
+one line ``TRIAL_RESULT {json}``; at the end ``STRATEGY_DONE`` and the node exits. It publishes a
+running ``/game_status`` (latched) so the tactics play; the opponent runs no agent and holds its home pose.
+"""
+from __future__ import annotations
+
+import json
+import sys
+import time
+
+import rclpy
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from std_srvs.srv import Trigger
+
+from air_hockey_msgs.msg import GameStatus, MalletContact, PuckState
+from air_hockey_msgs.srv import ForceTactic, SetPuckState
+from air_hockey_agent.core.game.strategy.scoring import TrialResult, TrialWatcher
+from air_hockey_agent.core.game.strategy.trials import TrialSettings, make_trial
+from air_hockey_agent.core.game.tactics.base import NAMES
+from air_hockey_agent.nodes.messages import to_seconds
+from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
+from air_hockey_agent.strategy_params import PARAM_FILES, STRATEGY_PARAMS
+
+ROBOT = "iiwa_front"
+TACTIC_IDS = {name: tactic for tactic, name in NAMES.items()}
+PARK = (0.6, 0.0)  # [m] where the puck waits between trials: the opponent's half, away from its mallet
+
+
+def parse_trials(text: str) -> list[tuple[str, int]]:
+    out = []
+    for item in filter(None, (t.strip() for t in text.split(","))):
+        name, _, index = item.partition(":")
+        if not index.isdigit():
+            raise ValueError(f"parameter 'trials': '{item}' is not 'strategy:index'")
+        out.append((name, int(index)))
+    return out
+
+
+class StrategyTestNode(AirHockeyNode):
+    NAME = "strategy_test"
+    DESCRIPTION = __doc__
+    PARAM_FILES = PARAM_FILES
+    PARAMS = STRATEGY_PARAMS
+
+    def __init__(self) -> None:
+        super().__init__()
+        p = self.params
+        self.settings = TrialSettings.from_params(p)
+        try:
+            self.queue = [make_trial(name, index, p["seed"], self.settings) for name, index in parse_trials(p["trials"])]
+        except ValueError as exc:
+            raise NodeStartupError(str(exc)) from exc
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        status = self.create_publisher(GameStatus, "/game_status", latched)
+        status.publish(GameStatus(status=GameStatus.STATUS_RUNNING))
+        self.reset_client = self.create_client(Trigger, "/reset_robots")
+        self.puck_client = self.create_client(SetPuckState, "/set_puck_state")
+        self.force_client = self.create_client(ForceTactic, f"/{ROBOT}/force_tactic")
+        self.create_subscription(PuckState, "/sim/puck_true_state", self.on_truth, 100)
+        self.create_subscription(MalletContact, "/sim/contacts", self.on_contact, 100)
+        self.watcher: TrialWatcher | None = None
+        self.phase, self.pending, self.phase_start, self.wall_start = "next", None, 0.0, time.monotonic()
+        self.create_timer(0.01, self.on_tick)
+
+    def now_seconds(self) -> float:
+        return self.get_clock().now().nanoseconds * 1e-9
+
+    # --- inputs --------------------------------------------------------------------------------
+    def on_truth(self, msg: PuckState) -> None:
+        if self.watcher is not None and self.phase == "run":
+            self.watcher.state(to_seconds(msg.header.stamp), msg.x, msg.y, msg.vx, msg.vy)
+
+    def on_contact(self, msg: MalletContact) -> None:
+        if self.watcher is not None and self.phase == "run" and msg.robot == ROBOT:
+            self.watcher.contact(to_seconds(msg.header.stamp))
+
+    # --- trial phases --------------------------------------------------------------------------
+    def call(self, client, request) -> None:
+        self.pending = client.call_async(request)
+
+    def on_tick(self) -> None:
+        if self.pending is not None and not self.pending.done():
+            if time.monotonic() - self.wall_start > self.params["wall_timeout"]:
+                self.finish_trial(f"no answer from a service within {self.params['wall_timeout']:g} s")
+            return
+        self.pending = None
+        now = self.now_seconds()
+        if self.phase == "next":
+            clients = (self.reset_client, self.puck_client, self.force_client)
+            if not all(c.service_is_ready() for c in clients):  # a request sent before the server is up is lost
+                if time.monotonic() - self.wall_start > self.params["wall_timeout"]:
+                    missing = [c.srv_name for c in clients if not c.service_is_ready()]
+                    self.get_logger().error(f"services not available: {', '.join(missing)}")
+                    rclpy.try_shutdown()
+                return
+            if not self.queue:
+                print("STRATEGY_DONE", flush=True)
+                rclpy.try_shutdown()
+                return
+            self.trial = self.queue.pop(0)
+            self.wall_start = time.monotonic()
+            self.phase = "reset"
+            self.call(self.puck_client, SetPuckState.Request(x=PARK[0], y=PARK[1]))
+        elif self.phase == "reset":
+            self.phase = "force"
+            self.call(self.reset_client, Trigger.Request())
+        elif self.phase == "force":
+            self.phase, self.phase_start = "settle", now
+            self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS[self.trial.tactic],
+                                                             variant=self.trial.variant))
+        elif self.phase == "settle" and now - self.phase_start >= self.params["settle"]:
+            x, y, vx, vy, theta, omega = self.trial.state
+            self.watcher = TrialWatcher(self.trial, self.settings)
+            self.phase = "run"
+            self.call(self.puck_client, SetPuckState.Request(x=x, y=y, vx=vx, vy=vy, theta=theta, omega=omega))
+        elif self.phase == "run":
+            if self.watcher.done:
+                self.finish_trial(None)
+            elif time.monotonic() - self.wall_start > self.params["wall_timeout"]:
+                self.finish_trial(f"no outcome within {self.params['wall_timeout']:g} s of wall time")
+
+    def finish_trial(self, failure: str | None) -> None:
+        if failure is None:
+            result = self.watcher.result()
+        else:
+            result = TrialResult(self.trial.strategy, self.trial.index, reason=failure)
+        record = result.as_dict()
+        record["error"] = failure is not None
+        print("TRIAL_RESULT " + json.dumps(record), flush=True)
+        self.watcher, self.phase = None, "release"
+        self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS["ready"]))
+        self.phase = "next"
+
+
+def main(argv: list[str] | None = None) -> int:
+    return run(StrategyTestNode, argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())

@@ -1,0 +1,34 @@
+"""Parameters of the strategy test (ROS-free declarations; defaults in ``config/table.yaml`` and
+``config/strategy_test.yaml``)."""
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any, Iterable
+
+from air_hockey_agent.params import ParamSpec, load_node_params
+from air_hockey_agent.tracker_params import TABLE_PARAMS
+
+NODE_NAME = "/strategy_test"
+PARAM_FILES = ("table.yaml", "strategy_test.yaml")
+
+STRATEGY_PARAMS = TABLE_PARAMS + (
+    ParamSpec("smash_depth", list, "[m] depth range of Smash start positions from the own goal line", 0.0, 2.0, 2),
+    ParamSpec("smash_rim_margin", float, "[m] Smash starts this far off the long rims beyond the puck radius", 0.0, 0.5),
+    ParamSpec("prepare_depth", list, "[m] depth range of Prepare start positions", 0.0, 2.0, 2),
+    ParamSpec("prepare_rim_margin", float, "[m] Prepare starts this far off the long rims beyond the puck radius", 0.0, 0.5),
+    ParamSpec("defend_line", float, "[m] the defend line's distance from a short rim", 0.0, 1.0),
+    ParamSpec("start_y", float, "[m] |y| range of Cut and Repel starts", 0.0, 0.5),
+    ParamSpec("shot_speed", float, "[m/s] speed of the opponent's simulated shot", 0.1, 10.0),
+    ParamSpec("cut_impact_x", list, "[m] x range of a Cut shot's rim impact", -1.0, 1.0, 2),
+    ParamSpec("rest_speed", float, "[m/s] the puck is at rest below this speed", 0.001, 1.0),
+    ParamSpec("timeout", float, "[s] a trial ends as a failure after this long", 0.5, 120.0),
+    ParamSpec("after_hit", float, "[s] Smash and Repel end this long after the last hit", 0.1, 60.0),
+    ParamSpec("settle", float, "[s] time between the reset and the puck being set", 0.0, 60.0),
+    ParamSpec("seed", int, "random seed of the trials' initial states", 0, 2**31 - 1),
+    ParamSpec("trials", str, "the trials to run: 'strategy:index' separated by commas"),
+    ParamSpec("wall_timeout", float, "[s] wall time after which a stuck trial is given up", 1.0, 3600.0),
+)
+
+
+def load_strategy_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
+    return load_node_params(PARAM_FILES, NODE_NAME, STRATEGY_PARAMS, extra_files)

@@ -1,0 +1,47 @@
+"""PNG figures of a strategy test: success and partial success per strategy next to the thesis's
+(fig. 5.7), and where the smash shots reached the opponent's goal line (fig. 5.8)."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from air_hockey_agent.core.game.strategy.report import THESIS
+
+
+def write_plots(summary: dict, results: list[dict], out: Path) -> list[Path]:
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    out.mkdir(parents=True, exist_ok=True)
+    keys = list(summary)
+    x = np.arange(len(keys))
+    fig, ax = plt.subplots(figsize=(8, 4))
+    ours = [summary[k]["success_rate"] for k in keys]
+    partial = [summary[k].get("partial_rate", np.nan) for k in keys]
+    thesis = [THESIS[k]["success_rate"] for k in keys]
+    ax.bar(x - 0.2, partial, 0.4, color="tab:blue", alpha=0.35, label="partial success (ours)")
+    ax.bar(x - 0.2, ours, 0.4, color="tab:blue", label="success (ours)")
+    ax.bar(x + 0.2, thesis, 0.4, color="tab:gray", label="success (thesis fig. 5.7)")
+    ax.set_xticks(x, keys, rotation=20)
+    ax.set_ylim(0, 1)
+    ax.set_ylabel("rate")
+    ax.legend(loc="lower right")
+    fig.tight_layout()
+    bars = out / "strategy_success.png"
+    fig.savefig(bars, dpi=120)
+    plt.close(fig)
+    fig, ax = plt.subplots(figsize=(6, 4))
+    for k in [k for k in keys if k.startswith("smash")]:
+        offsets = [r["offset"] for r in results if r["strategy"] == k and r["offset"] is not None]
+        if offsets:
+            ax.hist(np.array(offsets) * 100, bins=20, range=(-30, 30), alpha=0.5, label=k)
+    ax.axvspan(-9.3, 9.3, color="tab:green", alpha=0.1, label="goal mouth (puck centre)")
+    ax.set_xlabel("y where the puck reaches the goal line [cm]")
+    ax.set_ylabel("shots")
+    ax.legend()
+    fig.tight_layout()
+    spread = out / "smash_spread.png"
+    fig.savefig(spread, dpi=120)
+    plt.close(fig)
+    return [bars, spread]

@@ -1,0 +1,169 @@
+"""``air-hockey strategy-test``: Smash, Cut, Prepare and Repel success rates (thesis sec. 4.6, 5.4).
+
+Each worker runs its own simulation and the agent of ``iiwa_front`` (``table_sim`` as fast as possible,
+``puck_tracker``, ``tactics``, ``trajectory_generator``) and a ``strategy_test`` node that plays its
+share of the trials, on its own ``ROS_DOMAIN_ID``; the opponent runs no agent and holds its home pose.
+A trial's initial state depends only on the seed, the strategy and the trial's index, not on the
+number of workers. Trials that a crashed or hung worker did not finish are run once more and then
+counted as failures with their reason. Prints a table next to the thesis's fig. 5.7, or with
+``--json`` exactly one JSON object; ``--plot DIR`` writes the bar chart (fig. 5.7) and the smash
+spread (fig. 5.8) as PNG.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+from air_hockey_agent.core.game.strategy.report import KEYS, summarise, table
+from air_hockey_agent.tools.launch import Launcher, ProcessSpec
+from air_hockey_agent.tools.progress import Progress
+from air_hockey_agent.tools.ros_env import node_executable, ros_environment
+
+ROBOT = "iiwa_front"
+GROUPS = {"smash": ("smash_straight", "smash_left", "smash_right"), "cut": ("cut",), "prepare": ("prepare",),
+          "repel": ("repel",)}
+RESULT, DONE = "TRIAL_RESULT ", "STRATEGY_DONE"
+WORKER_GRACE = 5.0  # [s] per shutdown signal when a worker's processes are stopped
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("strategy-test", help="success rates of Smash, Cut, Prepare and Repel",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--strategies", nargs="+", choices=sorted(GROUPS), default=sorted(GROUPS),
+                        help="strategies to test (smash = straight, left and right bank; default: all)")
+    parser.add_argument("--trials", type=int, default=100, help="trials per reported strategy (default 100)")
+    parser.add_argument("--seed", type=int, default=0, help="random seed of the initial states (default 0)")
+    parser.add_argument("--workers", type=int, default=1, help="parallel simulations (default 1)")
+    parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
+    parser.add_argument("--plot", type=Path, default=None, metavar="DIR", help="write fig. 5.7/5.8-like PNGs here")
+    parser.add_argument("--results", type=Path, default=None, metavar="FILE",
+                        help="write every trial's result as one JSON line (initial state, hit, outcome, reason)")
+    parser.add_argument("--domain-id", type=int, default=None,
+                        help="first ROS_DOMAIN_ID of the workers (1..101; default: derived from the process id)")
+    parser.set_defaults(run=run)
+
+
+def worker_processes(trials: list[tuple[str, int]], seed: int) -> list[ProcessSpec]:
+    ns = ["-r", f"__ns:=/{ROBOT}", "-p", "use_sim_time:=true", "-p", f"robot:={ROBOT}"]
+    specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", "-p", "real_time_factor:=0.0",
+                                       "-p", f"seed:={seed}"])]
+    specs += [ProcessSpec(n, [*node_executable(n), "--ros-args", *ns])
+              for n in ("puck_tracker", "tactics", "trajectory_generator")]
+    trial_list = ",".join(f"{s}:{i}" for s, i in trials)
+    specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args", "-p",
+                                               "use_sim_time:=true", "-p", f"seed:={seed}", "-p", f"trials:={trial_list}"]))
+    return specs
+
+
+class Worker(threading.Thread):
+    """One simulation and agent on its own ROS domain, running a list of trials."""
+
+    def __init__(self, domain: int, trials: list[tuple[str, int]], seed: int, results: dict, lock: threading.Lock,
+                 on_result) -> None:
+        super().__init__(daemon=True)
+        self.domain, self.trials, self.seed = domain, trials, seed
+        self.results, self.lock, self.on_result = results, lock, on_result
+        self.error = ""
+
+    def on_line(self, label: str, line: str) -> None:
+        if label == "strategy_test" and line.startswith(RESULT):
+            record = json.loads(line[len(RESULT):])
+            with self.lock:
+                self.results[(record["strategy"], record["index"])] = record
+            self.on_result()
+
+    def run(self) -> None:
+        with tempfile.TemporaryDirectory(prefix="air_hockey_strategy_") as tmp:
+            env = ros_environment(domain_id=self.domain, ros_home=Path(tmp))
+            with Launcher(env, echo=None, on_line=self.on_line) as launcher:
+                for spec in worker_processes(self.trials, self.seed):
+                    launcher.start(spec)
+                while True:
+                    ended = launcher.wait_any_exit(timeout=1.0)
+                    if ended:
+                        if "strategy_test" not in ended or ended["strategy_test"] != 0:
+                            tail = {k: launcher.processes[k].lines[-1:] for k in ended}
+                            self.error = f"worker on domain {self.domain}: {ended} {tail}"
+                        break
+                launcher.shutdown(WORKER_GRACE)
+
+
+def _run_trials(pending: list[tuple[str, int]], args, results: dict, progress, total: int, domain0: int) -> list[str]:
+    lock = threading.Lock()
+    count = lambda: progress(len(results), total)  # noqa: E731
+    shares = [pending[k::args.workers] for k in range(args.workers)]
+    workers = [Worker(domain0 + k, share, args.seed, results, lock, count) for k, share in enumerate(shares) if share]
+    for w in workers:
+        w.start()
+    for w in workers:
+        w.join()
+    return [w.error for w in workers if w.error]
+
+
+def _write_lines(path: Path, records: list[dict]) -> None:
+    """One JSON object per line, written atomically."""
+    tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
+    tmp.write_text("".join(json.dumps(r) + "\n" for r in records))
+    os.replace(tmp, path)
+
+
+def _check(args) -> str:
+    if args.trials < 1:
+        return f"--trials must be >= 1, got {args.trials}"
+    if not 1 <= args.workers <= 16:
+        return f"--workers must be in 1..16, got {args.workers}"
+    if args.domain_id is not None and not (1 <= args.domain_id and args.domain_id + args.workers - 1 <= 101):
+        return f"--domain-id must leave room for {args.workers} domains in 1..101, got {args.domain_id}"
+    if args.results is not None and not args.results.parent.is_dir():
+        return f"--results {args.results}: directory {args.results.parent} does not exist"
+    if args.plot is not None and args.plot.exists() and not args.plot.is_dir():
+        return f"--plot {args.plot}: exists and is not a directory"
+    return ""
+
+
+def run(args: argparse.Namespace) -> int:
+    problem = _check(args)
+    if problem:
+        print(f"air-hockey strategy-test: error: {problem}", file=sys.stderr)
+        return 2
+    from air_hockey_agent.tools.game import _prepare_speed_map
+    say = lambda text: print(f"[strategy-test] {text}", file=sys.stderr, flush=True)  # noqa: E731
+    _prepare_speed_map(say)
+    keys = [k for group in sorted(args.strategies) for k in GROUPS[group]]
+    trials = [(k, i) for i in range(args.trials) for k in keys]
+    domain0 = args.domain_id or 50 + os.getpid() % (52 - args.workers)
+    results: dict = {}
+    progress = Progress("[strategy-test] trials", args.json)
+    start = time.monotonic()
+    errors = _run_trials(trials, args, results, progress, len(trials), domain0)
+    missing = [t for t in trials if t not in results]
+    if missing:
+        say(f"{len(missing)} trials unfinished ({'; '.join(errors) or 'worker stopped'}); running them once more")
+        errors += _run_trials(missing, args, results, progress, len(trials), domain0)
+    for strategy, index in (t for t in trials if t not in results):
+        results[(strategy, index)] = {"strategy": strategy, "index": index, "success": False, "partial": False,
+                                      "hit": False, "goal": False, "conceded": False, "offset": None,
+                                      "defend_speed": None, "rest": None, "error": True,
+                                      "reason": "not finished twice (worker failed)", "duration": 0.0}
+    seconds = time.monotonic() - start
+    summary = summarise(results[t] for t in trials)
+    if args.results is not None:
+        _write_lines(args.results, [results[t] for t in trials])
+        say(f"wrote {args.results}")
+    if args.plot is not None:
+        from air_hockey_agent.tools.strategy_plots import write_plots
+        for path in write_plots(summary, [results[t] for t in trials], args.plot):
+            say(f"wrote {path}")
+    if args.json:
+        report = {k: {f: v for f, v in e.items() if f != "failures"} for k, e in summary.items()}
+        report["seconds"] = round(seconds, 1)
+        print(json.dumps(report))
+    else:
+        print(table(summary, seconds))
+    return 0

@@ -1,0 +1,97 @@
+"""Strategy test (ROS-free parts): initial states of thesis sec. 4.6 and the success criteria on
+hand-made outcome traces, with their boundary cases."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.game.strategy.report import summarise
+from air_hockey_agent.core.game.strategy.scoring import TrialWatcher
+from air_hockey_agent.core.game.strategy.trials import STRATEGIES, TrialSettings, make_trial
+from air_hockey_agent.strategy_params import load_strategy_params
+
+HALF = 1.956 / 2
+
+
+@pytest.fixture(scope="module")
+def s():
+    return TrialSettings.from_params(load_strategy_params())
+
+
+def test_initial_states_follow_the_thesis_set_up(s):
+    for i in range(50):
+        smash = make_trial("smash_left", i, 7, s).state
+        assert s.in_smash_area(smash[0], smash[1]) and smash[2:4] == (0.0, 0.0)
+        prep = make_trial("prepare", i, 7, s).state
+        assert prep[0] < 0 and not s.in_smash_area(prep[0], prep[1])
+        for kind in ("cut", "repel"):
+            x, y, vx, vy = make_trial(kind, i, 7, s).state[:4]
+            assert x == pytest.approx(HALF - s.defend_line) and abs(y) <= s.start_y
+            assert math.hypot(vx, vy) == pytest.approx(s.shot_speed) and vx < 0
+        x, y, vx, vy = make_trial("repel", i, 7, s).state[:4]
+        assert y + vy * (-HALF - x) / vx == pytest.approx(0.0, abs=1e-9)  # aimed at the goal centre
+
+
+def test_trials_depend_only_on_seed_strategy_and_index(s):
+    assert make_trial("cut", 3, 1, s) == make_trial("cut", 3, 1, s)
+    assert make_trial("cut", 3, 1, s) != make_trial("cut", 4, 1, s) != make_trial("cut", 3, 2, s)
+    with pytest.raises(ValueError):
+        make_trial("dribble", 0, 0, s)
+    assert len(STRATEGIES) == 6
+
+
+def play(trial, s, states, hits=()):
+    w = TrialWatcher(trial, s)
+    for t in hits:
+        w.contact(t)
+    for t, st in states:
+        w.state(t, *st)
+        if w.done:
+            break
+    return w
+
+
+def straight(t0, t1, x0, y0, vx, vy, dt=0.01):
+    return [(t, (x0 + vx * (t - t0), y0 + vy * (t - t0), vx, vy)) for t in np.arange(t0, t1, dt)]
+
+
+def test_smash_scores_only_with_a_goal_and_reports_the_offset(s):
+    trial = make_trial("smash_straight", 0, 0, s)
+    w = play(trial, s, straight(0.0, 2.0, -0.5, 0.0, 3.0, 0.03), hits=[0.0])
+    r = w.result()
+    assert w.done and r.goal and r.success and r.offset == pytest.approx(0.03 * (HALF - 0.03165 - 0.005 + 0.5) / 3, abs=2e-3)
+    miss = play(trial, s, straight(0.0, 5.0, -0.5, 0.0, 0.1, 0.0) , hits=[0.0]).result()
+    assert not miss.success and "after the hit" in miss.reason
+
+
+def test_cut_success_needs_rest_in_the_smash_area(s):
+    trial = make_trial("cut", 0, 0, s)
+    inside = play(trial, s, [(0.0, (-0.5, 0.0, 0.0, 0.0))], hits=[0.0]).result()
+    assert inside.success and inside.partial
+    x_edge = -HALF + s.smash_depth[1]
+    just_out = play(trial, s, [(0.0, (x_edge + 0.001, 0.0, 0.0, 0.0))], hits=[0.0]).result()
+    assert not just_out.success and just_out.partial
+    conceded = play(trial, s, straight(0.0, 1.0, -0.8, 0.0, -1.0, 0.0), hits=[0.0]).result()
+    assert conceded.conceded and not conceded.partial
+    not_hit = play(trial, s, [(0.0, (-0.5, 0.0, 0.0, 0.0))]).result()
+    assert not not_hit.success and not not_hit.partial
+
+
+def test_prepare_partial_on_the_own_half_and_failure_across_the_centre(s):
+    trial = make_trial("prepare", 0, 0, s)
+    assert play(trial, s, [(0.0, (-0.1, 0.4, 0.0, 0.0))], hits=[0.0]).result().partial
+    across = play(trial, s, straight(0.0, 1.0, -0.05, 0.0, 0.5, 0.0), hits=[0.0]).result()
+    assert not across.partial and "centre" in across.reason
+    waiting = play(trial, s, [(t, (-0.8, 0.3, 0.0, 0.0)) for t in np.arange(0, 12, 0.1)])
+    assert waiting.done and "timeout" in waiting.result().reason  # a static puck nobody hits
+
+
+def test_repel_success_is_the_hit_and_speed_is_taken_at_the_defend_line(s):
+    trial = make_trial("repel", 0, 0, s)
+    r = play(trial, s, straight(0.5, 2.0, -0.7, 0.0, 2.0, 0.0), hits=[0.5]).result()
+    assert r.success and r.goal and r.defend_speed == pytest.approx(2.0)
+    summary = summarise([r.as_dict(), play(trial, s, [(0.0, (-0.5, 0.0, 0.0, 0.0))]).result().as_dict()])
+    assert summary["repel"]["success_rate"] == 0.5 and summary["repel"]["goal_rate"] == 0.5
+    assert summary["repel"]["mean_speed_mps"] == pytest.approx(2.0)
