@@ -39,6 +39,7 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("prepare_speed", list, "[m/s] mallet speed range of a Prepare", 0.01, 5.0, 2),
     ParamSpec("mallet_restitution", float, "[-] puck-mallet restitution of the shot model", 0.0, 1.0),
     ParamSpec("aim_noise", float, "[rad] shot direction spread used to rank shots", 1e-4, 1.0),
+    ParamSpec("approach_clearance", float, "[m] gap between the approaching mallet and the puck", 0.0, 0.5),
     ParamSpec("guard_margin", float, "[m] clearance of the opponent's ready point a shot needs", 0.0, 0.5),
     ParamSpec("guarded_factor", float, "[-] goal likelihood factor of a shot at the opponent's mallet", 0.0, 1.0),
     ParamSpec("shot_horizon", float, "[s] a shot that needs longer to reach the goal line misses", 0.1, 10.0),
@@ -87,7 +88,7 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
     planner = build_planner(motion, robot)
     speeds = load_or_build(planner, motion, params["speed_map_grid"], log=log)
     s = planner.s
-    reach = ArmReach(planner.region, s.run_up[0], s.follow_through[0], s.reach_acceleration,
+    reach = ArmReach(planner.region, s.run_up[0], s.run_up[1], s.follow_through[0], s.reach_acceleration,
                      s.planning_delay + s.height_transition, params["reach_time_margin"], speeds)
     settings = TacticsSettings.from_params(params)
     dt = 1.0 / load_tracker_params()["frequency"]

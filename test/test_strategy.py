@@ -43,7 +43,10 @@ def test_trials_depend_only_on_seed_strategy_and_index(s):
 
 
 def play(trial, s, states, hits=()):
+    """Feed a trace that starts at the trial's initial position (the watcher waits for it)."""
     w = TrialWatcher(trial, s)
+    x0, y0 = trial.state[:2]
+    w.state(states[0][0], x0, y0, *trial.state[2:4])
     for t in hits:
         w.contact(t)
     for t, st in states:
@@ -51,6 +54,14 @@ def play(trial, s, states, hits=()):
         if w.done:
             break
     return w
+
+
+def test_states_before_the_puck_is_set_are_ignored(s):
+    trial = make_trial("repel", 0, 0, s)
+    w = TrialWatcher(trial, s)
+    w.state(0.0, 0.6, 0.0, 0.0, 0.0)  # the parked puck, at rest: not this trial's
+    w.contact(0.0)
+    assert not w.done and w.t0 is None and not w.result().hit
 
 
 def straight(t0, t1, x0, y0, vx, vy, dt=0.01):

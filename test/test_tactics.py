@@ -36,7 +36,7 @@ def flat_reach(settings) -> ArmReach:
     t = settings.table
     region = Region.for_table(t.length, t.width, settings.mallet_radius, 0.02, BASE, 1.30)
     xs, ys, angles = np.linspace(-1.0, 0.0, 5), np.linspace(-0.6, 0.6, 5), np.linspace(-math.pi / 2, math.pi / 2, 5)
-    return ArmReach(region, 0.12, 0.06, 5.0, 0.26, 1.25, SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)))
+    return ArmReach(region, 0.12, 0.30, 0.06, 5.0, 0.26, 1.25, SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)))
 
 
 @pytest.fixture
@@ -259,3 +259,20 @@ def test_planner_answers_steer_the_next_command(selector, model):
     assert later.time - 0.04 > first.time - 0.0 + 0.1
     selector.on_status(0.04, 4, math.nan, 0.05)  # unreachable: smash blocked for retry_delay
     assert selector.step(0.06, RUNNING, sit).tactic != SMASH
+
+
+def test_smash_is_not_played_when_the_approach_would_knock_the_puck(selector, model, settings):
+    from air_hockey_agent.core.game.tactics.base import Context
+    from air_hockey_agent.core.game.tactics.smash import Smash
+    sit = situation(model, [-0.5, -0.25, 0, 0, 0, 0])
+    smash, reach = Smash(), selector.reach
+    shot = selector.shots.aim(sit.puck, "left_bank")
+    start = reach.run_up_start(shot.hit_point, shot.direction)
+    beyond = sit.puck[:2] + (sit.puck[:2] - start)  # the mallet on the far side: its way runs through the puck
+    blocked = Context(0.0, settings, reach, selector.shots, mallet=beyond, variant="left_bank")
+    assert smash.propose(sit, blocked) is None
+    behind = Context(0.0, settings, reach, selector.shots, mallet=start, variant="left_bank")
+    assert smash.propose(sit, behind) is not None
+    free = Context(0.0, settings, reach, selector.shots, mallet=beyond)
+    chosen = smash.propose(sit, free)
+    assert chosen is not None and "left_bank" not in chosen.reason  # another variant with a clear way

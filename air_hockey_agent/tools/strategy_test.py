@@ -44,6 +44,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--plot", type=Path, default=None, metavar="DIR", help="write fig. 5.7/5.8-like PNGs here")
     parser.add_argument("--results", type=Path, default=None, metavar="FILE",
                         help="write every trial's result as one JSON line (initial state, hit, outcome, reason)")
+    parser.add_argument("--log", type=Path, default=None, metavar="FILE", help="write every node's output to FILE")
     parser.add_argument("--domain-id", type=int, default=None,
                         help="first ROS_DOMAIN_ID of the workers (1..101; default: derived from the process id)")
     parser.set_defaults(run=run)
@@ -65,13 +66,16 @@ class Worker(threading.Thread):
     """One simulation and agent on its own ROS domain, running a list of trials."""
 
     def __init__(self, domain: int, trials: list[tuple[str, int]], seed: int, results: dict, lock: threading.Lock,
-                 on_result) -> None:
+                 on_result, log=None) -> None:
         super().__init__(daemon=True)
-        self.domain, self.trials, self.seed = domain, trials, seed
+        self.domain, self.trials, self.seed, self.log = domain, trials, seed, log
         self.results, self.lock, self.on_result = results, lock, on_result
         self.error = ""
 
     def on_line(self, label: str, line: str) -> None:
+        if self.log is not None:
+            with self.lock:
+                self.log.write(f"[{self.domain} {label}] {line}\n")
         if label == "strategy_test" and line.startswith(RESULT):
             record = json.loads(line[len(RESULT):])
             with self.lock:
@@ -94,11 +98,12 @@ class Worker(threading.Thread):
                 launcher.shutdown(WORKER_GRACE)
 
 
-def _run_trials(pending: list[tuple[str, int]], args, results: dict, progress, total: int, domain0: int) -> list[str]:
+def _run_trials(pending: list[tuple[str, int]], args, results: dict, progress, total: int, domain0: int,
+                log=None) -> list[str]:
     lock = threading.Lock()
     count = lambda: progress(len(results), total)  # noqa: E731
     shares = [pending[k::args.workers] for k in range(args.workers)]
-    workers = [Worker(domain0 + k, share, args.seed, results, lock, count) for k, share in enumerate(shares) if share]
+    workers = [Worker(domain0 + k, share, args.seed, results, lock, count, log) for k, share in enumerate(shares) if share]
     for w in workers:
         w.start()
     for w in workers:
@@ -120,6 +125,8 @@ def _check(args) -> str:
         return f"--workers must be in 1..16, got {args.workers}"
     if args.domain_id is not None and not (1 <= args.domain_id and args.domain_id + args.workers - 1 <= 101):
         return f"--domain-id must leave room for {args.workers} domains in 1..101, got {args.domain_id}"
+    if args.log is not None and not args.log.parent.is_dir():
+        return f"--log {args.log}: directory {args.log.parent} does not exist"
     if args.results is not None and not args.results.parent.is_dir():
         return f"--results {args.results}: directory {args.results.parent} does not exist"
     if args.plot is not None and args.plot.exists() and not args.plot.is_dir():
@@ -141,11 +148,16 @@ def run(args: argparse.Namespace) -> int:
     results: dict = {}
     progress = Progress("[strategy-test] trials", args.json)
     start = time.monotonic()
-    errors = _run_trials(trials, args, results, progress, len(trials), domain0)
-    missing = [t for t in trials if t not in results]
-    if missing:
-        say(f"{len(missing)} trials unfinished ({'; '.join(errors) or 'worker stopped'}); running them once more")
-        errors += _run_trials(missing, args, results, progress, len(trials), domain0)
+    log = open(args.log, "w", buffering=1) if args.log is not None else None
+    try:
+        errors = _run_trials(trials, args, results, progress, len(trials), domain0, log)
+        missing = [t for t in trials if t not in results]
+        if missing:
+            say(f"{len(missing)} trials unfinished ({'; '.join(errors) or 'worker stopped'}); running them once more")
+            errors += _run_trials(missing, args, results, progress, len(trials), domain0, log)
+    finally:
+        if log is not None:
+            log.close()
     for strategy, index in (t for t in trials if t not in results):
         results[(strategy, index)] = {"strategy": strategy, "index": index, "success": False, "partial": False,
                                       "hit": False, "goal": False, "conceded": False, "offset": None,

@@ -16,6 +16,7 @@ from air_hockey_agent.core.motion.region import Region
 class ArmReach:
     region: Region            # the planner's allowed region (own frame)
     run_up: float             # [m] shortest run-up the planner needs behind a hit point
+    run_up_max: float         # [m] longest run-up it takes when there is room
     follow_through: float     # [m] shortest follow-through it needs ahead of it
     reach_acceleration: float  # [m/s^2] task acceleration of reach-and-stop motions
     min_reach_time: float     # [s] shortest time a reach is given: the planner's delay plus its height transition
@@ -28,6 +29,12 @@ class ArmReach:
             return False
         return (self.region.distance_along(point, -direction) >= self.run_up
                 and self.region.distance_along(point, direction) >= self.follow_through)
+
+    def run_up_start(self, point: np.ndarray, direction: np.ndarray) -> np.ndarray:
+        """Where the planner starts the strike of a hit at ``point`` along ``direction`` (the longest run-up
+        that fits behind it, as :meth:`MotionPlanner._run_up` chooses)."""
+        behind = min(self.region.distance_along(point, -direction), self.run_up_max)
+        return np.asarray(point) - behind * np.asarray(direction)
 
     def max_speed(self, point: np.ndarray, direction: np.ndarray) -> float:
         """Fastest hit [m/s] at ``point`` along ``direction``; 0 where the arm cannot hit."""

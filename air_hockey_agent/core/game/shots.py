@@ -127,11 +127,17 @@ class ShotPredictor:
             success *= self.s.guarded_factor  # straight into the opponent's waiting mallet
         return Shot(variant, np.array([math.cos(angle), math.sin(angle)]), hit, v, vp, goal_y, arrival, success)
 
-    def best(self, puck: np.ndarray, variants: tuple[str, ...] = VARIANTS, speed: float | None = None,
-             tie: float = 0.05) -> Shot | None:
-        """The most likely goal among ``variants``; within ``tie`` of it, the one that arrives first."""
-        shots = [s for s in (self.aim(puck, v, speed) for v in variants) if s is not None and s.success > 0.0]
+    def candidates(self, puck: np.ndarray, variants: tuple[str, ...] = VARIANTS, speed: float | None = None) -> list[Shot]:
+        """The aimed shots of ``variants`` that may score."""
+        return [s for s in (self.aim(puck, v, speed) for v in variants) if s is not None and s.success > 0.0]
+
+    @staticmethod
+    def pick(shots: list[Shot], tie: float = 0.05) -> Shot | None:
+        """The most likely goal; within ``tie`` of it, the one that arrives first."""
         if not shots:
             return None
         top = max(s.success for s in shots)
         return min((s for s in shots if s.success >= top - tie), key=lambda s: s.arrival)
+
+    def best(self, puck: np.ndarray, variants: tuple[str, ...] = VARIANTS, speed: float | None = None) -> Shot | None:
+        return self.pick(self.candidates(puck, variants, speed))

@@ -17,6 +17,8 @@ from dataclasses import asdict, dataclass, field
 from air_hockey_agent.core.game.strategy.trials import Trial, TrialSettings
 
 CROSS_MARGIN = 0.005  # [m] the goal line is reached this close to the short rim (the puck's centre)
+START_TOLERANCE = 0.05  # [m] a trial starts with the first state this close to its initial position
+#                         (states of the parked puck still in flight when the puck is set are ignored)
 
 
 @dataclass
@@ -55,13 +57,16 @@ class TrialWatcher:
         self._result = TrialResult(self.trial.strategy, self.trial.index)
 
     def contact(self, t: float) -> None:
-        if not self.done:
+        if not self.done and self.t0 is not None and t >= self.t0:
             self._result.hit, self._last_hit = True, t
 
     def state(self, t: float, x: float, y: float, vx: float, vy: float) -> None:
         if self.done:
             return
         if self.t0 is None:
+            x0, y0 = self.trial.state[:2]
+            if math.hypot(x - x0, y - y0) > START_TOLERANCE:
+                return
             self.t0 = t
         r, s, half = self._result, self.s, self.s.table.length / 2
         r.duration = t - self.t0

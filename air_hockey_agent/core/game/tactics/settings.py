@@ -38,6 +38,7 @@ class TacticsSettings:
     prepare_speed: tuple[float, float]
     mallet_restitution: float
     aim_noise: float
+    approach_clearance: float
     guard_margin: float
     guarded_factor: float
     shot_horizon: float

@@ -35,7 +35,7 @@ class Smash(Tactic):
         puck = situation.at(t_hit)
         if not st.in_smash_area(puck[0], puck[1]) or math.hypot(puck[2], puck[3]) > st.smash_puck_speed:
             return None
-        shot = self._shot(puck, ctx)
+        shot = ctx.shots.pick([s for s in self._shots(puck, ctx) if self._approach_clear(puck, s, ctx)])
         if shot is None:
             return None
         reason = (f"smash {shot.variant}: puck at ({puck[0]:.2f}, {puck[1]:.2f}), {shot.mallet_speed:.2f} m/s, "
@@ -43,7 +43,19 @@ class Smash(Tactic):
         return Proposal(SMASH, shot.hit_point, shot.mallet_speed * shot.direction, t_hit, reason, puck=puck[:2],
                         target=np.array([st.table.length / 2, 0.0]), flexible_time=True)
 
-    def _shot(self, puck: np.ndarray, ctx: Context):
+    @staticmethod
+    def _approach_clear(puck: np.ndarray, shot, ctx: Context) -> bool:
+        """The mallet's straight way from where it is to the strike's start keeps off the puck (else it
+        would knock the puck away, or into the own goal, before the strike)."""
+        if ctx.mallet is None:
+            return True
+        a, b = np.asarray(ctx.mallet, float), ctx.reach.run_up_start(shot.hit_point, shot.direction)
+        ab = b - a
+        s = 0.0 if not ab.any() else float(np.clip((puck[:2] - a) @ ab / (ab @ ab), 0.0, 1.0))
+        gap = float(np.linalg.norm(puck[:2] - (a + s * ab)))
+        return gap >= ctx.settings.contact_distance + ctx.settings.approach_clearance
+
+    def _shots(self, puck: np.ndarray, ctx: Context) -> list:
         cap = None if math.isinf(ctx.speed_cap) else ctx.speed_cap
         key = (round(puck[0] / KEY_POSITION), round(puck[1] / KEY_POSITION), round(puck[2] / KEY_VELOCITY),
                round(puck[3] / KEY_VELOCITY), cap, ctx.variant)
@@ -51,5 +63,5 @@ class Smash(Tactic):
             if len(self._cache) >= CACHE_SIZE:
                 self._cache.clear()
             variants = (ctx.variant,) if ctx.variant else VARIANTS
-            self._cache[key] = ctx.shots.best(puck, variants=variants, speed=cap)
+            self._cache[key] = ctx.shots.candidates(puck, variants=variants, speed=cap)
         return self._cache[key]
