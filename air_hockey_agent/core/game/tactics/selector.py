@@ -121,11 +121,11 @@ class TacticsSelector:
             return self._decide(INIT, "game stopped: holding", None)
         if status == PAUSED:
             wanted = [HOME]
+        elif self._committed(now, situation):
+            return Decision(self.current, self.reason, self.forced is not None, None, False)
         elif self.forced is not None:
             wanted = [self.forced]
         else:
-            if self._committed(now, situation):
-                return Decision(self.current, self.reason, False, None, False)
             wanted = self.candidates(situation)
         ctx = Context(now, self.s, self.reach, self.shots, mallet, self.lead_extra, self.speed_cap, self.variant)
         for tactic in wanted:
