@@ -172,7 +172,7 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
     if log is not None:
         log.close()
     if ended:
-        raise GameError(f"node ended during the game: {ended}; see the errors above")
+        raise GameError(f"node ended during the game: {ended} (exit codes); every other process was stopped")
     bad = {label: code for label, code in codes.items() if code not in (0, -2, 130)}
     if bad:
         say(f"nodes that did not exit cleanly: {bad}")
