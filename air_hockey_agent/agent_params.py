@@ -46,6 +46,7 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("goal_aim_margin", float, "[m] aim at least this far inside the goal mouth's edge", 0.0, 0.2),
     ParamSpec("resend_distance", float, "[m] command change that is sent again", 0.0, 1.0),
     ParamSpec("resend_time", float, "[s] hit time change that is sent again", 0.0, 1.0),
+    ParamSpec("hit_replan_distance", float, "[m] puck displacement that re-plans an accepted hit", 0.0, 1.0),
     ParamSpec("resend_speed", float, "[m/s] hit velocity change that is sent again", 0.0, 5.0),
     ParamSpec("retry_delay", float, "[s] wait after a refused command", 0.0, 5.0),
     ParamSpec("max_lead_extra", float, "[s] largest lead time added after 'too late'", 0.0, 10.0),

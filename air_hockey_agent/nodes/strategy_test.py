@@ -2,7 +2,8 @@
 
 For each trial of the ``trials`` parameter ("strategy:index,..."; initial states from
 :mod:`air_hockey_agent.core.game.strategy.trials`): homes the robots (table_sim's ``/reset_robots``),
-forces the tactic through ``/iiwa_front/force_tactic`` (the agent's only test hook), sets the puck
+lets the robot wait at its ready point for ``settle`` (Ready forced, as in a game), forces the tested
+tactic through ``/iiwa_front/force_tactic`` (the agent's only test hook), sets the puck
 through ``/set_puck_state`` and follows ``/sim/puck_true_state`` and ``/sim/contacts`` until the trial
 ends (:class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher`). Each result is printed as
 one line ``TRIAL_RESULT {json}``; at the end ``STRATEGY_DONE`` and the node exits. It publishes a
@@ -110,11 +111,14 @@ class StrategyTestNode(AirHockeyNode):
         elif self.phase == "reset":
             self.phase = "force"
             self.call(self.reset_client, Trigger.Request())
-        elif self.phase == "force":
-            self.phase, self.phase_start = "settle", now
+        elif self.phase == "force":  # wait at the ready point, as in a game, then the tested tactic
+            self.phase, self.phase_start = "ready", now
+            self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS["ready"]))
+        elif self.phase == "ready" and now - self.phase_start >= self.params["settle"]:
+            self.phase = "settle"
             self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS[self.trial.tactic],
                                                              variant=self.trial.variant))
-        elif self.phase == "settle" and now - self.phase_start >= self.params["settle"]:
+        elif self.phase == "settle":
             x, y, vx, vy, theta, omega = self.trial.state
             self.watcher = TrialWatcher(self.trial, self.settings)
             self.phase = "run"

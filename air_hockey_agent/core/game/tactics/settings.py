@@ -46,6 +46,7 @@ class TacticsSettings:
     resend_distance: float
     resend_time: float
     resend_speed: float
+    hit_replan_distance: float
     retry_delay: float
     max_lead_extra: float
     limits_slowdown: float
