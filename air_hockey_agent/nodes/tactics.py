@@ -24,7 +24,7 @@ from sensor_msgs.msg import JointState
 from air_hockey_msgs.msg import GameStatus, HitCommand, PuckPrediction, PuckState, TacticState, TrajectoryStatus
 from air_hockey_msgs.srv import ForceTactic
 from air_hockey_agent.agent_params import AGENT_PARAMS, PARAM_FILES, build_selector
-from air_hockey_agent.core.game.situation import build_situation, to_own_frame
+from air_hockey_agent.core.game.situation import build_situation
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.game.tactics.selector import STOPPED
 from air_hockey_agent.core.motion.kinematics import in_order
@@ -81,8 +81,7 @@ class TacticsNode(AirHockeyNode):
             samples = np.array([_state(s) for s in msg.states]).reshape(-1, 6)
             times = t0 + msg.sample_period * np.arange(1, len(samples) + 1)
             impacts = [(t0 + i.time_from_start, i.x, i.y) for i in msg.impacts]
-            own_goal = msg.enters_goal and (to_own_frame(np.array(_state(msg.initial)), self.robot)[2] < 0.0)
-            self.situation = build_situation(self.robot, t0, _state(msg.initial), times, samples, impacts, own_goal)
+            self.situation = build_situation(self.robot, t0, _state(msg.initial), times, samples, impacts)
             self.last_estimate = max(self.last_estimate, t0)
         except (ValueError, TypeError) as exc:
             self.get_logger().error(f"puck/prediction: message ignored ({exc})", throttle_duration_sec=1.0)

@@ -23,12 +23,6 @@ def to_own_frame(states: np.ndarray, robot: str) -> np.ndarray:
     return out
 
 
-def point_to_table(point: Sequence[float], robot: str) -> np.ndarray:
-    """An own-frame point or vector (x, y) in the table frame (the rotation by pi is its own inverse)."""
-    p = np.array(point, float)
-    return -p if ROBOT_YAW[robot] != 0.0 else p
-
-
 @dataclass(frozen=True)
 class DefendCrossing:
     """A predicted first crossing of a line x = const toward the own goal: absolute time [s], y [m],
@@ -50,15 +44,10 @@ class Situation:
     times: np.ndarray                # (n,) prediction sample times, after t
     states: np.ndarray               # (n, 6)
     impact_times: np.ndarray = field(default_factory=lambda: np.empty(0))  # absolute [s], predicted rim impacts
-    enters_own_goal: bool = False
 
     @property
     def speed(self) -> float:
         return math.hypot(self.puck[2], self.puck[3])
-
-    @property
-    def horizon_end(self) -> float:
-        return float(self.times[-1]) if len(self.times) else self.t
 
     def approaching(self, threshold: float) -> bool:
         return self.puck[2] < -threshold
@@ -92,8 +81,7 @@ class Situation:
 
 
 def build_situation(robot: str, t: float, estimate: Sequence[float], sample_times: Sequence[float],
-                    samples: np.ndarray, impacts: Sequence[tuple[float, float, float]] = (),
-                    enters_own_goal: bool = False) -> Situation:
+                    samples: np.ndarray, impacts: Sequence[tuple[float, float, float]] = ()) -> Situation:
     """A :class:`Situation` from table-frame tracker output (thesis sec. 4.2).
 
     ``sample_times``: absolute [s]; ``samples`` (n, 6): predicted states; ``impacts``: predicted rim
@@ -115,5 +103,4 @@ def build_situation(robot: str, t: float, estimate: Sequence[float], sample_time
             times = np.concatenate([times, extra_t])
             order = np.argsort(times, kind="stable")
             times, states = times[order], np.vstack([states, extra])[order]
-    return Situation(t, to_own_frame(np.asarray(estimate, float), robot), times, states, impact_times,
-                     enters_own_goal)
+    return Situation(t, to_own_frame(np.asarray(estimate, float), robot), times, states, impact_times)

@@ -66,8 +66,7 @@ class SpeedMap:
 
     # --- building and caching ----------------------------------------------------------------------
     @classmethod
-    def build(cls, planner: MotionPlanner, grid: Sequence[int],
-              progress: Callable[[int, int], None] | None = None) -> "SpeedMap":
+    def build(cls, planner: MotionPlanner, grid: Sequence[int]) -> "SpeedMap":
         """Sample the planner's own hit-speed search on a grid (depth points, y points, angles) covering
         its region's bounding box."""
         region, s = planner.region, planner.s
@@ -87,8 +86,6 @@ class SpeedMap:
                             d = np.array([math.cos(a), math.sin(a)])
                             speeds[i, j, k] = best_hit_configuration(planner.kin, planner.limits, ik.q, d,
                                                                      s.ik_tolerance, s.hit_posture_range).max_speed
-                if progress is not None:
-                    progress(i * ny + j + 1, nx * ny)
         return cls(xs, ys, angles, speeds)
 
     def save(self, path: Path) -> None:
