@@ -64,6 +64,15 @@ class Situation:
         w = (t - t0) / (self.times[i] - t0)
         return (1.0 - w) * s0 + w * self.states[i]
 
+    def expected(self, t: float, rest_speed: float) -> np.ndarray:
+        """The state to plan a hit at ``t`` [s] for: a puck slower than ``rest_speed`` [m/s] is at rest where
+        it is (extrapolating its estimate's velocity noise would move it by centimetres), else :meth:`at`."""
+        if self.speed <= rest_speed:
+            state = self.puck.copy()
+            state[2:4] = 0.0
+            return state
+        return self.at(t)
+
     def crossing(self, line_x: float) -> DefendCrossing | None:
         """First predicted crossing of x = ``line_x`` toward the own goal (x decreasing), interpolated
         between samples; None when it does not happen within the horizon."""

@@ -164,10 +164,11 @@ class TacticsSelector:
             return False
         if now > p.time or p.puck is None or situation is None:
             return True
-        tolerance = self.s.hit_replan_distance if p.is_hit else self.s.resend_distance
-        if p.is_hit and situation.speed <= self.s.static_speed:
-            return float(np.linalg.norm(situation.puck[:2] - p.puck)) <= tolerance
-        return float(np.linalg.norm(situation.at(p.time)[:2] - p.puck)) <= tolerance
+        if p.is_hit:
+            expected, tolerance = situation.expected(p.time, self.s.static_speed), self.s.hit_replan_distance
+        else:
+            expected, tolerance = situation.at(p.time), self.s.resend_distance
+        return float(np.linalg.norm(expected[:2] - p.puck)) <= tolerance
 
     def _to_send(self, proposal: Proposal, now: float) -> Proposal | None:
         """The proposal if it should be sent now; None when the last command already says the same

@@ -32,11 +32,7 @@ class Smash(Tactic):
         if situation is None:
             return None
         t_hit = ctx.now + st.smash_lead_time + ctx.lead_extra
-        if situation.speed <= st.static_speed:  # at rest: where it is (extrapolating the estimate's velocity
-            puck = situation.puck.copy()        # noise 0.9 s ahead moved the aim by centimetres)
-            puck[2:4] = 0.0
-        else:
-            puck = situation.at(t_hit)
+        puck = situation.expected(t_hit, st.static_speed)
         if not st.in_smash_area(puck[0], puck[1]) or math.hypot(puck[2], puck[3]) > st.smash_puck_speed:
             return None
         shot = ctx.shots.pick([s for s in self._shots(puck, ctx) if self._approach_clear(puck, s, ctx)])
