@@ -55,6 +55,12 @@ class GameError(Exception):
         self.code = code
 
 
+def robot_node(node: str, robot: str, label: str | None = None) -> ProcessSpec:
+    """A per-robot node in the robot's namespace, on sim time."""
+    return ProcessSpec(label or f"{robot}/{node}", [*node_executable(node), "--ros-args", "-r", f"__ns:=/{robot}",
+                                                    "-p", "use_sim_time:=true", "-p", f"robot:={robot}"])
+
+
 def game_processes(gui: bool, real_time_factor: float, seed: int) -> list[ProcessSpec]:
     """The node processes of one game, all on sim time."""
     shared = {
@@ -64,11 +70,7 @@ def game_processes(gui: bool, real_time_factor: float, seed: int) -> list[Proces
         "referee": ["-p", "use_sim_time:=true", "-p", f"seed:={seed}", "-p", "restart_after_fault:=true"],
     }
     specs = [ProcessSpec(node, [*node_executable(node), "--ros-args", *shared[node]]) for node in SHARED_NODES]
-    for robot in ROBOTS:
-        for node in PER_ROBOT_NODES:
-            specs.append(ProcessSpec(f"{robot}/{node}", [*node_executable(node), "--ros-args", "-r",
-                                                         f"__ns:=/{robot}", "-p", "use_sim_time:=true",
-                                                         "-p", f"robot:={robot}"]))
+    specs += [robot_node(node, robot) for robot in ROBOTS for node in PER_ROBOT_NODES]
     return specs
 
 
@@ -111,7 +113,7 @@ def _check_args(args: argparse.Namespace) -> None:
             raise GameError(f"--record {args.record}: directory {bag.parent} does not exist", 2)
 
 
-def _prepare_speed_map(say) -> None:
+def prepare_speed_map(say) -> None:
     """Build the tactics' fastest-hit table once here, so the two tactics nodes do not both build it."""
     from air_hockey_agent.agent_params import load_agent_params
     from air_hockey_agent.core.game.speed_map import load_or_build
@@ -127,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
         _check_args(args)
         settings = load_defaults([config_file("game.yaml")], "/game", GAME_PARAMS)
         rtf = args.real_time_factor if args.real_time_factor is not None else (1.0 if args.gui else 0.0)
-        _prepare_speed_map(say)
+        prepare_speed_map(say)
         with tempfile.TemporaryDirectory(prefix="air_hockey_game_") as tmp:
             env = ros_environment(domain_id=args.domain_id, ros_home=Path(tmp))
             result = _play(args, settings, env, rtf, say)

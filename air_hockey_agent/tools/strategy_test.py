@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from air_hockey_agent.core.game.strategy.report import KEYS, summarise, table
+from air_hockey_agent.tools.game import PER_ROBOT_NODES, prepare_speed_map, robot_node
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.ros_env import node_executable, ros_environment
@@ -51,11 +52,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def worker_processes(trials: list[tuple[str, int]], seed: int) -> list[ProcessSpec]:
-    ns = ["-r", f"__ns:=/{ROBOT}", "-p", "use_sim_time:=true", "-p", f"robot:={ROBOT}"]
     specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", "-p", "real_time_factor:=0.0",
                                        "-p", f"seed:={seed}"])]
-    specs += [ProcessSpec(n, [*node_executable(n), "--ros-args", *ns])
-              for n in ("puck_tracker", "tactics", "trajectory_generator")]
+    specs += [robot_node(n, ROBOT, label=n) for n in PER_ROBOT_NODES]
     trial_list = ",".join(f"{s}:{i}" for s, i in trials)
     specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args", "-p",
                                                "use_sim_time:=true", "-p", f"seed:={seed}", "-p", f"trials:={trial_list}"]))
@@ -139,9 +138,8 @@ def run(args: argparse.Namespace) -> int:
     if problem:
         print(f"air-hockey strategy-test: error: {problem}", file=sys.stderr)
         return 2
-    from air_hockey_agent.tools.game import _prepare_speed_map
     say = lambda text: print(f"[strategy-test] {text}", file=sys.stderr, flush=True)  # noqa: E731
-    _prepare_speed_map(say)
+    prepare_speed_map(say)
     keys = [k for group in sorted(args.strategies) for k in GROUPS[group]]
     trials = [(k, i) for i in range(args.trials) for k in keys]
     domain0 = args.domain_id or 50 + os.getpid() % (52 - args.workers)
