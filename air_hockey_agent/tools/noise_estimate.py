@@ -16,13 +16,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 
 from air_hockey_agent.core.identification.noise import iterate
 from air_hockey_agent.core.identification.sysid import loss_report
 from air_hockey_agent.params import yaml_float
+from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 
 PROG = "air-hockey noise-estimate"
@@ -91,6 +91,4 @@ def _write(path: Path, r: list, q: list, args: argparse.Namespace) -> None:
             f"iterations{', fixed ' + args.fix[0] if args.fix else ''}).\n/**/puck_tracker:\n  ros__parameters:\n"
             f"    measurement_noise: [{', '.join(yaml_float(v) for v in r)}]\n"
             f"    process_noise: [{', '.join(yaml_float(v) for v in q)}]\n")
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    write_text_atomic(path, text)

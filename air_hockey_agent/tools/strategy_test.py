@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from air_hockey_agent.core.game.strategy.report import KEYS, summarise, table
+from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.game import PER_ROBOT_NODES, prepare_speed_map, robot_node
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.progress import Progress
@@ -110,13 +111,6 @@ def _run_trials(pending: list[tuple[str, int]], args, results: dict, progress, t
     return [w.error for w in workers if w.error]
 
 
-def _write_lines(path: Path, records: list[dict]) -> None:
-    """One JSON object per line, written atomically."""
-    tmp = path.with_name(f".{path.name}.partial-{os.getpid()}")
-    tmp.write_text("".join(json.dumps(r) + "\n" for r in records))
-    os.replace(tmp, path)
-
-
 def _check(args) -> str:
     if args.trials < 1:
         return f"--trials must be >= 1, got {args.trials}"
@@ -164,7 +158,7 @@ def run(args: argparse.Namespace) -> int:
     seconds = time.monotonic() - start
     summary = summarise(results[t] for t in trials)
     if args.results is not None:
-        _write_lines(args.results, [results[t] for t in trials])
+        write_text_atomic(args.results, "".join(json.dumps(results[t]) + "\n" for t in trials))
         say(f"wrote {args.results}")
     if args.plot is not None:
         from air_hockey_agent.tools.strategy_plots import write_plots

@@ -23,6 +23,7 @@ from air_hockey_agent.bags.trajectories import split_train_validation
 from air_hockey_agent.core.identification.sysid import LOSSES, PHYSICAL, combine, identify, loss_report, partial_loss
 from air_hockey_agent.params import yaml_float
 from air_hockey_agent.sysid_params import bounds
+from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 
@@ -168,6 +169,4 @@ def write_params_yaml(path: Path, values: dict, comment: str) -> None:
     """Parameter YAML for the puck_tracker, written atomically (temporary file, then rename)."""
     body = "".join(f"    {name}: {yaml_float(values[name])}\n" for name in PHYSICAL)
     text = f"# Physical parameters of the puck model, {comment}.\n/**/puck_tracker:\n  ros__parameters:\n{body}"
-    tmp = path.with_name(f".{path.name}.tmp-{os.getpid()}")
-    tmp.write_text(text)
-    os.replace(tmp, path)
+    write_text_atomic(path, text)
