@@ -6,7 +6,6 @@ Message handling only; the counting is :class:`air_hockey_agent.core.game.scoreb
 from __future__ import annotations
 
 import os
-import sys
 import time
 from pathlib import Path
 from typing import Callable, Mapping, Sequence

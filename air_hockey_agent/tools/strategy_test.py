@@ -20,7 +20,7 @@ import threading
 import time
 from pathlib import Path
 
-from air_hockey_agent.core.game.strategy.report import KEYS, summarise, table
+from air_hockey_agent.core.game.strategy.report import summarise, table
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.game import PER_ROBOT_NODES, prepare_speed_map, robot_node
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec

@@ -5,7 +5,6 @@ so a run gives the same trials whatever number of workers shares them.
 """
 from __future__ import annotations
 
-import math
 import zlib
 from dataclasses import dataclass
 from typing import Any, Mapping
