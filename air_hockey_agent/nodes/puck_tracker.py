@@ -53,6 +53,8 @@ class PuckTrackerNode(AirHockeyNode):
                 self.state_pub.publish(state_msg(self.ekf.x, self.ekf.P, self.ekf.stamp, flags))
                 self.publish_prediction()
         except Exception as exc:  # a malformed message must never stop the tracker
+            if not self.context.ok():
+                return  # shut down while publishing: not the frame's fault
             self.get_logger().error(f"/optitrack/puck: frame dropped ({type(exc).__name__}: {exc})",
                                     throttle_duration_sec=1.0)
 
