@@ -14,7 +14,7 @@ from air_hockey_agent.core.frames import table_to_robot
 from air_hockey_agent.core.motion.hit_config import best_hit_configuration, max_speed_along
 from air_hockey_agent.core.motion.ik import solve_ik
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
-from air_hockey_agent.core.motion.planner import (ACCEPTED, INVALID, OUTSIDE_REGION, TOO_FAST, TOO_LATE,
+from air_hockey_agent.core.motion.planner import (ACCEPTED, INVALID, LIMITS, OUTSIDE_REGION, TOO_FAST, TOO_LATE,
                                                   UNREACHABLE, ArmState, Command)
 from air_hockey_agent.motion_params import build_planner, load_motion_params
 
@@ -219,3 +219,25 @@ def test_a_new_command_continues_from_the_running_plan_without_a_jump(front):
     step = second.q[0] - q
     assert np.max(np.abs(step) / (second.times[0] - 0.3)) <= front.limits.dq_max_real.max()
     assert np.max(np.abs((second.q[0] - q) / (second.times[0] - 0.3) - dq)) < 0.5
+
+
+def test_a_strike_refused_for_a_joint_limit_names_a_slower_speed_that_helps(front):
+    """Near the region's back edge the run-up is short: the planner refuses for a joint's acceleration
+    (or velocity) limit and reports the speed at which that limit would hold (acceleration ~ v^2 on the
+    same path); asked again a little slower than that, the same hit is planned (the case from bench
+    smash: a puck 0.26 m from the goal line, straight smash)."""
+    start = _ready(front)
+    point, direction = np.array([-0.793, -0.207]), np.array([0.9929, 0.1188])
+    refused_ = front.plan(Command(point, 1.85 * direction, 0.9), start)
+    assert refused_.outcome == LIMITS and "limit" in refused_.message
+    assert 0.0 < refused_.max_speed < 1.85
+    again = front.plan(Command(point, 0.95 * refused_.max_speed * direction, 0.9), start)
+    assert again.ok, again.message
+
+
+def test_tracked_slower_speed_scales_velocity_linearly_and_acceleration_by_the_square_root():
+    from air_hockey_agent.core.motion.tracking import Tracked
+    empty = np.empty((0, 7))
+    assert Tracked(empty, False, "", 2.0, "velocity").slower_speed(3.0) == pytest.approx(1.5)
+    assert Tracked(empty, False, "", 4.0, "acceleration").slower_speed(3.0) == pytest.approx(1.5)
+    assert math.isnan(Tracked(empty, False, "position").slower_speed(3.0))

@@ -12,7 +12,8 @@ from air_hockey_agent.core.game.shots import ShotPredictor, puck_after_hit
 from air_hockey_agent.core.game.situation import build_situation, to_own_frame
 from air_hockey_agent.core.game.speed_map import SpeedMap
 from air_hockey_agent.core.game.tactics.base import CUT, HOME, INIT, PREPARE, READY, REPEL, SMASH
-from air_hockey_agent.core.game.tactics.selector import PAUSED, RUNNING, STOPPED, TOO_FAST, TOO_LATE, TacticsSelector
+from air_hockey_agent.core.game.tactics.selector import (LIMITS, PAUSED, RUNNING, STOPPED, TOO_FAST, TOO_LATE,
+                                                         TacticsSelector)
 from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 from air_hockey_agent.core.motion.region import Region
 from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise
@@ -276,3 +277,22 @@ def test_smash_is_not_played_when_the_approach_would_knock_the_puck(selector, mo
     free = Context(0.0, settings, reach, selector.shots, mallet=beyond)
     chosen = smash.propose(sit, free)
     assert chosen is not None and "left_bank" not in chosen.reason  # another variant with a clear way
+
+
+def test_a_hit_refused_for_joint_limits_is_asked_again_at_the_speed_the_planner_names(selector, model, settings):
+    sit = situation(model, [-0.5, 0.1, 0, 0, 0, 0])
+    first = selector.step(0.0, RUNNING, sit).command
+    selector.on_status(0.0, LIMITS, 1.2, 0.01)  # "the strike needs ... % of its acceleration limit", 1.2 m/s keeps it
+    named = selector.step(0.02, RUNNING, sit).command
+    assert np.linalg.norm(named.velocity) == pytest.approx(settings.speed_cap_fraction * 1.2, abs=1e-6)
+    selector.on_status(0.02, LIMITS, math.nan, 0.03)  # no speed named: the fixed slowdown
+    slower = selector.step(0.04, RUNNING, sit).command
+    assert np.linalg.norm(slower.velocity) == pytest.approx(settings.limits_slowdown * np.linalg.norm(named.velocity),
+                                                            abs=1e-6)
+    assert np.linalg.norm(first.velocity) > np.linalg.norm(named.velocity)
+
+
+def test_a_speed_cap_never_asks_for_more_than_the_fastest_allowed_hit(selector, settings):
+    puck = np.array([-0.5, 0.1, 0, 0, 0, 0])
+    capped = selector.shots.aim(puck, "straight", speed=10.0)
+    assert capped is not None and capped.mallet_speed <= settings.max_hit_speed + 1e-9

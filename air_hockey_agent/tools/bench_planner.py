@@ -48,9 +48,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.set_defaults(run=run)
 
 
-def ready_state(planner: MotionPlanner) -> ArmState:
+def ready_state(planner: MotionPlanner, point=READY_POINT) -> ArmState:
+    """The arm at rest with the mallet at ``point`` [m] (planner frame) at the playing height."""
     s = planner.s
-    ik = solve_ik(planner.kin, planner.limits, np.array([*READY_POINT, s.height]), s.reference, s.reference,
+    ik = solve_ik(planner.kin, planner.limits, np.array([*point, s.height]), s.reference, s.reference,
                   s.ik_iterations, s.ik_tolerance)
     return ArmState(0.0, ik.q, np.zeros(7))
 

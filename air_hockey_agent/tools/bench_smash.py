@@ -1,7 +1,8 @@
 """``air-hockey bench smash``: how accurate the smash is without ROS, shot by shot.
 
 For random pucks at rest in the smash area (the strategy test's initial states) and each smash variant,
-the tactics' own proposal (forced variant) is planned by the motion layer from the ready posture and
+the tactics' own proposal (forced variant) is planned by the motion layer from the posture at the
+tactics' ready point, with the selector's own answers to a refusal (later, slower) as in the nodes, and
 executed in the pybullet table with one arm, as fast as possible; no nodes, no tracker (the puck
 position is exact). Per variant: how many shots were planned, how many scored, where the puck reached
 the opponent's goal line (offset from the centre), and the angle between the aimed direction and the
@@ -22,7 +23,7 @@ from air_hockey_agent.tools.progress import Progress
 
 VARIANTS = {"smash_straight": "straight", "smash_left": "left_bank", "smash_right": "right_bank"}
 ROBOT = "iiwa_front"
-LATER = 0.2          # [s] a "too late" command is asked again this much later (as the tactics do)
+ASKS = 8             # commands per shot at most (the first and the selector's answers to refusals)
 FLIGHT = 2.5         # [s] simulated after the hit time
 
 
@@ -41,6 +42,25 @@ def _stats(values: list[float]) -> dict:
     return {"mean": float(np.mean(values)), "std": float(np.std(values))}
 
 
+def _plan(selector, planner, situation, mallet: np.ndarray, start):
+    """(plan, command) of the forced smash: the selector's command planned from ``start``, its refusals
+    answered as the tactics node answers them (TrajectoryStatus -> on_status); (None, None) when the
+    selector sends nothing."""
+    from air_hockey_agent.core.game.tactics.selector import RUNNING
+    from air_hockey_agent.core.motion.planner import Command
+    plan = cmd = None
+    for _ in range(ASKS):
+        command = selector.step(start.t, RUNNING, situation, mallet).command
+        if command is None:
+            break
+        cmd = Command(command.point, command.velocity, command.time)
+        plan = planner.plan(cmd, start)
+        if plan.ok:
+            break
+        selector.on_status(start.t, plan.outcome, plan.max_speed, start.t)
+    return plan, cmd
+
+
 def run(args: argparse.Namespace) -> int:
     if args.shots < 1:
         print("air-hockey bench smash: error: --shots must be >= 1", file=sys.stderr)
@@ -49,9 +69,8 @@ def run(args: argparse.Namespace) -> int:
     from air_hockey_agent.core.game.situation import build_situation
     from air_hockey_agent.core.game.strategy.trials import TrialSettings, make_trial
     from air_hockey_agent.core.game.tactics.base import SMASH
-    from air_hockey_agent.core.game.tactics.selector import RUNNING
     from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
-    from air_hockey_agent.core.motion.planner import ArmState, Command
+    from air_hockey_agent.core.motion.planner import ArmState
     from air_hockey_agent.motion_params import build_planner, load_motion_params
     from air_hockey_agent.sim.params import load_sim_params
     from air_hockey_agent.sim.world import ARM_JOINTS, SimSettings, TableWorld
@@ -60,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     planner = build_planner(load_motion_params(), ROBOT)
     selector, kin = build_selector(load_agent_params(), ROBOT)
     trials = TrialSettings.from_params(load_strategy_params())
-    start = ready_state(planner)
+    start = ready_state(planner, selector.s.point(selector.s.ready_point))  # iiwa_front: own frame = table frame
     sim = SimSettings.from_params(load_sim_params())
     world = TableWorld(replace(sim, robot_bases={ROBOT: sim.robot_bases[ROBOT]}))
     line = sim.table.length / 2 - sim.table.puck_radius - 0.005
@@ -79,19 +98,10 @@ def run(args: argparse.Namespace) -> int:
                 sit = build_situation(ROBOT, t0, [x, y, 0, 0, 0, 0], t0 + np.arange(1, 21) * 0.05,
                                       np.tile([x, y, 0, 0, 0, 0], (20, 1)))
                 selector.force(SMASH, variant)
-                command = selector.step(t0, RUNNING, sit, kin.position(start.q)[:2]).command
+                plan, cmd = _plan(selector, planner, sit, kin.position(start.q)[:2], ArmState(t0, start.q, start.dq))
                 done += 1
                 progress(done, len(VARIANTS) * args.shots)
-                if command is None:
-                    continue
-                cmd = Command(command.point, command.velocity, command.time)
-                plan = planner.plan(cmd, ArmState(t0, start.q, start.dq))
-                for _ in range(5):
-                    if plan.ok or plan.outcome != 3:
-                        break
-                    cmd = replace(cmd, time=cmd.time + LATER)
-                    plan = planner.plan(cmd, ArmState(t0, start.q, start.dq))
-                if not plan.ok:
+                if plan is None or not plan.ok:
                     continue
                 planned += 1
                 world.follow(ROBOT, JointTrajectory.from_points(ARM_JOINTS, t0, plan.times - t0, plan.q, plan.dq,

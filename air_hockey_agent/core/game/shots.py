@@ -80,7 +80,7 @@ class ShotPredictor:
         top = self.speed_at(hit, d)
         if top <= 0.0:
             return None
-        v = min(top * self.s.hit_speed_fraction, self.s.max_hit_speed) if speed is None else min(speed, top)
+        v = min(top * self.s.hit_speed_fraction, self.s.max_hit_speed, math.inf if speed is None else speed)
         vp = puck_after_hit(puck[2:4], v * d, d, self.s.mallet_restitution)
         state = np.array([puck[0], puck[1], vp[0], vp[1], 0.0, puck[5]])
         crossings = predict_fast(self.model, state, None, self.s.shot_horizon, self.dt, NO_Q,

@@ -65,7 +65,9 @@ class ArmState:
 class Plan:
     """A planned joint trajectory: knots at ``times`` [s, absolute] after ``start`` (the start state),
     or the reason it was refused. ``hit_time``/``hit_speed`` [s, m/s] describe the planned hit;
-    ``max_speed`` [m/s] is the fastest hit the arm allows there along the commanded direction."""
+    ``max_speed`` [m/s] is the fastest hit the arm allows there along the commanded direction (for a
+    strike or follow-through refused for a joint's velocity or acceleration limit: the speed at which
+    that limit would have held, by the scaling of :meth:`Tracked.slower_speed`)."""
 
     outcome: int
     message: str
@@ -193,7 +195,8 @@ class MotionPlanner:
         if not plan.ok:
             direct = self._direct_hit(hit, direction, speed, config, start, grid)
             plan = direct if direct.ok else plan
-        plan.max_speed = config.max_speed
+        # a strike or follow-through refused for a limit keeps the speed that would have kept it
+        plan.max_speed = min(config.max_speed, plan.max_speed) if math.isfinite(plan.max_speed) else config.max_speed
         return plan
 
     def _hit_grid(self, hit_time: float, now: float) -> tuple[float, int]:
@@ -232,7 +235,7 @@ class MotionPlanner:
         back = track(self.kin, self.limits, self.qp, q_hit, -dq_hit, self._at_height(backward), dt,
                      q_hit, self.s.posture_gain)
         if not back.ok:
-            return refused(LIMITS, f"the strike {back.reason}")
+            return refused(LIMITS, f"the strike {back.reason}", max_speed=back.slower_speed(speed))
         return back.q[::-1]
 
     def _follow_through(self, hit, direction, speed, q_hit, dq_hit, n_stop):
@@ -240,7 +243,7 @@ class MotionPlanner:
         stop_pos, _ = tm.stop(hit, direction, speed, n_stop, self.s.dt)
         fwd = track(self.kin, self.limits, self.qp, q_hit, dq_hit, self._at_height(stop_pos), self.s.dt, q_hit, 0.0)
         if not fwd.ok:
-            return refused(LIMITS, f"the follow-through {fwd.reason}")
+            return refused(LIMITS, f"the follow-through {fwd.reason}", max_speed=fwd.slower_speed(speed))
         return fwd.q
 
     def _staged_hit(self, hit, direction, speed, config, start: ArmState, grid) -> Plan:

@@ -14,6 +14,7 @@ the QP. A sample whose QP is infeasible ends the tracking with the reason.
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,11 +31,24 @@ DAMPING = 1e-8  # [m^2] regularises J J^T at the (excluded) singular configurati
 @dataclass
 class Tracked:
     """Joint positions (n, 7) [rad] at the samples; when ``ok`` is False, ``q`` ends before the sample
-    that failed and ``reason`` says why."""
+    that failed and ``reason`` says why. ``overload`` [-] is then the ratio of the broken limit that the
+    unconstrained step needed (velocity or acceleration, as ``limit`` says), when one was broken."""
 
     q: np.ndarray
     ok: bool
     reason: str = ""
+    overload: float = float("nan")
+    limit: str = ""
+
+    def slower_speed(self, speed: float) -> float:
+        """The speed [m/s] at which a path traced ``speed`` times faster per metre would have kept the broken
+        limit: joint velocities scale with the path speed, accelerations with its square (same path). NaN
+        when no velocity or acceleration limit was broken."""
+        if self.limit == "velocity":
+            return speed / self.overload
+        if self.limit == "acceleration":
+            return speed / math.sqrt(self.overload)
+        return float("nan")
 
 
 class StepQP:
@@ -88,7 +102,7 @@ def track(kin: MalletKinematics, limits: JointLimits, qp: StepQP, q0: np.ndarray
         if (step < lo).any() or (step > hi).any():
             solved = qp.solve(jac, dx, ref, lo, hi)
             if solved is None:
-                return Tracked(out[:k], False, _why(step, previous, q, limits, dt))
+                return _failed(out[:k], step, previous, q, limits, dt)
             step = solved
         q = q + step
         out[k] = q
@@ -133,16 +147,17 @@ def _bounds(q: np.ndarray, previous: np.ndarray, limits: JointLimits, v_step: np
     return lo, hi
 
 
-def _why(step: np.ndarray, previous: np.ndarray, q: np.ndarray, limits: JointLimits, dt: float) -> str:
-    """Which limit the unconstrained step broke (for the infeasibility report)."""
+def _failed(done: np.ndarray, step: np.ndarray, previous: np.ndarray, q: np.ndarray, limits: JointLimits,
+            dt: float) -> Tracked:
+    """The failed tracking, with which limit the unconstrained step broke and by how much."""
     velocity = np.abs(step) / dt / limits.dq_max
     acceleration = np.abs(step - previous) / dt / dt / limits.ddq_max
-    if np.max(velocity) > 1.0:
-        j = int(np.argmax(velocity))
-        return f"needs joint {j + 1} at {velocity[j] * 100:.0f} % of its velocity limit"
-    if np.max(acceleration) > 1.0:
-        j = int(np.argmax(acceleration))
-        return f"needs joint {j + 1} at {acceleration[j] * 100:.0f} % of its acceleration limit"
+    for name, ratio in (("velocity", velocity), ("acceleration", acceleration)):
+        if np.max(ratio) > 1.0:
+            j = int(np.argmax(ratio))
+            return Tracked(done, False, f"needs joint {j + 1} at {ratio[j] * 100:.0f} % of its {name} limit",
+                           float(ratio[j]), name)
     room = np.minimum(limits.q_max - q, q - limits.q_min)
     j = int(np.argmin(room))
-    return f"cannot follow the path within the joint limits (joint {j + 1} is {room[j]:.3f} rad from its limit)"
+    return Tracked(done, False, f"cannot follow the path within the joint limits (joint {j + 1} is "
+                                f"{room[j]:.3f} rad from its limit)")

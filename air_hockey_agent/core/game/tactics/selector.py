@@ -104,10 +104,13 @@ class TacticsSelector:
             return
         sent.accepted = False
         proposal = sent.proposal
-        if outcome == TOO_FAST and math.isfinite(max_speed) and max_speed > 0.0:
+        known = math.isfinite(max_speed) and max_speed > 0.0
+        if outcome == TOO_FAST and known:
             self.speed_cap = max_speed * self.s.speed_cap_fraction
         elif outcome == LIMITS and proposal.is_hit and proposal.flexible_time:
-            self.speed_cap = self.s.limits_slowdown * float(np.linalg.norm(proposal.velocity))
+            # the planner's estimate of the speed that keeps the broken joint limit, else a fixed slowdown
+            self.speed_cap = (max_speed * self.s.speed_cap_fraction if known
+                              else self.s.limits_slowdown * float(np.linalg.norm(proposal.velocity)))
         elif outcome == TOO_LATE and proposal.flexible_time and self.lead_extra < self.s.max_lead_extra:
             self.lead_extra = min(self.lead_extra + self.s.lead_time_step, self.s.max_lead_extra)
         else:
