@@ -79,10 +79,10 @@ def test_smash_scores_only_with_a_goal_and_reports_the_offset(s):
 
 def test_cut_success_needs_rest_in_the_smash_area(s):
     trial = make_trial("cut", 0, 0, s)
-    inside = play(trial, s, [(0.0, (-0.5, 0.0, 0.0, 0.0))], hits=[0.0]).result()
+    inside = play(trial, s, [(0.0, trial.state[:4]), (0.01, (-0.5, 0.0, 0.0, 0.0))], hits=[0.0]).result()
     assert inside.success and inside.partial
     x_edge = -HALF + s.smash_depth[1]
-    just_out = play(trial, s, [(0.0, (x_edge + 0.001, 0.0, 0.0, 0.0))], hits=[0.0]).result()
+    just_out = play(trial, s, [(0.0, trial.state[:4]), (0.01, (x_edge + 0.001, 0.0, 0.0, 0.0))], hits=[0.0]).result()
     assert not just_out.success and just_out.partial
     conceded = play(trial, s, straight(0.0, 1.0, -0.8, 0.0, -1.0, 0.0), hits=[0.0]).result()
     assert conceded.conceded and not conceded.partial
@@ -92,7 +92,7 @@ def test_cut_success_needs_rest_in_the_smash_area(s):
 
 def test_prepare_partial_on_the_own_half_and_failure_across_the_centre(s):
     trial = make_trial("prepare", 0, 0, s)
-    assert play(trial, s, [(0.0, (-0.1, 0.4, 0.0, 0.0))], hits=[0.0]).result().partial
+    assert play(trial, s, [(0.0, trial.state[:4]), (0.01, (-0.1, 0.4, 0.0, 0.0))], hits=[0.0]).result().partial
     across = play(trial, s, straight(0.0, 1.0, -0.05, 0.0, 0.5, 0.0), hits=[0.0]).result()
     assert not across.partial and "centre" in across.reason
     waiting = play(trial, s, [(t, (-0.8, 0.3, 0.0, 0.0)) for t in np.arange(0, 12, 0.1)])
@@ -106,3 +106,21 @@ def test_repel_success_is_the_hit_and_speed_is_taken_at_the_defend_line(s):
     summary = summarise([r.as_dict(), play(trial, s, [(0.0, (-0.5, 0.0, 0.0, 0.0))]).result().as_dict()])
     assert summary["repel"]["success_rate"] == 0.5 and summary["repel"]["goal_rate"] == 0.5
     assert summary["repel"]["mean_speed_mps"] == pytest.approx(2.0)
+
+
+def test_states_from_before_a_reported_contact_ended_are_not_a_rest_after_the_hit(s):
+    """table_sim reports a contact when it ends; the puck's states from before then may arrive later
+    (the strategy test once scored hit smashes "at rest" at their initial position this way)."""
+    trial = make_trial("smash_straight", 0, 0, s)
+    x0, y0 = trial.state[:2]
+    w = TrialWatcher(trial, s)
+    w.state(0.0, x0, y0, 0.0, 0.0)
+    w.contact(0.90, 0.004)                # the hit, reported at 0.905 s
+    w.state(0.899, x0, y0, 0.0, 0.0)      # a state from before it, delivered late
+    w.state(0.902, x0, y0, 0.4, 0.0)      # during the contact
+    assert not w.done
+    for t, st in straight(0.91, 2.0, x0, y0, 3.0, 0.0):
+        w.state(t, *st)
+        if w.done:
+            break
+    assert w.done and w.result().goal

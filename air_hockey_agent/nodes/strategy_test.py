@@ -79,7 +79,7 @@ class StrategyTestNode(AirHockeyNode):
 
     def on_contact(self, msg: MalletContact) -> None:
         if self.watcher is not None and self.phase == "run" and msg.robot == ROBOT:
-            self.watcher.contact(to_seconds(msg.header.stamp))
+            self.watcher.contact(to_seconds(msg.header.stamp), msg.duration)
 
     # --- trial phases --------------------------------------------------------------------------
     def call(self, client, request) -> None:

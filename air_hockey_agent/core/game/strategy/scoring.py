@@ -56,9 +56,11 @@ class TrialWatcher:
     def __post_init__(self) -> None:
         self._result = TrialResult(self.trial.strategy, self.trial.index)
 
-    def contact(self, t: float) -> None:
+    def contact(self, t: float, duration: float = 0.0) -> None:
+        """A contact that began at ``t`` [s] and lasted ``duration`` [s] (reported when it ended, so states
+        from before its end may still arrive afterwards: those do not count as "at rest after the hit")."""
         if not self.done and self.t0 is not None and t >= self.t0:
-            self._result.hit, self._last_hit = True, t
+            self._result.hit, self._last_hit = True, t + duration
 
     def state(self, t: float, x: float, y: float, vx: float, vy: float) -> None:
         if self.done:
@@ -82,7 +84,8 @@ class TrialWatcher:
             self._crossed_centre = True
             if self.trial.strategy in ("prepare", "cut") and r.hit:
                 return self._end("crossed the centre line")
-        if math.hypot(vx, vy) < s.rest_speed and (r.hit or self.trial.strategy in ("cut", "repel")):
+        after_hit = r.hit and t > self._last_hit
+        if math.hypot(vx, vy) < s.rest_speed and (after_hit or (not r.hit and self.trial.strategy in ("cut", "repel"))):
             return self._end("at rest", rest=(x, y))
         kind = self.trial.strategy
         if (kind.startswith("smash") or kind == "repel") and r.hit and t - self._last_hit > s.after_hit:
