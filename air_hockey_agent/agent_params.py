@@ -37,6 +37,10 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("max_hit_speed", float, "[m/s] fastest hit ever asked for", 0.1, 10.0),
     ParamSpec("speed_cap_fraction", float, "fraction of the reported maximum after 'too fast'", 0.1, 1.0),
     ParamSpec("prepare_speed", list, "[m/s] mallet speed range of a Prepare", 0.01, 5.0, 2),
+    ParamSpec("prepare_speed_steps", int, "mallet speeds a Prepare tries over prepare_speed", 1, 50),
+    ParamSpec("prepare_directions", int, "push directions a Prepare tries around the puck", 4, 360),
+    ParamSpec("prepare_end_speed", float, "[m/s] a pushed puck is predicted until it is this slow", 1e-4, 1.0),
+    ParamSpec("prepare_horizon", float, "[s] longest prediction of a pushed puck", 0.1, 30.0),
     ParamSpec("mallet_restitution", float, "[-] puck-mallet restitution of the shot model", 0.0, 1.0),
     ParamSpec("aim_noise", float, "[rad] shot direction spread used to rank shots", 1e-4, 1.0),
     ParamSpec("approach_clearance", float, "[m] gap between the approaching mallet and the puck", 0.0, 0.5),
@@ -89,7 +93,8 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
     planner = build_planner(motion, robot)
     speeds = load_or_build(planner, motion, params["speed_map_grid"], log=log)
     s = planner.s
-    reach = ArmReach(planner.region, s.run_up[0], s.run_up[1], s.follow_through[0], s.reach_acceleration,
+    reach = ArmReach(planner.region, s.run_up[0], s.run_up[1], s.run_up_time, s.follow_through[0],
+                     s.follow_through[1], s.reach_acceleration,
                      s.planning_delay + s.height_transition, params["reach_time_margin"], speeds)
     settings = TacticsSettings.from_params(params)
     dt = 1.0 / load_tracker_params()["frequency"]

@@ -36,8 +36,10 @@ def model():
 def flat_reach(settings) -> ArmReach:
     t = settings.table
     region = Region.for_table(t.length, t.width, settings.mallet_radius, 0.02, BASE, 1.30)
-    xs, ys, angles = np.linspace(-1.0, 0.0, 5), np.linspace(-0.6, 0.6, 5), np.linspace(-math.pi / 2, math.pi / 2, 5)
-    return ArmReach(region, 0.12, 0.30, 0.06, 5.0, 0.26, 1.25, SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)))
+    xs, ys, angles = np.linspace(-1.0, 0.0, 5), np.linspace(-0.6, 0.6, 5), np.linspace(-math.pi, math.pi, 5)
+    # run-up 0.06-0.30 m, at most 0.4 s; follow-through 0.06-0.30 m (config/motion.yaml)
+    return ArmReach(region, 0.06, 0.30, 0.4, 0.06, 0.30, 5.0, 0.26, 1.25,
+                    SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)))
 
 
 @pytest.fixture
@@ -94,7 +96,7 @@ def test_speed_map_agrees_with_the_planners_search():
     from air_hockey_agent.core.motion.ik import solve_ik
     from air_hockey_agent.motion_params import build_planner, load_motion_params
     planner = build_planner(load_motion_params(), "iiwa_front")
-    table = SpeedMap.build(planner, (6, 5, 7))
+    table = SpeedMap.build(planner, (6, 5, 13))  # 30 deg between directions
     s, rng = planner.s, np.random.default_rng(3)
     checked = 0
     for _ in range(20):
@@ -170,11 +172,32 @@ def test_static_puck_in_the_smash_area_is_smashed_at_the_goal(selector, model, s
     np.testing.assert_allclose(c.point + direction * settings.contact_distance, [-0.5, 0.1], atol=1e-6)
 
 
-def test_static_puck_near_the_goal_is_prepared_toward_the_smash_area(selector, model, settings):
-    d = selector.step(0.0, RUNNING, situation(model, [-0.76, 0.25, 0, 0, 0, 0]))  # in front of the goal
-    assert d.tactic == PREPARE and d.command is not None
+@pytest.mark.parametrize("puck", [(-0.76, 0.25), (-0.5, -0.45), (-0.82, 0.0)])
+def test_a_static_puck_outside_the_smash_area_is_pushed_to_stop_inside_it(selector, model, settings, puck):
+    """In front of the goal, against a long rim, and behind the region's back edge: the pushed puck,
+    predicted by the stepwise model (not the closed-form predictor Prepare searched with), stays on the
+    own half and stops inside the smash area."""
+    from air_hockey_agent.core.game.shots import puck_after_hit
+    d = selector.step(0.0, RUNNING, situation(model, [*puck, 0, 0, 0, 0]))
+    assert d.tactic == PREPARE and d.command is not None, d.reason
     v = d.command.velocity
-    assert v[1] < 0.0 and settings.prepare_speed[0] <= np.linalg.norm(v) <= settings.prepare_speed[1]
+    assert settings.prepare_speed[0] - 1e-9 <= np.linalg.norm(v) <= settings.prepare_speed[1] + 1e-9
+    n = v / np.linalg.norm(v)
+    np.testing.assert_allclose(d.command.point + n * settings.contact_distance, puck, atol=1e-9)
+    vp = puck_after_hit(np.zeros(2), v, n, settings.mallet_restitution)
+    pred = predict_stepwise(model, np.array([*puck, *vp, 0.0, 0.0]), np.eye(6), 10.0, DT, np.zeros((6, 6)),
+                            lines=(0.0,))
+    assert 0.0 not in pred.crossings and np.hypot(*pred.state[2:4]) < 0.02
+    assert settings.in_smash_area(*pred.state[:2])
+
+
+def test_a_push_whose_puck_rebounds_into_the_stopping_mallet_is_flagged(selector):
+    """A puck 4 cm from the -y rim pushed into it bounces back into the mallet, which runs on 0.3 m
+    after the hit; pushed away from the rim it does not."""
+    puck = np.array([-0.5, -0.45, 0.0, 0.0, 0.0, 0.0])
+    into = selector.shots.push(puck, -math.pi / 2 + 0.2, 0.3, 0.005, 8.0, 0.30)
+    away = selector.shots.push(puck, math.pi / 2, 0.3, 0.005, 8.0, 0.30)
+    assert into.recontact and not away.recontact
 
 
 def test_puck_straight_at_the_goal_is_repelled_toward_the_opponent(selector, model):
@@ -268,7 +291,7 @@ def test_smash_is_not_played_when_the_approach_would_knock_the_puck(selector, mo
     sit = situation(model, [-0.5, -0.25, 0, 0, 0, 0])
     smash, reach = Smash(), selector.reach
     shot = selector.shots.aim(sit.puck, "left_bank")
-    start = reach.run_up_start(shot.hit_point, shot.direction)
+    start = reach.run_up_start(shot.hit_point, shot.direction, shot.mallet_speed)
     beyond = sit.puck[:2] + (sit.puck[:2] - start)  # the mallet on the far side: its way runs through the puck
     blocked = Context(0.0, settings, reach, selector.shots, mallet=beyond, variant="left_bank")
     assert smash.propose(sit, blocked) is None

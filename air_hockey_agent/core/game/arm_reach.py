@@ -10,6 +10,7 @@ import numpy as np
 
 from air_hockey_agent.core.game.speed_map import SpeedMap
 from air_hockey_agent.core.motion.region import Region
+from air_hockey_agent.core.motion.task_motion import run_up_length
 
 
 @dataclass(frozen=True)
@@ -17,7 +18,9 @@ class ArmReach:
     region: Region            # the planner's allowed region (own frame)
     run_up: float             # [m] shortest run-up the planner needs behind a hit point
     run_up_max: float         # [m] longest run-up it takes when there is room
+    run_up_time: float        # [s] longest time a run-up takes (slow hits get short run-ups)
     follow_through: float     # [m] shortest follow-through it needs ahead of it
+    follow_through_max: float  # [m] longest follow-through it takes when there is room
     reach_acceleration: float  # [m/s^2] task acceleration of reach-and-stop motions
     min_reach_time: float     # [s] shortest time a reach is given: the planner's delay plus its height transition
     reach_time_margin: float  # [-] multiple of the shortest cubic time given to a reach
@@ -30,11 +33,17 @@ class ArmReach:
         return (self.region.distance_along(point, -direction) >= self.run_up
                 and self.region.distance_along(point, direction) >= self.follow_through)
 
-    def run_up_start(self, point: np.ndarray, direction: np.ndarray) -> np.ndarray:
-        """Where the planner starts the strike of a hit at ``point`` along ``direction`` (the longest run-up
-        that fits behind it, as :meth:`MotionPlanner._run_up` chooses)."""
-        behind = min(self.region.distance_along(point, -direction), self.run_up_max)
+    def run_up_start(self, point: np.ndarray, direction: np.ndarray, speed: float) -> np.ndarray:
+        """Where the planner starts the strike of a hit at ``point`` along ``direction`` at ``speed`` [m/s]
+        (the planner's own rule, :func:`task_motion.run_up_length`)."""
+        behind = run_up_length(self.region.distance_along(point, -direction), speed, (self.run_up, self.run_up_max),
+                               self.run_up_time)
         return np.asarray(point) - behind * np.asarray(direction)
+
+    def follow_through_length(self, point: np.ndarray, direction: np.ndarray) -> float:
+        """How far [m] the mallet runs on after a hit at ``point`` along ``direction`` before it stops (the
+        longest stop that fits ahead, as :meth:`MotionPlanner._stop_steps` chooses)."""
+        return min(self.region.distance_along(point, direction), self.follow_through_max)
 
     def max_speed(self, point: np.ndarray, direction: np.ndarray) -> float:
         """Fastest hit [m/s] at ``point`` along ``direction``; 0 where the arm cannot hit."""

@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 
 from air_hockey_agent.core.game.tactics.settings import TacticsSettings
+from air_hockey_agent.core.motion.task_motion import stop_fraction
 from air_hockey_agent.core.puck.model import PuckModel
 from air_hockey_agent.core.puck.prediction import predict_fast
 
@@ -53,6 +54,19 @@ class Shot:
     goal_y: float              # [m] predicted y at the opponent's goal line
     arrival: float             # [s] from the hit to the goal line
     success: float             # probability of entering the goal under the aim noise
+
+
+@dataclass(frozen=True)
+class Push:
+    """A slow hit that should leave the puck somewhere on the own half (Prepare)."""
+
+    direction: np.ndarray      # unit hit direction
+    hit_point: np.ndarray      # [m] mallet centre at the hit
+    mallet_speed: float        # [m/s]
+    rest: np.ndarray           # [m] predicted position where the puck (nearly) stops
+    crosses_centre: bool       # the prediction crosses the centre line on the way
+    enters_goal: bool          # ... or the own goal line inside the goal mouth
+    recontact: bool            # ... or the puck comes back into the mallet during its follow-through
 
 
 def _normal_cdf(z: float) -> float:
@@ -89,6 +103,42 @@ class ShotPredictor:
         if crossing is None:
             return None
         return crossing.y, crossing.time, hit, v, vp, (crossing.y if guard is None else guard.y)
+
+    def push(self, puck: np.ndarray, angle: float, mallet_speed: float, end_speed: float, horizon: float,
+             follow_through: float) -> Push:
+        """Where a hit along ``angle`` [rad] at ``mallet_speed`` [m/s] leaves the puck (own-frame state, 6):
+        predicted with the puck model (rim impacts included) until its speed would fall to ``end_speed``
+        under the damping alone, at most ``horizon`` [s]; and whether the puck, rebounding from a rim,
+        meets the mallet again while it runs on ``follow_through`` [m] after the hit (the planner's stop,
+        mean speed v/2: a push into a near rim was hit a second time, twice across the centre line)."""
+        d = np.array([math.cos(angle), math.sin(angle)])
+        vp = puck_after_hit(puck[2:4], mallet_speed * d, d, self.s.mallet_restitution)
+        speed, damping = float(np.hypot(*vp)), self.model.params.damping
+        t = horizon if damping <= 0.0 or speed <= end_speed else min(horizon, math.log(speed / end_speed) / damping)
+        state = np.array([puck[0], puck[1], vp[0], vp[1], 0.0, puck[5]])
+        own_line = -self.line
+        pred = predict_fast(self.model, state, None, max(t, self.dt), self.dt, NO_Q, lines=(0.0, own_line))
+        goal = pred.crossings.get(own_line)
+        hit = puck[:2] - d * self.s.contact_distance
+        recontact = pred.impacts and self._meets_mallet(state, hit, d, mallet_speed, follow_through)
+        return Push(d, hit, mallet_speed, pred.state[:2].copy(), 0.0 in pred.crossings,
+                    goal is not None and abs(goal.y) < self.mouth, bool(recontact))
+
+    def _meets_mallet(self, state: np.ndarray, hit: np.ndarray, d: np.ndarray, speed: float, length: float) -> bool:
+        """The puck (state right after the hit) comes back within contact of the stopping mallet once it
+        has left it by more than ``approach_clearance``."""
+        duration = 2.0 * length / speed
+        pred = predict_fast(self.model, state, None, duration, self.dt, NO_Q, sample_every=1)
+        left, contact = False, self.s.contact_distance
+        for t, s, _ in pred.samples:
+            u = min(t / duration, 1.0)
+            mallet = hit + d * length * stop_fraction(u)
+            gap = float(np.hypot(s[0] - mallet[0], s[1] - mallet[1])) - contact
+            if gap > self.s.approach_clearance:
+                left = True
+            elif left and gap < 0.5 * self.s.approach_clearance:
+                return True
+        return False
 
     def aim(self, puck: np.ndarray, variant: str, speed: float | None = None) -> Shot | None:
         """The hit that sends ``puck`` (own-frame state, 6) into the goal centre by ``variant``: secant

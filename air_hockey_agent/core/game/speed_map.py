@@ -24,8 +24,10 @@ from air_hockey_agent.core.motion.hit_config import best_hit_configuration
 from air_hockey_agent.core.motion.ik import solve_ik
 from air_hockey_agent.core.motion.planner import MotionPlanner
 
-ANGLE_RANGE = math.radians(90.0)  # [rad] directions from -90 to +90 deg about the own +x axis
-FORMAT_VERSION = 1
+# [rad] directions from -180 to +180 deg about the own +x axis: smashes go forward, but a Prepare pushes a
+# puck that lies beyond the smash area back toward the own goal (atan2's range: both ends are one direction)
+ANGLE_RANGE = math.pi
+FORMAT_VERSION = 2
 
 
 def _cell(axis: Sequence[float], value: float) -> tuple[int, float]:

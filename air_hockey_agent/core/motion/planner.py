@@ -92,6 +92,7 @@ class MotionSettings:
     height: float
     dt: float
     run_up: tuple[float, float]
+    run_up_time: float
     follow_through: tuple[float, float]
     posture_gain: float
     posture_tolerance: float
@@ -105,7 +106,7 @@ class MotionSettings:
 
     @classmethod
     def from_params(cls, p: Mapping[str, Any]) -> "MotionSettings":
-        return cls(p["playing_height"], p["sample_period"], tuple(p["run_up_length"]),
+        return cls(p["playing_height"], p["sample_period"], tuple(p["run_up_length"]), p["run_up_time"],
                    tuple(p["follow_through_length"]), p["posture_gain"], p["posture_tolerance"],
                    p["reach_acceleration"], p["ik_iterations"], p["ik_tolerance"], p["planning_delay"],
                    p["height_transition"], p["hit_posture_range"], np.asarray(p["reference_posture"], float))
@@ -210,7 +211,7 @@ class MotionPlanner:
         when even the shortest does not fit."""
         s = self.s
         behind = self.region.distance_along(hit, -direction)
-        steps = max(1, int(2 * min(behind, s.run_up[1]) / speed / s.dt))
+        steps = max(1, int(2 * tm.run_up_length(behind, speed, s.run_up, s.run_up_time) / speed / s.dt))
         if behind < s.run_up[0]:
             return steps, refused(LIMITS, f"no room for a run-up: {behind:.3f} m behind the hit point "
                                           f"(at least {s.run_up[0]:.3f} m needed)")

@@ -35,12 +35,26 @@ def strike(hit: np.ndarray, direction: np.ndarray, speed: float, steps: int, dt:
     return start + s[:, None] * direction, ds[:, None] * direction
 
 
+def run_up_length(behind: float, speed: float, lengths: tuple[float, float], longest_time: float) -> float:
+    """Length [m] of the straight run-up of a hit at ``speed`` [m/s] with ``behind`` [m] of room behind the
+    hit point: the longest that fits, at most ``lengths[1]``, and at most what the strike covers in
+    ``longest_time`` [s] at its mean speed v/2 (a slow push gets a short run-up instead of a long crawl),
+    but never below ``lengths[0]`` (the planner refuses when even that does not fit)."""
+    return min(behind, lengths[1], max(lengths[0], 0.5 * speed * longest_time))
+
+
+def stop_fraction(u):
+    """Fraction of the stopping distance covered at the fraction ``u`` in [0, 1] of the stop's duration
+    (quartic: speed 2 L / T at u = 0, zero speed and acceleration at u = 1)."""
+    return 2.0 * u - 2.0 * u ** 3 + u ** 4
+
+
 def stop(hit: np.ndarray, direction: np.ndarray, speed: float, steps: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
     """From ``hit`` at ``speed`` along unit ``direction`` to rest over ``steps`` grid steps, along a
     straight line of length ``speed * steps * dt / 2``."""
     duration = steps * dt
     t = np.arange(1, steps + 1) * dt
-    s = speed * t - speed * t ** 3 / duration ** 2 + speed * t ** 4 / (2 * duration ** 3)
+    s = 0.5 * speed * duration * stop_fraction(t / duration)
     ds = speed - 3 * speed * t ** 2 / duration ** 2 + 2 * speed * t ** 3 / duration ** 3
     return hit + s[:, None] * direction, ds[:, None] * direction
 

@@ -65,6 +65,20 @@ class Tactic:
         raise NotImplementedError
 
 
+def approach_clear(puck: np.ndarray, hit_point: np.ndarray, velocity: np.ndarray, ctx: Context) -> bool:
+    """The mallet's straight way from where it is to the strike's start (behind ``hit_point`` along the
+    hit ``velocity`` [m/s]) keeps ``approach_clearance`` beyond contact off the puck at ``puck`` [m] (else it would
+    knock the puck away, or into the own goal, before the strike: seen in the first strategy tests)."""
+    if ctx.mallet is None:
+        return True
+    speed = float(np.linalg.norm(velocity))
+    a, b = np.asarray(ctx.mallet, float), ctx.reach.run_up_start(hit_point, velocity / speed, speed)
+    ab = b - a
+    s = 0.0 if not ab.any() else float(np.clip((puck[:2] - a) @ ab / (ab @ ab), 0.0, 1.0))
+    gap = float(np.linalg.norm(puck[:2] - (a + s * ab)))
+    return gap >= ctx.settings.contact_distance + ctx.settings.approach_clearance
+
+
 def reach_proposal(tactic: int, point: np.ndarray, ctx: Context, reason: str) -> Proposal:
     """Reach ``point`` and stop, with the time the arm needs (plus any "too late" extra)."""
     p = ctx.reach.clamp(point)

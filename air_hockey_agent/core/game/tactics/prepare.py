@@ -1,11 +1,14 @@
-"""Prepare (thesis sec. 4.6; S: PREPARE): a puck at rest where it cannot be smashed (near a rim or the
-own goal) is pushed into the smash area.
+"""Prepare (thesis sec. 4.6; S: PREPARE): a puck at rest where it cannot be smashed (near a rim, near the
+own goal, or beyond the smash area) is pushed so that it stops inside the smash area.
 
 S pushed at a fixed 0.8 m/s along a rule with an asymmetric branch (REFERENCE_FACTS 2.2); with the
-table's damping that sends the puck 1.6 m, out of the smash area. Here the direction is toward the
-smash area's centre (turned by up to ``TURNS`` when the arm has no room for it) and the speed is the one
-after which the puck model stops the puck there: the puck's speed ``d D`` for a distance ``D`` under
-damping ``d`` (eq. 3.1 without the tiny friction term), divided by ``1 + e`` for the mallet's impact.
+table's damping that sends the puck 1.6 m, out of the smash area. Here every push the arm can make is
+predicted with the puck model, rim impacts included (:meth:`ShotPredictor.push`): ``prepare_directions``
+directions around the puck and ``prepare_speed_steps`` mallet speeds spaced geometrically over
+``prepare_speed``. A push whose puck crosses the centre line or enters the own goal is discarded; of the
+rest, the one whose stopping point lies deepest inside the smash area, also when the direction is off by
+the aim noise, is played (the slower one when two are as deep), so a puck against a rim is banked off it
+into the area and one the arm cannot push into it is left as near to it as the arm can.
 """
 from __future__ import annotations
 
@@ -13,19 +16,28 @@ import math
 
 import numpy as np
 
+from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
-from air_hockey_agent.core.game.tactics.base import PREPARE, Context, Proposal, Tactic
+from air_hockey_agent.core.game.tactics.base import PREPARE, Context, Proposal, Tactic, approach_clear
+from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 
-TURNS = (0.0, 0.3, -0.3, 0.6, -0.6, 0.9, -0.9, 1.2, -1.2)  # [rad] direction changes tried in order
+CACHE_SIZE = 64
+KEY_POSITION = 0.005  # [m] puck positions closer than this share a chosen push
+TIE = 0.005           # [m] margins closer than this count as equal (then the slower push wins)
 
 
-def _rotate(v: np.ndarray, angle: float) -> np.ndarray:
-    c, s = math.cos(angle), math.sin(angle)
-    return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+def area_margin(st: TacticsSettings, point: np.ndarray) -> float:
+    """Distance [m] of ``point`` (own frame) inside the smash area's box; negative outside."""
+    depth = point[0] + st.table.length / 2
+    half_width = st.table.y_limit - st.smash_rim_margin
+    return min(depth - st.smash_depth[0], st.smash_depth[1] - depth, half_width - abs(point[1]))
 
 
 class Prepare(Tactic):
     tactic = PREPARE
+
+    def __init__(self) -> None:
+        self._cache: dict[tuple, list[Push]] = {}
 
     def propose(self, situation: Situation | None, ctx: Context) -> Proposal | None:
         st = ctx.settings
@@ -34,19 +46,49 @@ class Prepare(Tactic):
         p = situation.puck[:2]
         if p[0] >= 0.0 or st.in_smash_area(p[0], p[1]):
             return None
-        target = st.point((0.5 * (st.smash_depth[0] + st.smash_depth[1]), 0.0))
-        distance = float(np.linalg.norm(target - p))
-        toward = (target - p) / distance
-        damping = ctx.shots.model.params.damping
-        for turn in TURNS:
-            d = _rotate(toward, turn)
-            hit = p - d * st.contact_distance
-            top = ctx.reach.max_speed(hit, d)
-            if top <= 0.0:
-                continue
-            wanted = damping * distance / (1.0 + st.mallet_restitution)
-            v = min(max(wanted, st.prepare_speed[0]), st.prepare_speed[1], top * st.hit_speed_fraction, ctx.speed_cap)
-            t = ctx.now + st.smash_lead_time + ctx.lead_extra
-            reason = f"prepare: puck at rest at ({p[0]:.2f}, {p[1]:.2f}) outside the smash area, pushed {v:.2f} m/s"
-            return Proposal(PREPARE, hit, v * d, t, reason, puck=p.copy(), target=target, flexible_time=True)
-        return None
+        push = self._best(situation.puck, ctx)
+        if push is None:
+            return None
+        t = ctx.now + st.smash_lead_time + ctx.lead_extra
+        reason = (f"prepare: puck at rest at ({p[0]:.2f}, {p[1]:.2f}) outside the smash area, pushed "
+                  f"{push.mallet_speed:.2f} m/s to stop at ({push.rest[0]:.2f}, {push.rest[1]:.2f})")
+        return Proposal(PREPARE, push.hit_point, push.mallet_speed * push.direction, t, reason, puck=p.copy(),
+                        target=push.rest, flexible_time=True)
+
+    def _best(self, puck: np.ndarray, ctx: Context) -> Push | None:
+        """The first push of the ranked list whose approach keeps off the puck."""
+        cap = None if math.isinf(ctx.speed_cap) else round(ctx.speed_cap, 3)
+        key = (round(puck[0] / KEY_POSITION), round(puck[1] / KEY_POSITION), cap)
+        if key not in self._cache:
+            if len(self._cache) >= CACHE_SIZE:
+                self._cache.clear()
+            self._cache[key] = self._ranked(puck, ctx)
+        return next((p for p in self._cache[key] if approach_clear(puck, p.hit_point, p.mallet_speed * p.direction, ctx)), None)
+
+    def _ranked(self, puck: np.ndarray, ctx: Context) -> list[Push]:
+        """Every push the arm can make that keeps the puck on the own half, best first: by how deep inside
+        the smash area it stops in the worst of the aimed direction and the direction off by
+        ``aim_noise`` either way (negative: outside; then the nearest to the area), the slower first among
+        equals."""
+        st = ctx.settings
+        speeds = np.geomspace(st.prepare_speed[0], st.prepare_speed[1], st.prepare_speed_steps)
+        scored = []
+        for angle in np.linspace(-math.pi, math.pi, st.prepare_directions, endpoint=False):
+            d = np.array([math.cos(angle), math.sin(angle)])
+            hit = puck[:2] - d * st.contact_distance
+            top = ctx.reach.max_speed(hit, d) * st.hit_speed_fraction
+            run_on = ctx.reach.follow_through_length(hit, d)
+            for v in speeds[speeds <= min(top, ctx.speed_cap)]:
+                margins = []
+                for turn in (0.0, -st.aim_noise, st.aim_noise):
+                    push = ctx.shots.push(puck, float(angle + turn), float(v), st.prepare_end_speed,
+                                          st.prepare_horizon, run_on)
+                    if push.crosses_centre or push.enters_goal or push.recontact:
+                        break
+                    margins.append(area_margin(st, push.rest))
+                    if turn == 0.0:
+                        aimed = push
+                else:
+                    scored.append((round(min(margins) / TIE), -v, aimed))
+        scored.sort(key=lambda item: item[:2], reverse=True)
+        return [push for _, _, push in scored]

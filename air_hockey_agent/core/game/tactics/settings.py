@@ -36,6 +36,10 @@ class TacticsSettings:
     max_hit_speed: float
     speed_cap_fraction: float
     prepare_speed: tuple[float, float]
+    prepare_speed_steps: int
+    prepare_directions: int
+    prepare_end_speed: float
+    prepare_horizon: float
     mallet_restitution: float
     aim_noise: float
     approach_clearance: float

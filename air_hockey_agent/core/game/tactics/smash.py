@@ -14,7 +14,7 @@ import numpy as np
 
 from air_hockey_agent.core.game.shots import VARIANTS
 from air_hockey_agent.core.game.situation import Situation
-from air_hockey_agent.core.game.tactics.base import SMASH, Context, Proposal, Tactic
+from air_hockey_agent.core.game.tactics.base import SMASH, Context, Proposal, Tactic, approach_clear
 
 CACHE_SIZE = 64
 KEY_POSITION = 0.005  # [m] puck positions closer than this share an aimed shot
@@ -35,25 +35,13 @@ class Smash(Tactic):
         puck = situation.expected(t_hit, st.static_speed)
         if not st.in_smash_area(puck[0], puck[1]) or math.hypot(puck[2], puck[3]) > st.smash_puck_speed:
             return None
-        shot = ctx.shots.pick([s for s in self._shots(puck, ctx) if self._approach_clear(puck, s, ctx)])
+        shot = ctx.shots.pick([s for s in self._shots(puck, ctx) if approach_clear(puck, s.hit_point, s.mallet_speed * s.direction, ctx)])
         if shot is None:
             return None
         reason = (f"smash {shot.variant}: puck at ({puck[0]:.2f}, {puck[1]:.2f}), {shot.mallet_speed:.2f} m/s, "
                   f"predicted goal y {shot.goal_y:+.3f} m in {shot.arrival:.2f} s, p(goal) {shot.success:.2f}")
         return Proposal(SMASH, shot.hit_point, shot.mallet_speed * shot.direction, t_hit, reason, puck=puck[:2],
                         target=np.array([st.table.length / 2, 0.0]), flexible_time=True)
-
-    @staticmethod
-    def _approach_clear(puck: np.ndarray, shot, ctx: Context) -> bool:
-        """The mallet's straight way from where it is to the strike's start keeps off the puck (else it
-        would knock the puck away, or into the own goal, before the strike)."""
-        if ctx.mallet is None:
-            return True
-        a, b = np.asarray(ctx.mallet, float), ctx.reach.run_up_start(shot.hit_point, shot.direction)
-        ab = b - a
-        s = 0.0 if not ab.any() else float(np.clip((puck[:2] - a) @ ab / (ab @ ab), 0.0, 1.0))
-        gap = float(np.linalg.norm(puck[:2] - (a + s * ab)))
-        return gap >= ctx.settings.contact_distance + ctx.settings.approach_clearance
 
     def _shots(self, puck: np.ndarray, ctx: Context) -> list:
         cap = None if math.isinf(ctx.speed_cap) else ctx.speed_cap
