@@ -205,12 +205,29 @@ def test_puck_straight_at_the_goal_is_repelled_toward_the_opponent(selector, mod
     assert d.tactic == REPEL and d.command is not None and d.command.velocity[0] > 0.5
 
 
-def test_banked_puck_is_cut_before_it_reaches_the_defend_line(selector, model, settings):
-    sit = situation(model, [0.2, -0.1, -1.5, -1.6, 0, 0])
+@pytest.mark.parametrize("start", [(0.2, -0.1, -1.5, -1.6), (0.3, 0.2, -1.8, 1.2), (0.0, 0.3, -1.2, -0.2)])
+def test_an_approaching_puck_is_cut_to_stop_in_the_smash_area(selector, model, settings, start):
+    """Banked or straight: the Cut meets the puck before the defend line, and the puck it leaves, predicted
+    by the stepwise model from the commanded contact (normal from the mallet to the predicted puck), stops
+    inside the smash area without conceding."""
+    from air_hockey_agent.core.game.shots import puck_after_hit
+    sit = situation(model, [*start, 0, 0])
     c = sit.crossing(settings.defend_x)
-    assert c is not None and c.impacts_before >= 1
+    assert c is not None
+    selector.force(CUT)  # (the third would be repelled: it comes straight at the goal)
     d = selector.step(0.0, RUNNING, sit)
-    assert d.tactic == CUT and np.all(d.command.velocity == 0.0) and d.command.time < c.time
+    selector.force(None)
+    assert d.tactic == CUT and d.command is not None, d.reason
+    cmd = d.command
+    t = cmd.time + (settings.cut_arrive_early if not cmd.is_hit else 0.0)
+    assert t <= c.time + 1e-9
+    puck = sit.at(t)
+    n = (puck[:2] - cmd.point) / np.linalg.norm(puck[:2] - cmd.point)
+    assert np.linalg.norm(puck[:2] - cmd.point) == pytest.approx(settings.contact_distance, abs=1e-6)
+    vp = puck_after_hit(puck[2:4], cmd.velocity, n, settings.mallet_restitution)
+    pred = predict_stepwise(model, np.array([*puck[:2], *vp, 0.0, puck[5]]), np.eye(6), 10.0, DT, np.zeros((6, 6)),
+                            lines=(-settings.table.length / 2,))
+    assert np.hypot(*pred.state[2:4]) < 0.02 and settings.in_smash_area(*pred.state[:2])
 
 
 def test_no_defence_is_planned_with_too_little_time(selector, model, settings):

@@ -58,15 +58,19 @@ class Shot:
 
 @dataclass(frozen=True)
 class Push:
-    """A slow hit that should leave the puck somewhere on the own half (Prepare)."""
+    """A contact meant to leave the puck somewhere on the own half (Prepare, Cut)."""
 
-    direction: np.ndarray      # unit hit direction
-    hit_point: np.ndarray      # [m] mallet centre at the hit
-    mallet_speed: float        # [m/s]
-    rest: np.ndarray           # [m] predicted position where the puck (nearly) stops
-    crosses_centre: bool       # the prediction crosses the centre line on the way
-    enters_goal: bool          # ... or the own goal line inside the goal mouth
-    recontact: bool            # ... or the puck comes back into the mallet during its follow-through
+    normal: np.ndarray          # unit contact normal, mallet centre to puck centre
+    hit_point: np.ndarray       # [m] mallet centre at the contact
+    mallet_velocity: np.ndarray  # [m/s] mallet velocity at the contact
+    rest: np.ndarray            # [m] predicted position where the puck (nearly) stops
+    crosses_centre: bool        # the prediction crosses the centre line on the way
+    enters_goal: bool           # ... or the own goal line inside the goal mouth
+    recontact: bool             # ... or the puck comes back into the mallet after the contact
+
+    @property
+    def mallet_speed(self) -> float:
+        return float(np.hypot(*self.mallet_velocity))
 
 
 def _normal_cdf(z: float) -> float:
@@ -106,33 +110,44 @@ class ShotPredictor:
 
     def push(self, puck: np.ndarray, angle: float, mallet_speed: float, end_speed: float, horizon: float,
              follow_through: float) -> Push:
-        """Where a hit along ``angle`` [rad] at ``mallet_speed`` [m/s] leaves the puck (own-frame state, 6):
-        predicted with the puck model (rim impacts included) until its speed would fall to ``end_speed``
-        under the damping alone, at most ``horizon`` [s]; and whether the puck, rebounding from a rim,
-        meets the mallet again while it runs on ``follow_through`` [m] after the hit (the planner's stop,
-        mean speed v/2: a push into a near rim was hit a second time, twice across the centre line)."""
+        """A hit along ``angle`` [rad] at ``mallet_speed`` [m/s] on the puck (own-frame state, 6), the
+        mallet running on ``follow_through`` [m] after it: :meth:`contact`."""
         d = np.array([math.cos(angle), math.sin(angle)])
-        vp = puck_after_hit(puck[2:4], mallet_speed * d, d, self.s.mallet_restitution)
+        return self.contact(puck, d, mallet_speed * d, end_speed, horizon, follow_through)
+
+    def contact(self, puck: np.ndarray, normal: np.ndarray, mallet_velocity: np.ndarray, end_speed: float,
+                horizon: float, follow_through: float, watch: float = 1.0) -> Push:
+        """Where a contact along the unit ``normal`` (mallet to puck) with the mallet moving at
+        ``mallet_velocity`` [m/s] leaves the puck (own-frame state, 6, at the contact): predicted with the
+        puck model (rim impacts included) until its speed would fall to ``end_speed`` under the damping
+        alone, at most ``horizon`` [s]; and whether the puck, rebounding from a rim, meets the mallet again
+        while it runs on ``follow_through`` [m] along its velocity and stops (the planner's stop law; a
+        mallet at rest is watched for ``watch`` [s]). A push into a near rim was hit a second time, twice
+        across the centre line."""
+        vp = puck_after_hit(puck[2:4], mallet_velocity, normal, self.s.mallet_restitution)
         speed, damping = float(np.hypot(*vp)), self.model.params.damping
         t = horizon if damping <= 0.0 or speed <= end_speed else min(horizon, math.log(speed / end_speed) / damping)
         state = np.array([puck[0], puck[1], vp[0], vp[1], 0.0, puck[5]])
         own_line = -self.line
         pred = predict_fast(self.model, state, None, max(t, self.dt), self.dt, NO_Q, lines=(0.0, own_line))
         goal = pred.crossings.get(own_line)
-        hit = puck[:2] - d * self.s.contact_distance
-        recontact = pred.impacts and self._meets_mallet(state, hit, d, mallet_speed, follow_through)
-        return Push(d, hit, mallet_speed, pred.state[:2].copy(), 0.0 in pred.crossings,
-                    goal is not None and abs(goal.y) < self.mouth, bool(recontact))
+        hit = puck[:2] - normal * self.s.contact_distance
+        recontact = pred.impacts and self._meets_mallet(state, hit, mallet_velocity, follow_through, watch)
+        return Push(np.asarray(normal, float), hit, np.asarray(mallet_velocity, float), pred.state[:2].copy(),
+                    0.0 in pred.crossings, goal is not None and abs(goal.y) < self.mouth, bool(recontact))
 
-    def _meets_mallet(self, state: np.ndarray, hit: np.ndarray, d: np.ndarray, speed: float, length: float) -> bool:
-        """The puck (state right after the hit) comes back within contact of the stopping mallet once it
-        has left it by more than ``approach_clearance``."""
-        duration = 2.0 * length / speed
+    def _meets_mallet(self, state: np.ndarray, hit: np.ndarray, velocity: np.ndarray, length: float,
+                      watch: float) -> bool:
+        """The puck (state right after the contact) comes back within contact of the stopping mallet once
+        it has left it by more than ``approach_clearance``."""
+        speed = float(np.hypot(*velocity))
+        moving = speed > 0.0 and length > 0.0
+        duration = 2.0 * length / speed if moving else watch
+        d = velocity / speed if moving else np.zeros(2)
         pred = predict_fast(self.model, state, None, duration, self.dt, NO_Q, sample_every=1)
         left, contact = False, self.s.contact_distance
         for t, s, _ in pred.samples:
-            u = min(t / duration, 1.0)
-            mallet = hit + d * length * stop_fraction(u)
+            mallet = hit + d * length * stop_fraction(min(t / duration, 1.0))
             gap = float(np.hypot(s[0] - mallet[0], s[1] - mallet[1])) - contact
             if gap > self.s.approach_clearance:
                 left = True

@@ -52,7 +52,7 @@ class Prepare(Tactic):
         t = ctx.now + st.smash_lead_time + ctx.lead_extra
         reason = (f"prepare: puck at rest at ({p[0]:.2f}, {p[1]:.2f}) outside the smash area, pushed "
                   f"{push.mallet_speed:.2f} m/s to stop at ({push.rest[0]:.2f}, {push.rest[1]:.2f})")
-        return Proposal(PREPARE, push.hit_point, push.mallet_speed * push.direction, t, reason, puck=p.copy(),
+        return Proposal(PREPARE, push.hit_point, push.mallet_velocity, t, reason, puck=p.copy(),
                         target=push.rest, flexible_time=True)
 
     def _best(self, puck: np.ndarray, ctx: Context) -> Push | None:
@@ -63,7 +63,7 @@ class Prepare(Tactic):
             if len(self._cache) >= CACHE_SIZE:
                 self._cache.clear()
             self._cache[key] = self._ranked(puck, ctx)
-        return next((p for p in self._cache[key] if approach_clear(puck, p.hit_point, p.mallet_speed * p.direction, ctx)), None)
+        return next((p for p in self._cache[key] if approach_clear(puck, p.hit_point, p.mallet_velocity, ctx)), None)
 
     def _ranked(self, puck: np.ndarray, ctx: Context) -> list[Push]:
         """Every push the arm can make that keeps the puck on the own half, best first: by how deep inside

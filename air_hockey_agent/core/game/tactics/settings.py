@@ -55,6 +55,10 @@ class TacticsSettings:
     max_lead_extra: float
     limits_slowdown: float
     cut_arrive_early: float
+    cut_contact_steps: int
+    cut_normal_steps: int
+    cut_normal_range: float
+    cut_catch: tuple[float, ...]
     reach_time_margin: float
     stale_estimate: float
     settle_time: float
