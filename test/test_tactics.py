@@ -195,9 +195,10 @@ def test_a_push_whose_puck_rebounds_into_the_stopping_mallet_is_flagged(selector
     """A puck 4 cm from the -y rim pushed into it bounces back into the mallet, which runs on 0.3 m
     after the hit; pushed away from the rim it does not."""
     puck = np.array([-0.5, -0.45, 0.0, 0.0, 0.0, 0.0])
-    into = selector.shots.push(puck, -math.pi / 2 + 0.2, 0.3, 0.005, 8.0, 0.30)
-    away = selector.shots.push(puck, math.pi / 2, 0.3, 0.005, 8.0, 0.30)
-    assert into.recontact and not away.recontact
+    into = selector.shots.push(puck, -math.pi / 2 + 0.2, 0.3, 0.005, 8.0)
+    away = selector.shots.push(puck, math.pi / 2, 0.3, 0.005, 8.0)
+    assert selector.shots.rebounds_into_mallet(into, 0.30, 1.5)
+    assert not selector.shots.rebounds_into_mallet(away, 0.30, 1.5)
 
 
 def test_puck_straight_at_the_goal_is_repelled_toward_the_opponent(selector, model):

@@ -33,6 +33,7 @@ MAX_STEP = 0.15        # [rad] largest secant step
 HALVINGS = 2           # step halvings when a secant step leaves the shots that reach the goal line
 LINE_INSET = 0.01      # [m] the goal line is sampled this far in front of the short rim (in free flight)
 NO_Q = np.zeros(6)
+RECONTACT_STEP = 0.02  # [s] sample spacing of the re-contact check (a meeting lasts >= 0.06 s below 2.7 m/s)
 
 
 def puck_after_hit(v_puck: np.ndarray, v_mallet: np.ndarray, normal: np.ndarray, restitution: float) -> np.ndarray:
@@ -66,7 +67,8 @@ class Push:
     rest: np.ndarray            # [m] predicted position where the puck (nearly) stops
     crosses_centre: bool        # the prediction crosses the centre line on the way
     enters_goal: bool           # ... or the own goal line inside the goal mouth
-    recontact: bool             # ... or the puck comes back into the mallet after the contact
+    after: np.ndarray           # puck state (6) right after the contact
+    bounces: bool               # the prediction meets a rim
 
     @property
     def mallet_speed(self) -> float:
@@ -108,22 +110,17 @@ class ShotPredictor:
             return None
         return crossing.y, crossing.time, hit, v, vp, (crossing.y if guard is None else guard.y)
 
-    def push(self, puck: np.ndarray, angle: float, mallet_speed: float, end_speed: float, horizon: float,
-             follow_through: float) -> Push:
-        """A hit along ``angle`` [rad] at ``mallet_speed`` [m/s] on the puck (own-frame state, 6), the
-        mallet running on ``follow_through`` [m] after it: :meth:`contact`."""
+    def push(self, puck: np.ndarray, angle: float, mallet_speed: float, end_speed: float, horizon: float) -> Push:
+        """A hit along ``angle`` [rad] at ``mallet_speed`` [m/s] on the puck (own-frame state, 6): :meth:`contact`."""
         d = np.array([math.cos(angle), math.sin(angle)])
-        return self.contact(puck, d, mallet_speed * d, end_speed, horizon, follow_through)
+        return self.contact(puck, d, mallet_speed * d, end_speed, horizon)
 
     def contact(self, puck: np.ndarray, normal: np.ndarray, mallet_velocity: np.ndarray, end_speed: float,
-                horizon: float, follow_through: float, watch: float = 1.0) -> Push:
+                horizon: float) -> Push:
         """Where a contact along the unit ``normal`` (mallet to puck) with the mallet moving at
         ``mallet_velocity`` [m/s] leaves the puck (own-frame state, 6, at the contact): predicted with the
         puck model (rim impacts included) until its speed would fall to ``end_speed`` under the damping
-        alone, at most ``horizon`` [s]; and whether the puck, rebounding from a rim, meets the mallet again
-        while it runs on ``follow_through`` [m] along its velocity and stops (the planner's stop law; a
-        mallet at rest is watched for ``watch`` [s]). A push into a near rim was hit a second time, twice
-        across the centre line."""
+        alone, at most ``horizon`` [s]."""
         vp = puck_after_hit(puck[2:4], mallet_velocity, normal, self.s.mallet_restitution)
         speed, damping = float(np.hypot(*vp)), self.model.params.damping
         t = horizon if damping <= 0.0 or speed <= end_speed else min(horizon, math.log(speed / end_speed) / damping)
@@ -131,23 +128,28 @@ class ShotPredictor:
         own_line = -self.line
         pred = predict_fast(self.model, state, None, max(t, self.dt), self.dt, NO_Q, lines=(0.0, own_line))
         goal = pred.crossings.get(own_line)
-        hit = puck[:2] - normal * self.s.contact_distance
-        recontact = pred.impacts and self._meets_mallet(state, hit, mallet_velocity, follow_through, watch)
-        return Push(np.asarray(normal, float), hit, np.asarray(mallet_velocity, float), pred.state[:2].copy(),
-                    0.0 in pred.crossings, goal is not None and abs(goal.y) < self.mouth, bool(recontact))
+        return Push(np.asarray(normal, float), puck[:2] - normal * self.s.contact_distance,
+                    np.asarray(mallet_velocity, float), pred.state[:2].copy(), 0.0 in pred.crossings,
+                    goal is not None and abs(goal.y) < self.mouth, state, bool(pred.impacts))
 
-    def _meets_mallet(self, state: np.ndarray, hit: np.ndarray, velocity: np.ndarray, length: float,
-                      watch: float) -> bool:
-        """The puck (state right after the contact) comes back within contact of the stopping mallet once
-        it has left it by more than ``approach_clearance``."""
-        speed = float(np.hypot(*velocity))
-        moving = speed > 0.0 and length > 0.0
-        duration = 2.0 * length / speed if moving else watch
-        d = velocity / speed if moving else np.zeros(2)
-        pred = predict_fast(self.model, state, None, duration, self.dt, NO_Q, sample_every=1)
+    def rebounds_into_mallet(self, push: Push, follow_through: float, watch: float) -> bool:
+        """The puck, rebounding from a rim, meets the mallet again within ``watch`` [s] of the contact while
+        the mallet runs on ``follow_through`` [m] along its velocity and stays there (the planner's stop
+        law; a mallet at rest stays at the contact point); judged once the puck has left the mallet by ``approach_clearance``,
+        every ``RECONTACT_STEP`` s (the model lets the puck pass through the mallet, so a meeting lasts
+        about 2 (r_puck + r_mallet) / speed). A push into a near rim was hit a second time, twice across
+        the centre line."""
+        if not push.bounces:
+            return False
+        speed = push.mallet_speed
+        moving = speed > 0.0 and follow_through > 0.0
+        stop_time = 2.0 * follow_through / speed if moving else 1.0
+        d = push.mallet_velocity / speed if moving else np.zeros(2)
+        every = max(1, int(round(RECONTACT_STEP / self.dt)))
+        pred = predict_fast(self.model, push.after, None, watch, self.dt, NO_Q, sample_every=every)
         left, contact = False, self.s.contact_distance
         for t, s, _ in pred.samples:
-            mallet = hit + d * length * stop_fraction(min(t / duration, 1.0))
+            mallet = push.hit_point + d * follow_through * stop_fraction(min(t / stop_time, 1.0))
             gap = float(np.hypot(s[0] - mallet[0], s[1] - mallet[1])) - contact
             if gap > self.s.approach_clearance:
                 left = True

@@ -22,7 +22,7 @@ import numpy as np
 from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import CUT, Context, Proposal, Tactic
-from air_hockey_agent.core.game.tactics.prepare import TIE, area_margin
+from air_hockey_agent.core.game.tactics.prepare import TIE, Ranked, area_margin
 
 CACHE_SIZE = 16
 KEY_TIME = 0.02       # [s] predicted defend-line crossings closer than this in time ...
@@ -38,7 +38,7 @@ class Cut(Tactic):
     tactic = CUT
 
     def __init__(self) -> None:
-        self._cache: dict[tuple, list[tuple[float, Push]]] = {}
+        self._cache: dict[tuple, Ranked] = {}
 
     def propose(self, situation: Situation | None, ctx: Context) -> Proposal | None:
         st = ctx.settings
@@ -51,11 +51,13 @@ class Cut(Tactic):
         if key not in self._cache:
             if len(self._cache) >= CACHE_SIZE:
                 self._cache.clear()
-            self._cache[key] = self._ranked(situation, ctx, c.time)
-        ranked = [(t, push) for t, push in self._cache[key] if t - ctx.now >= st.min_plan_time]
-        if not ranked:
+            self._cache[key] = Ranked(self._ranked(situation, ctx, c.time))
+        best = self._cache[key].first(
+            lambda t, push, run_on: t - ctx.now >= st.min_plan_time,
+            lambda t, push, run_on: not ctx.shots.rebounds_into_mallet(push, run_on, st.recontact_watch))
+        if best is None:
             return None
-        t, push = ranked[0]
+        t, push, _ = best
         puck = situation.at(t)
         reason = (f"cut: puck crosses the defend line at y {c.y:+.2f} m in {c.time - ctx.now:.2f} s after "
                   f"{c.impacts_before} rim impact(s); met in {t - ctx.now:.2f} s, mallet "
@@ -65,8 +67,8 @@ class Cut(Tactic):
                             target=push.rest)
         return Proposal(CUT, push.hit_point, push.mallet_velocity, t, reason, puck=puck[:2], target=push.rest)
 
-    def _ranked(self, situation: Situation, ctx: Context, crossing_time: float) -> list[tuple[float, Push]]:
-        """(contact time, contact) the arm can make, best first: by how deep inside the smash area the puck
+    def _ranked(self, situation: Situation, ctx: Context, crossing_time: float) -> list[tuple[float, Push, float]]:
+        """(contact time, contact, mallet follow-through [m]) the arm can make, best first: by how deep inside the smash area the puck
         stops in the worst of the aimed normal and the normal off by the aim noise either way; among
         equals the earlier contact, then the slower mallet."""
         st = ctx.settings
@@ -81,7 +83,7 @@ class Cut(Tactic):
             for turn in np.linspace(-st.cut_normal_range, st.cut_normal_range, st.cut_normal_steps):
                 scored += self._contacts(puck, _rotate(head_on, float(turn)), float(t), ctx)
         scored.sort(key=lambda item: item[0], reverse=True)
-        return [(t, push) for _, t, push in scored]
+        return [item[1:] for item in scored]
 
     def _contacts(self, puck: np.ndarray, n: np.ndarray, t: float, ctx: Context) -> list[tuple]:
         """The scored contacts with normal ``n`` at time ``t``: one per catch fraction the arm allows."""
@@ -102,13 +104,12 @@ class Cut(Tactic):
             margins = []
             for off in (0.0, -st.aim_noise, st.aim_noise):
                 normal = _rotate(n, off)
-                push = ctx.shots.contact(puck, normal, -speed * normal, st.prepare_end_speed, st.prepare_horizon,
-                                         run_on if speed > 0.0 else 0.0)
-                if push.enters_goal or push.recontact:
+                push = ctx.shots.contact(puck, normal, -speed * normal, st.prepare_end_speed, st.prepare_horizon)
+                if push.enters_goal:
                     break
                 margins.append(area_margin(st, push.rest))
                 if off == 0.0:
                     aimed = push
             else:
-                out.append(((round(min(margins) / TIE), -t, -speed), t, aimed))
+                out.append(((round(min(margins) / TIE), -t, -speed), t, aimed, run_on if speed > 0.0 else 0.0))
         return out

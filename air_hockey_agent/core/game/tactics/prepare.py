@@ -37,7 +37,7 @@ class Prepare(Tactic):
     tactic = PREPARE
 
     def __init__(self) -> None:
-        self._cache: dict[tuple, list[Push]] = {}
+        self._cache: dict[tuple, Ranked] = {}
 
     def propose(self, situation: Situation | None, ctx: Context) -> Proposal | None:
         st = ctx.settings
@@ -56,20 +56,25 @@ class Prepare(Tactic):
                         target=push.rest, flexible_time=True)
 
     def _best(self, puck: np.ndarray, ctx: Context) -> Push | None:
-        """The first push of the ranked list whose approach keeps off the puck."""
+        """The first push of the ranked list whose approach keeps off the puck and whose puck does not
+        rebound into the mallet."""
         cap = None if math.isinf(ctx.speed_cap) else round(ctx.speed_cap, 3)
         key = (round(puck[0] / KEY_POSITION), round(puck[1] / KEY_POSITION), cap)
         if key not in self._cache:
             if len(self._cache) >= CACHE_SIZE:
                 self._cache.clear()
-            self._cache[key] = self._ranked(puck, ctx)
-        return next((p for p in self._cache[key] if approach_clear(puck, p.hit_point, p.mallet_velocity, ctx)), None)
+            self._cache[key] = Ranked(self._ranked(puck, ctx))
+        st = ctx.settings
+        best = self._cache[key].first(
+            lambda p, run_on: approach_clear(puck, p.hit_point, p.mallet_velocity, ctx),
+            lambda p, run_on: not ctx.shots.rebounds_into_mallet(p, run_on, st.recontact_watch))
+        return None if best is None else best[0]
 
-    def _ranked(self, puck: np.ndarray, ctx: Context) -> list[Push]:
-        """Every push the arm can make that keeps the puck on the own half, best first: by how deep inside
-        the smash area it stops in the worst of the aimed direction and the direction off by
-        ``aim_noise`` either way (negative: outside; then the nearest to the area), the slower first among
-        equals."""
+    def _ranked(self, puck: np.ndarray, ctx: Context) -> list[tuple[Push, float]]:
+        """(push, follow-through [m]) for every push the arm can make that keeps the puck on the own half,
+        best first: by how deep inside the smash area it stops in the worst of the aimed direction and the
+        direction off by ``aim_noise`` either way (negative: outside; then the nearest to the area), the
+        slower first among equals."""
         st = ctx.settings
         speeds = np.geomspace(st.prepare_speed[0], st.prepare_speed[1], st.prepare_speed_steps)
         scored = []
@@ -81,14 +86,32 @@ class Prepare(Tactic):
             for v in speeds[speeds <= min(top, ctx.speed_cap)]:
                 margins = []
                 for turn in (0.0, -st.aim_noise, st.aim_noise):
-                    push = ctx.shots.push(puck, float(angle + turn), float(v), st.prepare_end_speed,
-                                          st.prepare_horizon, run_on)
-                    if push.crosses_centre or push.enters_goal or push.recontact:
+                    push = ctx.shots.push(puck, float(angle + turn), float(v), st.prepare_end_speed, st.prepare_horizon)
+                    if push.crosses_centre or push.enters_goal:
                         break
                     margins.append(area_margin(st, push.rest))
                     if turn == 0.0:
                         aimed = push
                 else:
-                    scored.append((round(min(margins) / TIE), -v, aimed))
+                    scored.append((round(min(margins) / TIE), -v, aimed, run_on))
         scored.sort(key=lambda item: item[:2], reverse=True)
-        return [push for _, _, push in scored]
+        return [(push, run_on) for _, _, push, run_on in scored]
+
+
+class Ranked:
+    """Ranked candidates (tuples); :meth:`first` returns the best that passes both checks, remembering the
+    outcome of the ``lasting`` check (one that does not change while the prediction stays)."""
+
+    def __init__(self, items: list[tuple]) -> None:
+        self.items = items
+        self._lasting: dict[int, bool] = {}
+
+    def first(self, now_check, lasting_check) -> tuple | None:
+        for i, item in enumerate(self.items):
+            if not now_check(*item):
+                continue
+            if i not in self._lasting:
+                self._lasting[i] = lasting_check(*item)
+            if self._lasting[i]:
+                return item
+        return None

@@ -40,6 +40,7 @@ class TacticsSettings:
     prepare_directions: int
     prepare_end_speed: float
     prepare_horizon: float
+    recontact_watch: float
     mallet_restitution: float
     aim_noise: float
     approach_clearance: float
