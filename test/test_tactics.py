@@ -326,7 +326,7 @@ def test_a_hit_refused_for_joint_limits_is_asked_again_at_the_speed_the_planner_
     selector.on_status(0.0, LIMITS, 1.2, 0.01)  # "the strike needs ... % of its acceleration limit", 1.2 m/s keeps it
     named = selector.step(0.02, RUNNING, sit).command
     assert np.linalg.norm(named.velocity) == pytest.approx(settings.speed_cap_fraction * 1.2, abs=1e-6)
-    selector.on_status(0.02, LIMITS, math.nan, 0.03)  # no speed named: the fixed slowdown
+    selector.on_status(0.02, LIMITS, 3.5, 0.03)  # no limit-keeping speed: the arm's fastest hit, above the one asked
     slower = selector.step(0.04, RUNNING, sit).command
     assert np.linalg.norm(slower.velocity) == pytest.approx(settings.limits_slowdown * np.linalg.norm(named.velocity),
                                                             abs=1e-6)

@@ -108,9 +108,11 @@ class TacticsSelector:
         if outcome == TOO_FAST and known:
             self.speed_cap = max_speed * self.s.speed_cap_fraction
         elif outcome == LIMITS and proposal.is_hit and proposal.flexible_time:
-            # the planner's estimate of the speed that keeps the broken joint limit, else a fixed slowdown
-            self.speed_cap = (max_speed * self.s.speed_cap_fraction if known
-                              else self.s.limits_slowdown * float(np.linalg.norm(proposal.velocity)))
+            # the planner's estimate of the speed that keeps the broken joint limit (below the one asked),
+            # else a fixed slowdown (a limit with no speed estimate reports the arm's fastest hit there)
+            speed = float(np.linalg.norm(proposal.velocity))
+            self.speed_cap = (max_speed * self.s.speed_cap_fraction if known and max_speed < speed
+                              else self.s.limits_slowdown * speed)
         elif outcome == TOO_LATE and proposal.flexible_time and self.lead_extra < self.s.max_lead_extra:
             self.lead_extra = min(self.lead_extra + self.s.lead_time_step, self.s.max_lead_extra)
         else:
