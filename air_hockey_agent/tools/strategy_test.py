@@ -54,7 +54,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def worker_processes(trials: list[tuple[str, int]], seed: int) -> list[ProcessSpec]:
     specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", "-p", "real_time_factor:=0.0",
-                                       "-p", f"seed:={seed}"])]
+                                       "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
     specs += [robot_node(n, ROBOT, label=n) for n in PER_ROBOT_NODES]
     trial_list = ",".join(f"{s}:{i}" for s, i in trials)
     specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args", "-p",
