@@ -155,3 +155,89 @@ def yaml_float(value: float) -> str:
 def validate(specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> dict[str, Any]:
     """Check a complete set of values against their specs; raise on the first bad one."""
     return {spec.name: spec.check(values[spec.name]) for spec in specs}
+
+
+# --- names: a misspelled parameter or node section is an error, not silence ------------------------
+ROS_BUILTIN = ("use_sim_time", "qos_overrides.", "start_type_description_service")  # rclpy's own (prefixes)
+
+
+def closest(name: str, known: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``known`` to ``name``, or an empty string."""
+    import difflib
+    match = difflib.get_close_matches(name, sorted(set(known)), n=1, cutoff=0.6)
+    return f" (did you mean '{match[0]}'?)" if match else ""
+
+
+def _builtin(name: str) -> bool:
+    return any(name == b or (b.endswith(".") and name.startswith(b)) for b in ROS_BUILTIN)
+
+
+def ros_param_args(argv: Iterable[str]) -> tuple[list[str], list[str]]:
+    """Parameter names given with ``-p NAME:=VALUE`` and files given with ``--params-file FILE`` in the
+    ``--ros-args`` parts of ``argv`` (up to ``--`` or the next ``--ros-args``)."""
+    names, files, inside, pending = [], [], False, None
+    for arg in argv:
+        if arg == "--ros-args":
+            inside, pending = True, None
+        elif arg == "--":
+            inside, pending = False, None
+        elif not inside:
+            continue
+        elif pending == "p":
+            names.append(arg.split(":=", 1)[0].split(":", 1)[-1] if ":=" in arg else arg)
+            pending = None
+        elif pending == "file":
+            files.append(arg)
+            pending = None
+        elif arg in ("-p", "--param"):
+            pending = "p"
+        elif arg == "--params-file":
+            pending = "file"
+    return names, files
+
+
+def _section_node(key: str) -> str | None:
+    """The node name a parameter file section is for; None for every node (``/**``, ``/*``)."""
+    last = key.rstrip("/").rsplit("/", 1)[-1]
+    return None if last in ("**", "*", "") else last
+
+
+def check_parameter_file(path: Path, node: str, own: Iterable[str], nodes: Mapping[str, Iterable[str]]) -> None:
+    """Raise :class:`ParameterFileError` naming the file, section and key when ``path`` has a section
+    for no node in ``nodes`` (name -> its parameter names), a key the node it is for does not declare,
+    or, in a section for every node, a key no node declares. ``node`` with its names ``own`` is the one
+    reading the file."""
+    try:
+        document = yaml.safe_load(Path(path).read_text())
+    except OSError as exc:
+        raise ParameterFileError(f"{path}: cannot read parameter file ({exc.strerror})") from exc
+    except yaml.YAMLError as exc:
+        raise ParameterFileError(f"{path}: not valid YAML ({exc.__class__.__name__})") from exc
+    if document is None:
+        return
+    if not isinstance(document, Mapping):
+        raise ParameterFileError(f"{path}: a parameter file must map node names to 'ros__parameters'")
+    known = {name: set(names) for name, names in nodes.items()}
+    known[node] = set(own)
+    everything = set().union(*known.values())
+    for key, block in document.items():
+        target = _section_node(str(key))
+        if target is not None and target not in known:
+            raise ParameterFileError(f"{path}: section '{key}' names no node of air_hockey_agent"
+                                     f"{closest(target, known)}")
+        if not isinstance(block, Mapping) or "ros__parameters" not in block:
+            raise ParameterFileError(f"{path}: section '{key}' has no 'ros__parameters' mapping")
+        names = known[target] if target is not None else everything
+        for name in _flatten(block["ros__parameters"] or {}):
+            if name not in names and not _builtin(name):
+                whose = f"node '{target}'" if target is not None else "any node"
+                raise ParameterFileError(f"{path}: section '{key}': '{name}' is not a parameter of {whose}"
+                                         f"{closest(name, names)}")
+
+
+def check_command_line(argv: Iterable[str], node: str, own: Iterable[str]) -> None:
+    """Raise :class:`ParameterValueError` for a ``-p NAME:=VALUE`` whose name the node does not declare."""
+    own = set(own)
+    for name in ros_param_args(argv)[0]:
+        if name not in own and not _builtin(name):
+            raise ParameterValueError(f"-p {name}: '{name}' is not a parameter of {node}{closest(name, own)}")

@@ -16,7 +16,6 @@ from pathlib import Path
 
 import numpy as np
 from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetPhysicalParams
-from rclpy.executors import SingleThreadedExecutor
 
 from air_hockey_agent.bags.trajectories import load_trajectories, split_train_validation
 from air_hockey_agent.core.identification.sysid import PHYSICAL, errors_through_steps, identify
@@ -65,8 +64,6 @@ class PredictionOptimizerNode(AirHockeyNode):
         self.set_params = self.create_client(SetPhysicalParams, f"{prefix}/set_physical_params")
         self.reset = self.create_client(ResetFilter, f"{prefix}/reset")
         self.step = self.create_client(KalmanStep, f"{prefix}/kalman_step")
-        self.executor_ = SingleThreadedExecutor(context=self.context)
-        self.executor_.add_node(self)
         self.get_logger().info(f"{len(self.train)} training trajectories from {loaded.bags} bag(s); "
                                f"tracker services under '{prefix or '/'}'")
 

@@ -13,10 +13,12 @@ import rclpy
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor, SetParametersResult
 from rclpy.exceptions import ParameterException
 from rclpy._rclpy_pybind11 import RCLError
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 
-from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_defaults
+from air_hockey_agent.params import (ParameterFileError, ParameterValueError, ParamSpec, check_command_line,
+                                     check_parameter_file, load_defaults, ros_param_args)
 from air_hockey_agent.paths import config_file
 
 EXIT_BAD_PARAMETERS = 2
@@ -28,7 +30,9 @@ class NodeStartupError(Exception):
 
 
 def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
-    descriptor = ParameterDescriptor(description=spec.description)
+    # dynamic typing: a whole number given for a float (-p rate:=0, "restitution: 1" in YAML) reaches
+    # ParamSpec.check, which turns it into a float, instead of rclpy refusing it for its type
+    descriptor = ParameterDescriptor(description=spec.description, dynamic_typing=True)
     if spec.type is float and spec.low is not None and spec.high is not None:
         descriptor.floating_point_range = [FloatingPointRange(from_value=float(spec.low), to_value=float(spec.high))]
     elif spec.type is int and spec.low is not None and spec.high is not None:
@@ -49,11 +53,24 @@ class AirHockeyNode(Node):
         defaults = load_defaults([config_file(f) for f in self.PARAM_FILES],
                                  self.get_fully_qualified_name(), self.PARAMS)
         self.params: dict[str, Any] = {}
+        retyped = []
         for spec in self.PARAMS:
             value = self.declare_parameter(spec.name, defaults[spec.name], _descriptor(spec)).value
             self.params[spec.name] = spec.check(value)
+            if type(self.params[spec.name]) is not type(value):
+                retyped.append(Parameter(spec.name, value=self.params[spec.name]))
+        if retyped:  # the parameter server reports what the node runs with (1 -> 1.0)
+            self.set_parameters(retyped)
         self._specs = {spec.name: spec for spec in self.PARAMS}
         self.add_on_set_parameters_callback(self._check_parameter_update)
+        # the executor exists before the node says it is ready: a Ctrl-C right after that finds a
+        # complete executor (one constructed after a shutdown printed rclpy's __del__ tracebacks)
+        self.executor_ = SingleThreadedExecutor(context=self.context)
+        self.executor_.add_node(self)
+        changed = {k: v for k, v in self.params.items() if v != defaults[k]}
+        if changed:
+            self.get_logger().info("parameters other than the defaults: "
+                                   + ", ".join(f"{k}={v!r}" for k, v in sorted(changed.items())))
 
     def _check_parameter_update(self, parameters: list) -> SetParametersResult:
         """Refuse run-time parameter changes that fail their spec; apply the rest."""
@@ -75,7 +92,7 @@ class AirHockeyNode(Node):
 
     def spin(self) -> None:
         """Process callbacks until shutdown; nodes with their own main loop (the simulation) override it."""
-        rclpy.spin(self)
+        self.executor_.spin()
 
 
 def format_help(node_cls: type[AirHockeyNode]) -> str:
@@ -102,6 +119,17 @@ def _user_args(argv: Sequence[str]) -> list[str]:
     return args[:args.index("--ros-args")] if "--ros-args" in args else args
 
 
+def check_names(node_cls: type[AirHockeyNode], argv: Sequence[str]) -> None:
+    """Refuse ``-p`` names the node does not declare and parameter files with unknown sections or keys
+    (rclpy would ignore both silently), before rcl reads the files (a missing or malformed file then
+    gets our one-line error, not rcl's)."""
+    from air_hockey_agent.param_registry import node_parameters
+    own = [spec.name for spec in node_cls.PARAMS]
+    check_command_line(argv, node_cls.NAME, own)
+    for path in ros_param_args(argv)[1]:
+        check_parameter_file(path, node_cls.NAME, own, node_parameters())
+
+
 def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int:
     """Run a node until shutdown (Ctrl-C, SIGTERM, or the node itself). Returns the exit code."""
     argv = list(sys.argv if argv is None else argv)
@@ -111,9 +139,18 @@ def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int
     # rclpy's own handlers (installed by init, chaining to the Python ones set here) shut the context
     # down and wake the executor, which ends spin() with ExternalShutdownException; the Python handlers
     # raise nothing, so no KeyboardInterrupt surfaces at an arbitrary line inside rclpy.
+    try:
+        check_names(node_cls, argv)
+    except (ParameterFileError, ParameterValueError) as exc:
+        print(f"[{node_cls.NAME}] error: {exc}", file=sys.stderr)
+        return EXIT_BAD_PARAMETERS
     for sig in (signal.SIGINT, signal.SIGTERM):
         signal.signal(sig, lambda *_: None)
-    rclpy.init(args=argv)
+    try:
+        rclpy.init(args=argv)
+    except RCLError as exc:  # e.g. an argument rcl cannot parse
+        print(f"[{node_cls.NAME}] error: {str(exc).splitlines()[0]}", file=sys.stderr)
+        return EXIT_BAD_PARAMETERS
     node = None
     try:
         node = node_cls()
@@ -130,6 +167,7 @@ def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int
         # handles invalidated by the shutdown while a callback was being taken: a normal stop
     finally:
         if node is not None:
+            node.executor_.shutdown()
             node.destroy_node()
         rclpy.try_shutdown()
     return 0

@@ -24,7 +24,7 @@ from air_hockey_msgs.msg import MalletContact, PuckState
 from air_hockey_msgs.srv import SetPuckState
 from geometry_msgs.msg import PoseStamped
 from rclpy._rclpy_pybind11 import RCLError
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import ExternalShutdownException
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_srvs.srv import Trigger
@@ -76,8 +76,7 @@ class TableSimNode(AirHockeyNode):
 
     # --- main loop ----------------------------------------------------------------------------
     def spin(self) -> None:
-        executor = SingleThreadedExecutor(context=self.context)
-        executor.add_node(self)
+        executor = self.executor_
         steps_per_round = max(1, round(self.params["callback_period"] / self.world.dt))
         wall0, sim0 = time.monotonic(), self.world.time
         report = Every(1.0 / self.params["status_period"])
@@ -97,7 +96,6 @@ class TableSimNode(AirHockeyNode):
             if report.due(time.monotonic() - self.started) is not None:
                 self.get_logger().info(f"sim time {self.world.time:.1f} s, real-time factor "
                                        f"{self.world.time / max(time.monotonic() - self.started, 1e-9):.2f}")
-        executor.shutdown()
 
     def on_agent_clock(self, topic: str, msg: Clock) -> None:
         self.agent_clocks[topic] = (to_seconds(msg.clock), time.monotonic())

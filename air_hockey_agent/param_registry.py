@@ -1,0 +1,25 @@
+"""Which parameters each node of the package declares (for the misspelling checks of
+:mod:`air_hockey_agent.params`: a parameter file section may be meant for any of them)."""
+from __future__ import annotations
+
+from functools import lru_cache
+
+
+@lru_cache(maxsize=1)
+def node_parameters() -> dict[str, frozenset[str]]:
+    """Node name -> the names of its declared parameters."""
+    from air_hockey_agent.agent_params import AGENT_PARAMS
+    from air_hockey_agent.motion_params import MOTION_PARAMS
+    from air_hockey_agent.referee_params import REFEREE_PARAMS
+    from air_hockey_agent.sim.params import SIM_PARAMS
+    from air_hockey_agent.strategy_params import STRATEGY_PARAMS
+    from air_hockey_agent.tracker_params import TRACKER_NODE_PARAMS
+    specs = {"puck_tracker": TRACKER_NODE_PARAMS, "tactics": AGENT_PARAMS, "trajectory_generator": MOTION_PARAMS,
+             "referee": REFEREE_PARAMS, "table_sim": SIM_PARAMS, "strategy_test": STRATEGY_PARAMS}
+    try:  # the two tool nodes keep their declarations next to their code (rclpy)
+        from air_hockey_agent.nodes.bag_player import PLAYER_PARAMS
+        from air_hockey_agent.nodes.prediction_optimizer import OPTIMIZER_PARAMS
+        specs.update(bag_player=PLAYER_PARAMS, prediction_optimizer=OPTIMIZER_PARAMS)
+    except ImportError:
+        pass
+    return {name: frozenset(s.name for s in group) for name, group in specs.items()}
