@@ -20,7 +20,7 @@ from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetPhysicalParams
 from air_hockey_agent.bags.trajectories import load_trajectories, split_train_validation
 from air_hockey_agent.core.identification.sysid import PHYSICAL, errors_through_steps, identify
 from air_hockey_agent.nodes.messages import to_stamp
-from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
+from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeFailure, NodeStartupError, run
 from air_hockey_agent.params import ParamSpec
 from air_hockey_agent.sysid_params import SYSID_PARAMS, bounds
 from air_hockey_agent.tools.sysid import write_params_yaml
@@ -114,8 +114,7 @@ class PredictionOptimizerNode(AirHockeyNode):
             result = identify(self.objective, bounds(p), initial, p["iterations"], p["batch"], p["seed"],
                               p["random_samples"], p["polish_evaluations"], progress)
         except RuntimeError as exc:
-            log.error(f"optimisation stopped: {exc}")
-            return
+            raise NodeFailure(f"optimisation stopped: {exc}") from None
         self.call(self.set_params, SetPhysicalParams.Request(**result.best))
         log.info(f"loss at {p['horizon']} s: {result.initial_objective * 1e3:.2f} mm -> "
                  f"{result.best_objective * 1e3:.2f} mm; identified "

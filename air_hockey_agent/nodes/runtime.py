@@ -29,6 +29,14 @@ class NodeStartupError(Exception):
     """A node cannot start (bad input named in the message); it exits with code 2 and one line."""
 
 
+class NodeFailure(Exception):
+    """A node with a job of its own (an optimisation, a replay) could not finish it; it exits with code 1
+    and one line saying why."""
+
+
+EXIT_FAILURE = 1
+
+
 def _descriptor(spec: ParamSpec) -> ParameterDescriptor:
     # dynamic typing: a whole number given for a float (-p rate:=0, "restitution: 1" in YAML) reaches
     # ParamSpec.check, which turns it into a float, instead of rclpy refusing it for its type
@@ -159,6 +167,9 @@ def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int
     except (ParameterFileError, ParameterValueError, ParameterException, NodeStartupError) as exc:
         print(f"[{node_cls.NAME}] error: {exc}", file=sys.stderr)
         return EXIT_BAD_PARAMETERS
+    except NodeFailure as exc:
+        print(f"[{node_cls.NAME}] error: {exc}", file=sys.stderr)
+        return EXIT_FAILURE
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (RCLError, RuntimeError):

@@ -28,6 +28,7 @@ from air_hockey_agent.core.motion.hit_config import best_hit_configuration
 from air_hockey_agent.core.motion.ik import solve_ik
 from air_hockey_agent.motion_params import build_planner, load_motion_params
 from air_hockey_agent.tools.progress import Progress
+from air_hockey_agent.tools.argtypes import count
 
 ROBOT = "iiwa_front"
 READY_POINT = (-0.70, 0.0)       # [m] start of every command: in front of the own goal, like a ready pose
@@ -40,8 +41,8 @@ HIT_TOLERANCE = (0.005, 0.10)    # issue #10: within 5 mm and 10 % of the comman
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("planner", help="motion planner: success rate, planning time, execution accuracy",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--commands", type=int, default=1000, help="random commands of each kind (default 1000)")
-    parser.add_argument("--execute", type=int, default=200,
+    parser.add_argument("--commands", type=count(1), default=1000, help="random commands of each kind (default 1000)")
+    parser.add_argument("--execute", type=count(0), default=200,
                         help="accepted hits executed in the simulation (default 200; 0 skips)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
@@ -192,8 +193,8 @@ def _print_table(r: dict) -> None:
     print(f"commands planned      {r['commands']} (hits and reach-and-stop, half each)")
     print(f"accepted              {r['feasible_rate'] * 100:.1f} % (hits {r['hit_feasible_rate'] * 100:.1f} %, "
           f"reach {r['reach_feasible_rate'] * 100:.1f} %)")
-    for reason, count in sorted(r["refusals"].items(), key=lambda kv: -kv[1]):
-        print(f"  refused: {reason:<28} {count}")
+    for reason, refused in sorted(r["refusals"].items(), key=lambda kv: -kv[1]):
+        print(f"  refused: {reason:<28} {refused}")
     print(f"planning time         mean {r['plan_ms']['mean']:.2f} ms, p99 {r['plan_ms']['p99']:.2f} ms")
     e = r["executed"]
     if e:

@@ -17,6 +17,7 @@ import numpy as np
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.sim.params import load_sim_params
+from air_hockey_agent.tools.argtypes import number
 
 # pybullet prints a banner when imported: the simulation modules load only when this benchmark runs,
 # so that other `air-hockey` commands keep a clean stderr.
@@ -62,7 +63,7 @@ def measure(params: dict, duration: float, arms: str) -> float:
 def add_parser(bench_subparsers: argparse._SubParsersAction) -> None:
     parser = bench_subparsers.add_parser("sim", help="real-time factor of the table simulation", description=__doc__,
                                          formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--duration", type=float, default=10.0, help="simulated seconds per run (default 10)")
+    parser.add_argument("--duration", type=number(0.0, low_open=True), default=10.0, help="simulated seconds per run (default 10)")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(run=run)
 

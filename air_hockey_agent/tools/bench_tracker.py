@@ -15,6 +15,7 @@ import numpy as np
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise
 from air_hockey_agent.tracker_params import load_tracker_params
+from air_hockey_agent.tools.argtypes import count
 
 HORIZONS = (0.5, 1.0, 1.5)
 
@@ -57,7 +58,7 @@ def run_benchmark(n: int, seed: int) -> dict:
 def add_parser(bench_subparsers: argparse._SubParsersAction) -> None:
     parser = bench_subparsers.add_parser("tracker", help="EKF update and prediction timing", description=__doc__,
                                          formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("--samples", type=int, default=2000, help="random states (default 2000)")
+    parser.add_argument("--samples", type=count(1), default=2000, help="random states (default 2000)")
     parser.add_argument("--seed", type=int, default=0)
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(run=run)

@@ -4,6 +4,9 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from importlib import metadata
+
+from air_hockey_agent.tools.argtypes import OneLineParser
 
 # Subcommand modules; each provides add_parser(subparsers) that sets `run` as the handler.
 TOOL_MODULES = (
@@ -20,11 +23,19 @@ TOOL_MODULES = (
 )
 
 
+def package_version() -> str:
+    try:
+        return metadata.version("air_hockey_agent")
+    except metadata.PackageNotFoundError:
+        return "unknown (not installed)"
+
+
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(
+    parser = OneLineParser(
         prog="air-hockey",
         description="Robot air hockey baseline agent: game launcher and tools for tracking, "
                     "recorded data, system identification and benchmarks.")
+    parser.add_argument("--version", action="version", version=f"air-hockey {package_version()}")
     subparsers = parser.add_subparsers(title="commands", metavar="COMMAND")
     for module in TOOL_MODULES:
         importlib.import_module(module).add_parser(subparsers)

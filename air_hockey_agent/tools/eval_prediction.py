@@ -20,6 +20,7 @@ from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evalua
 from air_hockey_agent.core.frames import pose_to_measurement
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tracker_params import load_tracker_params
+from air_hockey_agent.tools.argtypes import number
 
 PROG = "air-hockey eval-prediction"
 
@@ -29,7 +30,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("bags", nargs="+", type=Path, metavar="BAG", help="rosbag2 directories (sqlite3 or MCAP)")
     parser.add_argument("--topic", default="/optitrack/puck", help="PoseStamped topic (default /optitrack/puck)")
-    parser.add_argument("--horizons", type=float, nargs="+", default=[0.5, 1.0, 1.5], metavar="SECONDS",
+    parser.add_argument("--horizons", type=number(0.0, low_open=True), nargs="+", default=[0.5, 1.0, 1.5], metavar="SECONDS",
                         help="prediction horizons [s] (default 0.5 1.0 1.5)")
     parser.add_argument("--params-file", type=Path, action="append", default=[],
                         help="tracker parameter YAML (as for puck_tracker --params-file); may be repeated")

@@ -23,6 +23,7 @@ from air_hockey_agent.params import ParamSpec, load_defaults
 from air_hockey_agent.paths import config_file
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.ros_env import node_executable, ros_environment
+from air_hockey_agent.tools.argtypes import count
 
 ROBOTS = ("iiwa_front", "iiwa_back")
 SHARED_NODES = ("table_sim", "referee")
@@ -55,9 +56,12 @@ class GameError(Exception):
 
 
 def robot_node(node: str, robot: str, label: str | None = None) -> ProcessSpec:
-    """A per-robot node in the robot's namespace, on sim time."""
+    """A per-robot node in the robot's namespace, on sim time (told which robot it is when it asks:
+    the tracker serves whoever is in its namespace)."""
+    from air_hockey_agent.param_registry import node_parameters
+    which = ["-p", f"robot:={robot}"] if "robot" in node_parameters()[node] else []
     return ProcessSpec(label or f"{robot}/{node}", [*node_executable(node), "--ros-args", "-r", f"__ns:=/{robot}",
-                                                    "-p", "use_sim_time:=true", "-p", f"robot:={robot}"])
+                                                    "-p", "use_sim_time:=true", *which])
 
 
 def game_processes(gui: bool, real_time_factor: float, seed: int) -> list[ProcessSpec]:
@@ -89,7 +93,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the summary table")
     parser.add_argument("--log", type=Path, default=None, metavar="FILE",
                         help="write every node's output to FILE (default: only errors, on stderr)")
-    parser.add_argument("--domain-id", type=int, default=None, help="ROS_DOMAIN_ID (1..101; default: inherited)")
+    parser.add_argument("--domain-id", type=count(1, 101), default=None, help="ROS_DOMAIN_ID (1..101; default: inherited)")
     parser.set_defaults(run=run)
 
 

@@ -24,6 +24,7 @@ from air_hockey_agent.core.identification.sysid import loss_report
 from air_hockey_agent.params import yaml_float
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
+from air_hockey_agent.tools.argtypes import count, number
 
 PROG = "air-hockey noise-estimate"
 
@@ -32,10 +33,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("noise-estimate", help="estimate R and Q from recordings (eq. 3.12, 3.13)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_recording_arguments(parser)
-    parser.add_argument("--iterations", type=int, default=5, help="iterations (thesis: 5)")
+    parser.add_argument("--iterations", type=count(1), default=5, help="iterations (thesis: 5)")
     parser.add_argument("--fix", choices=("R", "Q"), action="append", default=[],
                         help="keep this matrix fixed (may be given once)")
-    parser.add_argument("--horizon", type=float, default=1.0, help="horizon of the reported prediction error [s]")
+    parser.add_argument("--horizon", type=number(0.0, low_open=True), default=1.0, help="horizon of the reported prediction error [s]")
     parser.add_argument("--out", type=Path, help="write measurement_noise and process_noise to this YAML")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)

@@ -23,6 +23,7 @@ from air_hockey_agent.core.identification.sysid import loss_report
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 from air_hockey_agent.tracker_params import load_tracker_params
+from air_hockey_agent.tools.argtypes import count, number
 
 PROG = "air-hockey plot"
 HORIZON_GRID = np.round(np.arange(0.1, 1.51, 0.1), 2)
@@ -33,13 +34,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_recording_arguments(parser)
     parser.add_argument("--out", type=Path, default=Path("plots"), help="output directory (default ./plots)")
-    parser.add_argument("--horizon", type=float, default=0.5, help="prediction horizon of prediction.png [s]")
-    parser.add_argument("--trajectory", type=int, help="index of the trajectory to draw (default: longest)")
+    parser.add_argument("--horizon", type=number(0.0, low_open=True), default=0.5, help="prediction horizon of prediction.png [s]")
+    parser.add_argument("--trajectory", type=count(0), help="index of the trajectory to draw (default: longest)")
     parser.add_argument("--compare", type=Path, help="a second tracker parameter YAML drawn for comparison")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
+    if args.out.exists() and not args.out.is_dir():
+        print(f"{PROG}: error: --out {args.out} is a file; it names the directory the PNGs are written to",
+              file=sys.stderr)
+        return 2
     try:
         recordings = load_recordings(PROG, args)
         other = load_tracker_params([*args.params_file, args.compare]) if args.compare else None
@@ -52,7 +57,11 @@ def run(args: argparse.Namespace) -> int:
         return 2
     import matplotlib
     matplotlib.use("Agg")
-    args.out.mkdir(parents=True, exist_ok=True)
+    try:
+        args.out.mkdir(parents=True, exist_ok=True)
+    except OSError as exc:
+        print(f"{PROG}: error: --out {args.out}: cannot create the directory ({exc.strerror})", file=sys.stderr)
+        return 2
     sets = {"current": tracker} if other is None else {"current": tracker, str(args.compare.name): other}
     traj = loaded.trajectories[index]
     written = [_velocity(args.out, traj, tracker), _prediction(args.out, traj, sets, args.horizon),

@@ -16,6 +16,7 @@ from collections import Counter
 from pathlib import Path
 
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
+from air_hockey_agent.tools.argtypes import number
 
 DEFAULT_TOPICS = {
     "/optitrack/puck": "geometry_msgs/msg/PoseStamped",
@@ -33,7 +34,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("out", type=Path, help="bag to create (directory; must not exist)")
     parser.add_argument("--topics", nargs="+", metavar="TOPIC",
                         help=f"topics with known types to record (default: {' '.join(DEFAULT_TOPICS)})")
-    parser.add_argument("--duration", type=float, default=0.0, help="seconds to record (default: until Ctrl-C)")
+    parser.add_argument("--duration", type=number(0.0), default=0.0, help="seconds to record (default: until Ctrl-C)")
     parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="bag storage (default mcap)")
     parser.set_defaults(run=run)
 

@@ -26,6 +26,7 @@ from air_hockey_agent.tools.game import PER_ROBOT_NODES, prepare_speed_map, robo
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.ros_env import node_executable, ros_environment
+from air_hockey_agent.tools.argtypes import count
 
 ROBOT = "iiwa_front"
 GROUPS = {"smash": ("smash_straight", "smash_left", "smash_right"), "cut": ("cut",), "prepare": ("prepare",),
@@ -39,15 +40,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--strategies", nargs="+", choices=sorted(GROUPS), default=sorted(GROUPS),
                         help="strategies to test (smash = straight, left and right bank; default: all)")
-    parser.add_argument("--trials", type=int, default=100, help="trials per reported strategy (default 100)")
+    parser.add_argument("--trials", type=count(1), default=100, help="trials per reported strategy (default 100)")
     parser.add_argument("--seed", type=int, default=0, help="random seed of the initial states (default 0)")
-    parser.add_argument("--workers", type=int, default=1, help="parallel simulations (default 1)")
+    parser.add_argument("--workers", type=count(1, 32), default=1, help="parallel simulations (default 1)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     parser.add_argument("--plot", type=Path, default=None, metavar="DIR", help="write fig. 5.7/5.8-like PNGs here")
     parser.add_argument("--results", type=Path, default=None, metavar="FILE",
                         help="write every trial's result as one JSON line (initial state, hit, outcome, reason)")
     parser.add_argument("--log", type=Path, default=None, metavar="FILE", help="write every node's output to FILE")
-    parser.add_argument("--domain-id", type=int, default=None,
+    parser.add_argument("--domain-id", type=count(1, 101), default=None,
                         help="first ROS_DOMAIN_ID of the workers (1..101; default: derived from the process id)")
     parser.set_defaults(run=run)
 

@@ -29,6 +29,7 @@ from air_hockey_agent.core.frames import quaternion_from_yaw, table_to_mocap
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
 from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import load_tracker_params
+from air_hockey_agent.tools.argtypes import count
 
 POSE_TOPIC, TRUTH_TOPIC = "/optitrack/puck", "/puck/true_state"
 SESSION_PARAMS = (
@@ -49,7 +50,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("synth-bag", help="write a bag of synthetic puck shots (mocap stream + truth)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("out", type=Path, help="bag directory to create (must not exist)")
-    parser.add_argument("--shots", type=int, help="number of shots (default: config/synthetic.yaml)")
+    parser.add_argument("--shots", type=count(1), help="number of shots (default: config/synthetic.yaml)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="bag storage (default mcap)")
     parser.add_argument("--source", choices=("model", "sim"), default="model",

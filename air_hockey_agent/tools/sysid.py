@@ -26,6 +26,7 @@ from air_hockey_agent.sysid_params import bounds
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
+from air_hockey_agent.tools.argtypes import count, number
 
 PROG = "air-hockey sysid"
 HORIZONS = (0.5, 1.0, 1.5)
@@ -37,9 +38,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     add_recording_arguments(parser)
     parser.add_argument("--loss", choices=LOSSES, default="position", help="objective (thesis sec. 4.3.1)")
     parser.add_argument("--horizon", type=float, choices=HORIZONS, default=1.0, help="prediction horizon [s]")
-    parser.add_argument("--iterations", type=int, default=50, help="HEBO iterations (default 50)")
-    parser.add_argument("--batch", type=int, default=5, help="suggestions per iteration (default 5)")
-    parser.add_argument("--split", type=float, default=0.9, help="training fraction of the trajectories")
+    parser.add_argument("--iterations", type=count(1), default=50, help="HEBO iterations (default 50)")
+    parser.add_argument("--batch", type=count(1), default=5, help="suggestions per iteration (default 5)")
+    parser.add_argument("--split", type=number(0.0, 1.0, low_open=True, high_open=True), default=0.9, help="training fraction of the trajectories")
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
     parser.add_argument("--out", type=Path, help="write the identified parameters to this parameter YAML")
