@@ -21,6 +21,18 @@ class LoadedTrajectories:
     bags: int                   # bags read successfully
     frozen: int = 0             # frozen frames interpolated
     warnings: list = field(default_factory=list)  # one-line notes on data repaired while loading
+    at_rest: int = 0            # pieces dropped because the puck never moved in them
+    too_short: int = 0          # pieces dropped because their motion was shorter than min_duration
+
+    def why_none(self, prep: Mapping[str, Any]) -> str:
+        """Why pieces were dropped, as a clause for an error message ('' when none were)."""
+        parts = []
+        if self.at_rest:
+            parts.append(f"{self.at_rest} with the puck at rest throughout (slower than rest_speed "
+                         f"{prep['rest_speed']:g} m/s: nothing moved it)")
+        if self.too_short:
+            parts.append(f"{self.too_short} moving for less than min_duration {prep['min_duration']:g} s")
+        return ("; pieces dropped: " + ", ".join(parts)) if parts else ""
 
 
 def find_bags(paths: Sequence[Path]) -> tuple[list[Path], list[str]]:
@@ -58,7 +70,11 @@ def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, A
         result.frozen += interpolate_frozen(grid, prep["frozen_threshold"])
         for piece in split_trajectories(grid, prep["max_gap"]):
             traj = cut_rest(piece, prep["rest_speed"], prep["rest_window"])
-            if traj is not None and traj.duration >= prep["min_duration"]:
+            if traj is None:
+                result.at_rest += 1
+            elif traj.duration < prep["min_duration"]:
+                result.too_short += 1
+            else:
                 result.trajectories.append(traj)
                 result.sources.append(str(bag))
     return result

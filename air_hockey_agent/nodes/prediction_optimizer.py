@@ -57,7 +57,8 @@ class PredictionOptimizerNode(AirHockeyNode):
         for message in loaded.errors:
             self.get_logger().error(message)
         if len(loaded.trajectories) < 2:
-            raise NodeStartupError(f"need at least 2 usable trajectories, found {len(loaded.trajectories)}")
+            raise NodeStartupError(f"need at least 2 usable trajectories, found {len(loaded.trajectories)}"
+                                   + loaded.why_none(p))
         train_idx, _ = split_train_validation(len(loaded.trajectories), p["split"], p["seed"])
         self.train = [loaded.trajectories[i] for i in train_idx]
         prefix = p["tracker"].rstrip("/")

@@ -105,8 +105,9 @@ class AirHockeyNode(Node):
 
 def format_help(node_cls: type[AirHockeyNode]) -> str:
     """Usage text of a node: description and its parameters with defaults from ``config/``."""
+    from air_hockey_agent.tools.argtypes import plain
     lines = [f"usage: {node_cls.NAME} [-h] [--ros-args [--params-file FILE] [-p NAME:=VALUE] [-r FROM:=TO] ...]",
-             "", node_cls.DESCRIPTION.strip(), ""]
+             "", plain(node_cls.DESCRIPTION.strip()), ""]
     try:
         defaults = load_defaults([config_file(f) for f in node_cls.PARAM_FILES], "/" + node_cls.NAME,
                                  node_cls.PARAMS)

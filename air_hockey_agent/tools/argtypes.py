@@ -4,7 +4,17 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from typing import Callable
+
+_ROLE = re.compile(r":[a-z]+:`~?([^`<]*?)(?:\s*<[^>]*>)?`")   # :class:`~a.b.C` -> C (last part), :func:`x`
+_LITERAL = re.compile(r"``([^`]+)``")                          # ``air-hockey game`` -> air-hockey game
+
+
+def plain(text: str) -> str:
+    """Help text without reStructuredText markup (the tools' docstrings are their descriptions)."""
+    text = _ROLE.sub(lambda m: m.group(1).rsplit(".", 1)[-1], text)
+    return _LITERAL.sub(r"\1", text)
 
 
 def count(low: int = 1, high: int | None = None) -> Callable[[str], int]:
@@ -52,3 +62,6 @@ class OneLineParser(argparse.ArgumentParser):
 
     def error(self, message: str):  # noqa: D401 (argparse API)
         self.exit(2, f"{self.prog}: error: {message} (see {self.prog} --help)\n")
+
+    def format_help(self) -> str:
+        return plain(super().format_help())

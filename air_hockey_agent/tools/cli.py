@@ -20,6 +20,7 @@ TOOL_MODULES = (
     "air_hockey_agent.tools.sysid",
     "air_hockey_agent.tools.noise_estimate",
     "air_hockey_agent.tools.plot",
+    "air_hockey_agent.tools.ros_cli",
 )
 
 

@@ -61,7 +61,9 @@ def run(args: argparse.Namespace) -> int:
               for name, v in variants.items()}
     result = {"trajectories": len(loaded.trajectories), "iterations": args.iterations, "fixed": args.fix,
               "measurement_noise": r, "process_noise": q,
-              "history": [{"measurement_noise": h.r.tolist(), "process_noise": h.q.tolist()} for h in history],
+              # a fixed matrix is what every iteration used (its estimate was not fed back)
+              "history": [{"measurement_noise": r if "R" in args.fix else h.r.tolist(),
+                           "process_noise": q if "Q" in args.fix else h.q.tolist()} for h in history],
               "prediction_error": {"horizon": args.horizon, **errors}}
     if args.out is not None:
         _write(args.out, r, q, args)
@@ -73,8 +75,10 @@ def _format(result: dict, out: Path | None) -> str:
     fmt = lambda values: "[" + ", ".join(f"{v:.3e}" for v in values) + "]"  # noqa: E731
     lines = [f"{result['trajectories']} trajectories, {result['iterations']} iterations"
              + (f", fixed: {', '.join(result['fixed'])}" if result["fixed"] else "")]
+    fixed = lambda name: " (fixed)" if name in result["fixed"] else ""  # noqa: E731
     for i, h in enumerate(result["history"], 1):
-        lines.append(f"  iteration {i}: R {fmt(h['measurement_noise'])}  Q {fmt(h['process_noise'])}")
+        lines.append(f"  iteration {i}: R {fmt(h['measurement_noise'])}{fixed('R')}  "
+                     f"Q {fmt(h['process_noise'])}{fixed('Q')}")
     lines.append(f"R (x, y, theta) = {fmt(result['measurement_noise'])}")
     lines.append(f"Q (x, y, vx, vy, theta, omega) = {fmt(result['process_noise'])}")
     h = result["prediction_error"]["horizon"]

@@ -97,23 +97,32 @@ def _velocity(out: Path, traj, params) -> Path:
     return _save(fig, out / "velocity.png")
 
 
+def _legend_below(fig, ax) -> None:
+    """The legend under the axes, outside the data (it hid the curves it names)."""
+    handles, labels = ax.get_legend_handles_labels()
+    fig.legend(handles, labels, loc="lower center", ncol=min(len(labels), 3), fontsize=8, frameon=False)
+    rows = -(-len(labels) // 3)
+    fig.tight_layout(rect=(0.0, 0.04 * rows + 0.01, 1.0, 1.0))
+
+
 def _prediction(out: Path, traj, sets: dict, horizon: float) -> Path:
     import matplotlib.pyplot as plt
     fig, axes = plt.subplots(3, 1, figsize=(9, 7), sharex=True)
     first = True
-    for (name, params), color in zip(sets.items(), ("tab:orange", "tab:green")):
+    # a compared set is drawn dashed over the first, so both stay visible where they agree
+    for (name, params), color, style in zip(sets.items(), ("tab:orange", "tab:green"), ("-", "--")):
         s = prediction_series(PuckEKF.from_params(params), traj.frames(), horizon)
         t = s.t - s.t[0]
         for ax, mcol, pcol, label in zip(axes, (0, 1, 2), (0, 1, 4), ("x [m]", "y [m]", "theta [rad]")):
             if first:
                 ax.plot(t, s.measured[:, mcol], color="tab:blue", lw=1, label="measured")
-            ax.plot(t, s.predicted[:, pcol], color=color, lw=1, label=f"predicted {horizon} s before ({name})")
+            ax.plot(t, s.predicted[:, pcol], style, color=color, lw=1.2,
+                    label=f"predicted {horizon} s before ({name})")
             ax.set_ylabel(label)
         first = False
-    axes[0].legend(loc="upper right", fontsize=8)
+    _legend_below(fig, axes[0])
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(f"Measured and predicted position, horizon {horizon} s (cf. thesis fig. 5.2-5.4)")
-    fig.tight_layout()
     return _save(fig, out / "prediction.png")
 
 
@@ -127,7 +136,6 @@ def _error_vs_horizon(out: Path, trajectories, sets: dict) -> Path:
     ax.set_xlabel("prediction horizon [s]")
     ax.set_ylabel("position error [mm]")
     ax.grid(alpha=0.3)
-    ax.legend(fontsize=8)
     ax.set_title(f"Prediction error against horizon, {len(trajectories)} trajectories (cf. thesis fig. 5.5)")
-    fig.tight_layout()
+    _legend_below(fig, ax)
     return _save(fig, out / "error_vs_horizon.png")

@@ -2,7 +2,9 @@
 ``eval-prediction`` and system identification.
 
 Default topics: the OptiTrack stream ``/optitrack/puck``, the simulation's true puck state
-``/sim/puck_true_state``, both robots' ``joint_states`` and ``/game_status``. Messages are stored as
+``/sim/puck_true_state``, both robots' ``joint_states`` and ``/game_status``; ``--topics`` names others
+(their types are taken from the running graph) and ``--all`` records every topic of the graph, ours
+(``air_hockey_msgs``) and the standard ones (``/clock`` included). Messages are stored as
 received (CDR), with the receive time as log time; their header stamps are untouched. Recording stops
 after ``--duration`` seconds or on Ctrl-C; the bag appears under OUT only once it is complete (a
 ``.mcap`` suffix names the data file inside the bag directory OUT without the suffix).
@@ -16,7 +18,7 @@ from collections import Counter
 from pathlib import Path
 
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
-from air_hockey_agent.tools.argtypes import number
+from air_hockey_agent.tools.argtypes import count, number
 
 DEFAULT_TOPICS = {
     "/optitrack/puck": "geometry_msgs/msg/PoseStamped",
@@ -33,44 +35,80 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                                    formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("out", type=Path, help="bag to create (directory; must not exist)")
     parser.add_argument("--topics", nargs="+", metavar="TOPIC",
-                        help=f"topics with known types to record (default: {' '.join(DEFAULT_TOPICS)})")
+                        help=f"topics to record (default: {' '.join(DEFAULT_TOPICS)})")
+    parser.add_argument("-a", "--all", action="store_true", help="record every topic in the graph")
+    parser.add_argument("--wait", type=number(0.0), default=2.0,
+                        help="seconds of discovery before --all or unlisted --topics are looked up (default 2)")
+    parser.add_argument("--domain-id", type=count(1, 101), default=None,
+                        help="ROS_DOMAIN_ID (1..101; default: the environment's)")
     parser.add_argument("--duration", type=number(0.0), default=0.0, help="seconds to record (default: until Ctrl-C)")
     parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="bag storage (default mcap)")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    topics = {t: DEFAULT_TOPICS.get(t) for t in (args.topics or DEFAULT_TOPICS)}
-    unknown = [t for t, msgtype in topics.items() if msgtype is None]
-    if unknown:
-        print(f"air-hockey record: error: no known type for {', '.join(unknown)} "
-              f"(known: {', '.join(DEFAULT_TOPICS)})", file=sys.stderr)
+    if args.all and args.topics:
+        print("air-hockey record: error: give --topics or --all, not both", file=sys.stderr)
         return 2
     out = args.out.with_suffix("") if args.out.suffix == ".mcap" else args.out
+    if out.exists():
+        print(f"air-hockey record: error: {out}: exists already, not overwriting", file=sys.stderr)
+        return 2
+    from air_hockey_agent.tools.ros_cli import CliError, Probe
     try:
-        writer = BagWriter(out, topics, args.storage)
-    except BagExistsError as exc:
+        probe = Probe(args.domain_id)
+    except CliError as exc:
         print(f"air-hockey record: error: {exc}", file=sys.stderr)
         return 2
-    import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
-
-    from air_hockey_agent.nodes.messages import message_class
-    rclpy.init()
-    node = rclpy.create_node("air_hockey_recorder")
     counts: Counter = Counter()
     try:
+        try:
+            topics = _topics(probe, args)
+            writer = BagWriter(out, topics, args.storage)
+        except (CliError, BagExistsError) as exc:
+            print(f"air-hockey record: error: {exc}", file=sys.stderr)
+            return 2
+        from rclpy.executors import ExternalShutdownException
+
+        from air_hockey_agent.nodes.messages import message_class
         with writer:
             for topic, msgtype in topics.items():
-                node.create_subscription(message_class(msgtype), topic,
-                                         lambda data, t=topic: _store(writer, counts, t, data), 100, raw=True)
+                probe.node.create_subscription(message_class(msgtype), topic,
+                                               lambda data, t=topic: _store(writer, counts, t, data), 100, raw=True)
             print(f"recording {', '.join(topics)} to {out} ({args.storage}); Ctrl-C to stop", flush=True)
-            _spin(node, SingleThreadedExecutor(), args.duration, counts, ExternalShutdownException)
+            _spin(probe.executor, args.duration, counts, ExternalShutdownException)
     finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+        probe.close()
     print(f"wrote {out}: {writer.count} messages ({', '.join(f'{t} {n}' for t, n in counts.items()) or 'none'})")
     return 0
+
+
+def _topics(probe, args) -> dict[str, str]:
+    """Topic -> type: the defaults' known types, the rest from the graph (after ``--wait`` of discovery)."""
+    from air_hockey_agent.bags.types import typestore
+    from air_hockey_agent.tools.ros_cli import CliError
+    wanted = None if args.all else list(args.topics or DEFAULT_TOPICS)
+    if wanted is not None and all(t in DEFAULT_TOPICS for t in wanted):
+        return {t: DEFAULT_TOPICS[t] for t in wanted}
+    probe.spin_for(args.wait)
+    graph = {name: types[0] for name, types in probe.node.get_topic_names_and_types()}
+    if wanted is None:
+        wanted = sorted(graph)
+        if not wanted:
+            raise CliError(f"no topics in the graph after {args.wait:g} s (is the game running on this ROS_DOMAIN_ID?)")
+    missing = [t for t in wanted if t not in graph and t not in DEFAULT_TOPICS]
+    if missing:
+        raise CliError(f"not in the graph after {args.wait:g} s: {', '.join(missing)} (air-hockey topic list shows "
+                       f"what is)")
+    topics = {t: graph.get(t) or DEFAULT_TOPICS[t] for t in wanted}
+    store = typestore()
+    unknown = {t: m for t, m in topics.items() if m not in store.fielddefs}
+    if unknown and not args.all:
+        raise CliError("types without a definition here: " + ", ".join(f"{t} ({m})" for t, m in unknown.items()))
+    for topic, msgtype in unknown.items():
+        print(f"air-hockey record: warning: {topic} ({msgtype}): no definition of this type here; not recorded",
+              file=sys.stderr)
+    return {t: m for t, m in topics.items() if t not in unknown}
 
 
 def _store(writer: BagWriter, counts: Counter, topic: str, data: bytes) -> None:
@@ -78,8 +116,7 @@ def _store(writer: BagWriter, counts: Counter, topic: str, data: bytes) -> None:
     counts[topic] += 1
 
 
-def _spin(node, executor, duration: float, counts: Counter, shutdown_error: type) -> None:
-    executor.add_node(node)
+def _spin(executor, duration: float, counts: Counter, shutdown_error: type) -> None:
     start = last = time.monotonic()
     try:
         while duration <= 0.0 or time.monotonic() - start < duration:

@@ -44,7 +44,7 @@ def load_recordings(prog: str, args: argparse.Namespace, minimum: int = 1) -> Re
         print(f"{prog}: warning: {message}", file=sys.stderr)
     if len(loaded.trajectories) < minimum:
         raise ToolError(f"need at least {minimum} usable trajectories, found {len(loaded.trajectories)} "
-                        f"in {loaded.bags} bag(s)")
+                        f"in {loaded.bags} bag(s){loaded.why_none(settings)}")
     return Recordings(tracker, settings, loaded)
 
 

@@ -30,6 +30,7 @@ from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotR
 from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import load_tracker_params
 from air_hockey_agent.tools.argtypes import count
+from air_hockey_agent.core.estimation.evaluation import count_lost_frames
 
 POSE_TOPIC, TRUTH_TOPIC = "/optitrack/puck", "/puck/true_state"
 SESSION_PARAMS = (
@@ -86,10 +87,13 @@ def run(args: argparse.Namespace) -> int:
         for topic, log_ns, msg in _messages(frames, session["start_time"], tracker["mocap_table_pose"]):
             writer.write(topic, log_ns, msg)
     count = writer.count
-    poses = sum(f.measurement is not None for f in frames)
+    stamps = [f.stamp for f in frames if f.measurement is not None]
+    # counted as eval-prediction counts them (nominal frames missing between two received ones), so both
+    # tools give the same figure for the same bag (dropouts included, the pauses between shots not)
+    lost = count_lost_frames(stamps, 1.0 / session["rate"], tracker["max_prediction_gap"])
     print(f"wrote {args.out} ({args.storage}, truth from the {args.source}): {session['shots']} shots, "
-          f"{poses} poses on {POSE_TOPIC} "
-          f"({len(frames) - poses} lost), {len(frames)} true states on {TRUTH_TOPIC}, {count} messages")
+          f"{len(stamps)} poses on {POSE_TOPIC} "
+          f"({lost} frames lost), {len(frames)} true states on {TRUTH_TOPIC}, {count} messages")
     return 0
 
 

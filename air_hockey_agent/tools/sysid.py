@@ -77,6 +77,8 @@ class _Objective:
 def run(args: argparse.Namespace) -> int:
     if args.out is not None and args.out.is_dir():
         return report_error(PROG, f"--out {args.out} is a directory")
+    if args.out is not None and args.out.exists():
+        return report_error(PROG, f"--out {args.out}: exists already, not overwriting")
     try:
         recordings = load_recordings(PROG, args, minimum=2)
     except ToolError as exc:
@@ -88,6 +90,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.json:
         print(f"{len(loaded.trajectories)} trajectories from {loaded.bags} bag(s) ({loaded.frozen} frozen frames "
               f"interpolated): {len(train)} for training, {len(validation)} for validation", flush=True)
+        print("starting HEBO (loading torch takes several seconds) ...", flush=True)
     result = _identify_all(args, tracker, settings, train, validation)
     result.update({"train_trajectories": len(train), "validation_trajectories": len(validation),
                    "bags": loaded.bags, "bad_bags": len(loaded.errors)})
@@ -111,7 +114,7 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
             bar = Progress(f"sysid {args.loss} @ {h} s", args.json)
 
             def progress(done: int, total: int, best: float, bar: Progress = bar) -> None:
-                bar(done, total, f"evaluations, best {best:.6g}")
+                bar(done, total, f"evaluations, best {_objective_text(args.loss, best)}")
             ident = identify(_Objective(pool, workers, h, args.loss), bounds(settings),
                              {n: tracker[n] for n in PHYSICAL}, args.iterations, args.batch, args.seed,
                              settings["random_samples"], settings["polish_evaluations"], progress)
@@ -139,6 +142,11 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
     return result
 
 
+def _objective_text(loss: str, value: float) -> str:
+    """The optimised objective as the report shows it: the position loss in mm, the log-likelihood as is."""
+    return f"{value * 1e3:.2f} mm" if loss == "position" else f"{value:.6g}"
+
+
 def format_report(result: dict, out: Path | None) -> str:
     """Thesis-style tables: parameters with loss/min/median before and after; table 5.4 if asked."""
     names = ("friction_surface", "friction_rim", "damping", "restitution")
@@ -153,8 +161,10 @@ def format_report(result: dict, out: Path | None) -> str:
             lines.append(f"{tag:<22}" + "".join(f"{params[n]:>17.6g}" for n in names)
                          + f"{r['loss_m'] * 1e3:>11.2f}{r['min_m'] * 1e3:>10.2f}{r['median_m'] * 1e3:>13.2f}")
     before, after = result["before"]["validation"]["loss_m"], result["after"]["validation"]["loss_m"]
-    lines.append(f"validation loss {before * 1e3:.2f} -> {after * 1e3:.2f} mm "
-                 f"({100 * (1 - after / before):+.1f} % reduction)" if before > 0 else "")
+    if before > 0:
+        change = 100.0 * (after - before) / before
+        lines.append(f"validation loss {before * 1e3:.2f} -> {after * 1e3:.2f} mm "
+                     f"({abs(change):.1f} % {'lower' if change < 0 else 'higher'})")
     if "cross_validation" in result:
         lines.append("cross-validation (thesis table 5.4): validate at / learned at -> loss, min, median [mm]")
         for v, row in result["cross_validation"].items():
