@@ -71,3 +71,54 @@ def test_a_whole_number_is_accepted_for_a_float_parameter_and_logged(ros_env, tm
     params = write(tmp_path / "p.yaml", "/**/puck_tracker:\n  ros__parameters:\n    restitution: 1\n")
     code, out = run_until([BIN / "puck_tracker", "--ros-args", "--params-file", params], "node ready", ros_env)
     assert code == 0 and "restitution=1.0" in out and "Traceback" not in out, out[-2000:]
+
+
+# --- air-hockey tools ------------------------------------------------------------------------------
+def rest_bag(path):
+    """A 3 s mocap recording of a puck lying still (what `record` gives with table_sim alone)."""
+    import numpy as np
+    from air_hockey_agent.bags.writer import BagWriter
+    from air_hockey_agent.core.estimation.synthetic import SyntheticFrame
+    from air_hockey_agent.tools.synth_bag import POSE_TOPIC, TRUTH_TOPIC, _messages
+    from air_hockey_agent.tracker_params import load_tracker_params
+    frames = [SyntheticFrame(k / 120.0, np.array([0.3, -0.1, 0.2]), np.array([0.3, -0.1, 0.0, 0.0, 0.2, 0.0]))
+              for k in range(360)]
+    with BagWriter(path, {POSE_TOPIC: "geometry_msgs/msg/PoseStamped",
+                          TRUTH_TOPIC: "air_hockey_msgs/msg/PuckState"}) as writer:
+        for topic, stamp, msg in _messages(frames, 100.0, load_tracker_params()["mocap_table_pose"]):
+            writer.write(topic, stamp, msg)
+    return path
+
+
+@pytest.mark.parametrize("make_args, words", [
+    (lambda d: ["synth-bag", d / "out", "--shots", "0"], ["--shots", "integer >= 1", "'0'"]),
+    (lambda d: ["game", "--domain-id", "200"], ["--domain-id", "1..101", "'200'"]),
+    (lambda d: ["bench", "tracker", "--samples", "0"], ["--samples"]),
+    (lambda d: ["bench", "sim", "--duration", "-1"], ["--duration", "> 0"]),
+    (lambda d: ["sysid", d, "--batch", "0"], ["--batch"]),
+    (lambda d: ["sysid", d, "--iterations", "0"], ["--iterations"]),
+    (lambda d: ["sysid", d, "--split", "1.5"], ["--split", "< 1"]),
+    (lambda d: ["noise-estimate", d, "--horizon", "-1"], ["--horizon", "> 0"]),
+    (lambda d: ["record", d / "rec", "--duration", "-5"], ["--duration", ">= 0"]),
+    (lambda d: ["strategy-test", "--workers", "0"], ["--workers"]),
+    (lambda d: ["plot", d, "--out", write(d / "notabag.txt", "x")], ["--out", "is a file"]),
+    (lambda d: ["sysid", rest_bag(d / "bag"), "--out", write(d / "old.yaml", "x")], ["old.yaml", "exists already"]),
+    (lambda d: ["noise-estimate", rest_bag(d / "bag")], ["found 0", "at rest throughout", "nothing moved it"]),
+    (lambda d: ["shoot", "--speed", "-1", "--angle", "0"], ["--speed", ">= 0"]),
+    (lambda d: ["service", "call", "/set_puck_state", "air_hockey_msgs/srv/SetPuckState", "{vx: 1.0, speed: 2}",
+                "--timeout", "0.5"], ["speed: no such field in SetPuckState_Request"]),
+    (lambda d: ["topic", "echo", "/no/such/topic", "--wait", "0.5"], ["/no/such/topic is not published"]),
+])
+def test_a_bad_tool_argument_is_a_one_line_error(ros_env, tmp_path, make_args, words):
+    result = run([BIN / "air-hockey", *make_args(tmp_path)], env=ros_env, timeout=120)
+    assert_one_line_error(result, *words)
+
+
+def test_version_and_help_texts_are_plain():
+    version = run([BIN / "air-hockey", "--version"])
+    assert version.returncode == 0 and version.stdout.startswith("air-hockey ")
+    for args in (["strategy-test", "--help"], ["bench", "tactics", "--help"], ["record", "--help"]):
+        text = run([BIN / "air-hockey", *args]).stdout
+        assert text and "``" not in text and ":class:" not in text and ":func:" not in text
+    node_help = run([BIN / "tactics", "--help"]).stdout
+    assert "tactics node" in node_help and "``" not in node_help
