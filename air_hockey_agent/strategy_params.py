@@ -22,6 +22,8 @@ STRATEGY_PARAMS = TABLE_PARAMS + (
     ParamSpec("cut_impact_x", list, "[m] x range of a Cut shot's rim impact", -1.0, 1.0, 2),
     ParamSpec("rest_speed", float, "[m/s] the puck is at rest below this speed", 0.001, 1.0),
     ParamSpec("timeout", float, "[s] a trial ends as a failure after this long", 0.5, 120.0),
+    ParamSpec("hit_timeout", float, "[s] a trial whose puck nobody touched ends as a failure after this long",
+              0.5, 120.0),
     ParamSpec("after_hit", float, "[s] Smash and Repel end this long after the last hit", 0.1, 60.0),
     ParamSpec("settle", float, "[s] time between the reset and the puck being set", 0.0, 60.0),
     ParamSpec("seed", int, "random seed of the trials' initial states", 0, 2**31 - 1),

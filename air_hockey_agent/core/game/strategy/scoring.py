@@ -90,8 +90,10 @@ class TrialWatcher:
         kind = self.trial.strategy
         if (kind.startswith("smash") or kind == "repel") and r.hit and t - self._last_hit > s.after_hit:
             return self._end(f"no goal {s.after_hit:g} s after the hit")
+        if not r.hit and r.duration > s.hit_timeout:
+            return self._end(f"timeout after {s.hit_timeout:g} s without a hit")
         if r.duration > s.timeout:
-            return self._end(f"timeout after {s.timeout:g} s" + ("" if r.hit else " without a hit"))
+            return self._end(f"timeout after {s.timeout:g} s")
 
     def _end(self, reason: str, goal: bool = False, conceded: bool = False, rest: tuple | None = None) -> None:
         r = self._result

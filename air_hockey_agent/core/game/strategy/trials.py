@@ -32,6 +32,7 @@ class TrialSettings:
     cut_impact_x: tuple[float, float]
     rest_speed: float
     timeout: float
+    hit_timeout: float
     after_hit: float
     settle: float
 
