@@ -1,4 +1,4 @@
-"""Which parameters each node of the package declares (for the misspelling checks of
+"""Which parameters each node (and tool section) of the package declares (for the misspelling checks of
 :mod:`air_hockey_agent.params`: a parameter file section may be meant for any of them)."""
 from __future__ import annotations
 
@@ -13,9 +13,14 @@ def node_parameters() -> dict[str, frozenset[str]]:
     from air_hockey_agent.referee_params import REFEREE_PARAMS
     from air_hockey_agent.sim.params import SIM_PARAMS
     from air_hockey_agent.strategy_params import STRATEGY_PARAMS
+    from air_hockey_agent.sysid_params import SYSID_PARAMS
+    from air_hockey_agent.tools.game import GAME_PARAMS
+    from air_hockey_agent.tools.synth_bag import SESSION_PARAMS
     from air_hockey_agent.tracker_params import TRACKER_NODE_PARAMS
     specs = {"puck_tracker": TRACKER_NODE_PARAMS, "tactics": AGENT_PARAMS, "trajectory_generator": MOTION_PARAMS,
-             "referee": REFEREE_PARAMS, "table_sim": SIM_PARAMS, "strategy_test": STRATEGY_PARAMS}
+             "referee": REFEREE_PARAMS, "table_sim": SIM_PARAMS, "strategy_test": STRATEGY_PARAMS,
+             # the tools' own sections (config/sysid.yaml, synthetic.yaml, game.yaml)
+             "sysid": SYSID_PARAMS, "synth_bag": SESSION_PARAMS, "game": GAME_PARAMS}
     try:  # the two tool nodes keep their declarations next to their code (rclpy)
         from air_hockey_agent.nodes.bag_player import PLAYER_PARAMS
         from air_hockey_agent.nodes.prediction_optimizer import OPTIMIZER_PARAMS

@@ -98,18 +98,24 @@ def _flatten(block: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
     return flat
 
 
-def load_parameter_file(path: Path, fq_name: str) -> dict[str, Any]:
-    """Return the parameters in one ROS 2 parameter file that apply to node ``fq_name``."""
+def _read_document(path: Path) -> Mapping[str, Any] | None:
+    """A parameter file's YAML document (None when empty), or :class:`ParameterFileError` naming the file."""
     try:
         document = yaml.safe_load(Path(path).read_text())
     except OSError as exc:
         raise ParameterFileError(f"{path}: cannot read parameter file ({exc.strerror})") from exc
     except yaml.YAMLError as exc:
         raise ParameterFileError(f"{path}: not valid YAML ({exc.__class__.__name__})") from exc
+    if document is not None and not isinstance(document, Mapping):
+        raise ParameterFileError(f"{path}: a parameter file must map node names to 'ros__parameters'")
+    return document
+
+
+def load_parameter_file(path: Path, fq_name: str) -> dict[str, Any]:
+    """Return the parameters in one ROS 2 parameter file that apply to node ``fq_name``."""
+    document = _read_document(path)
     if document is None:
         return {}
-    if not isinstance(document, Mapping):
-        raise ParameterFileError(f"{path}: a parameter file must map node names to 'ros__parameters'")
     values: dict[str, Any] = {}
     try:
         for block in _node_sections(document, fq_name):
@@ -137,9 +143,14 @@ def load_node_params(default_files: Iterable[str], fq_name: str, specs: Iterable
                      extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     """A node's parameters outside ROS: the defaults in ``config/<default_files>``, overridden by
     ``extra_files`` in order (as ``--params-file`` does for a running node)."""
+    from air_hockey_agent.param_registry import node_parameters
     from air_hockey_agent.paths import config_file
-    files = [config_file(name) for name in default_files] + [Path(f) for f in extra_files]
-    return load_defaults(files, fq_name, specs)
+    specs = list(specs)
+    extra = [Path(f) for f in extra_files]
+    node = fq_name.rsplit("/", 1)[-1]
+    for path in extra:  # a misspelled section or key is an error here too, not a silently ignored line
+        check_parameter_file(path, node, [spec.name for spec in specs], node_parameters())
+    return load_defaults([config_file(name) for name in default_files] + extra, fq_name, specs)
 
 
 def yaml_float(value: float) -> str:
@@ -207,16 +218,9 @@ def check_parameter_file(path: Path, node: str, own: Iterable[str], nodes: Mappi
     for no node in ``nodes`` (name -> its parameter names), a key the node it is for does not declare,
     or, in a section for every node, a key no node declares. ``node`` with its names ``own`` is the one
     reading the file."""
-    try:
-        document = yaml.safe_load(Path(path).read_text())
-    except OSError as exc:
-        raise ParameterFileError(f"{path}: cannot read parameter file ({exc.strerror})") from exc
-    except yaml.YAMLError as exc:
-        raise ParameterFileError(f"{path}: not valid YAML ({exc.__class__.__name__})") from exc
+    document = _read_document(path)
     if document is None:
         return
-    if not isinstance(document, Mapping):
-        raise ParameterFileError(f"{path}: a parameter file must map node names to 'ros__parameters'")
     known = {name: set(names) for name, names in nodes.items()}
     known[node] = set(own)
     everything = set().union(*known.values())

@@ -78,3 +78,16 @@ def test_yaml_float_reads_back_as_the_same_float():
     for value in (1e-6, 2.28e-4, 0.5, 3.0, -1e-10, 123456789.0, 0.0):
         text = yaml_float(value)
         assert isinstance(yaml.safe_load(text), float) and float(yaml.safe_load(text)) == pytest.approx(value, rel=1e-8)
+
+
+def test_every_shipped_parameter_file_passes_the_misspelling_check():
+    """Each section of config/*.yaml names a node or tool of the package and each key is declared by
+    the node it is for (by some node in a '/**' section): a user may pass any of them as --params-file."""
+    from air_hockey_agent.param_registry import node_parameters
+    from air_hockey_agent.params import check_parameter_file
+    from air_hockey_agent.paths import config_file
+    nodes = node_parameters()
+    files = sorted(config_file("tracker.yaml").parent.glob("*.yaml"))
+    assert len(files) >= 10
+    for path in files:
+        check_parameter_file(path, "puck_tracker", nodes["puck_tracker"], nodes)

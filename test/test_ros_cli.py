@@ -78,3 +78,20 @@ def test_param_set_outside_the_range_is_refused_in_one_line(sim_and_agent, rclpy
                             capture_output=True, text=True, timeout=60, env=ros_env)
     assert result.returncode == 1 and len(result.stderr.strip().splitlines()) == 1, result.stderr
     assert "setting parameter failed" in result.stderr
+
+
+def test_record_all_takes_every_topic_of_the_graph_with_our_types(launcher, ros_env, tmp_path):
+    from rosbags.rosbag2 import Reader
+    launcher.start(ProcessSpec("table_sim", [str(BIN / "table_sim"), "--ros-args", "-p", "real_time_factor:=1.0"]))
+    launcher.start(ProcessSpec("puck_tracker", [str(BIN / "puck_tracker"), "--ros-args", "-r", "__ns:=/iiwa_front",
+                                                "-p", "use_sim_time:=true"]))
+    result = subprocess.run([str(BIN / "air-hockey"), "record", str(tmp_path / "all.mcap"), "--all", "--wait", "3",
+                             "--duration", "3"], capture_output=True, text=True, timeout=120, env=ros_env)
+    assert result.returncode == 0, result.stderr[-2000:]
+    with Reader(tmp_path / "all") as bag:
+        topics = {c.topic: c.msgtype for c in bag.connections}
+        counts = {c.topic: c.msgcount for c in bag.connections}
+    for topic, msgtype in (("/clock", "rosgraph_msgs/msg/Clock"), ("/sim/puck_true_state", "air_hockey_msgs/msg/PuckState"),
+                           ("/iiwa_front/puck/state", "air_hockey_msgs/msg/PuckState"),
+                           ("/iiwa_front/puck/prediction", "air_hockey_msgs/msg/PuckPrediction")):
+        assert topics.get(topic) == msgtype and counts[topic] > 0, (topic, topics, counts)

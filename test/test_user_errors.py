@@ -122,3 +122,25 @@ def test_version_and_help_texts_are_plain():
         assert text and "``" not in text and ":class:" not in text and ":func:" not in text
     node_help = run([BIN / "tactics", "--help"]).stdout
     assert "tactics node" in node_help and "``" not in node_help
+
+
+def test_synth_bag_and_eval_prediction_count_the_same_lost_frames(tmp_path):
+    import json
+    import re
+    made = run([BIN / "air-hockey", "synth-bag", tmp_path / "bag", "--shots", "3", "--seed", "4"])
+    assert made.returncode == 0, made.stderr
+    lost = int(re.search(r"\((\d+) frames lost\)", made.stdout).group(1))
+    evaluated = run([BIN / "air-hockey", "eval-prediction", tmp_path / "bag", "--json"])
+    assert evaluated.returncode == 0, evaluated.stderr
+    assert json.loads(evaluated.stdout)["lost_frames"] == lost > 0
+
+
+def test_prediction_optimizer_without_a_tracker_fails_in_one_line(ros_env, tmp_path):
+    made = run([BIN / "air-hockey", "synth-bag", tmp_path / "bags" / "b", "--shots", "3", "--seed", "5"])
+    assert made.returncode == 0, made.stderr
+    result = run([BIN / "prediction_optimizer", "--ros-args", "-p", f"bags:={tmp_path / 'bags'}", "-p",
+                  "topic:=/optitrack/puck", "-p", "tracker:=/nobody", "-p", "service_timeout:=1.0", "-p",
+                  "iterations:=1", "-p", "batch:=1"], env=ros_env, timeout=120)
+    lines = result.stderr.strip().splitlines()
+    assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr[-2000:]
+    assert lines[-1].startswith("[prediction_optimizer] error: optimisation stopped: service /nobody/")

@@ -65,6 +65,14 @@ class Probe:
                            f"(air-hockey topic list shows what is)")
         return dict(self.node.get_topic_names_and_types())[topic][0]
 
+    def topic_class(self, topic: str, wait: float):
+        """The rclpy message class of a topic in the graph."""
+        from air_hockey_agent.nodes.message_fields import FieldError, interface_class
+        try:
+            return interface_class(self.topic_type(topic, wait), "msg")
+        except FieldError as exc:
+            raise CliError(str(exc)) from None
+
     def call(self, srv_type, name: str, request, timeout: float):
         client = self.node.create_client(srv_type, name)
         if not client.wait_for_service(timeout_sec=timeout):
@@ -110,33 +118,26 @@ def topic_list(probe: Probe, args) -> int:
 
 
 def topic_echo(probe: Probe, args) -> int:
-    from air_hockey_agent.nodes.message_fields import FieldError, interface_class, to_plain
-    type_name = probe.topic_type(args.topic, args.wait)
-    try:
-        cls = interface_class(type_name, "msg")
-    except FieldError as exc:
-        raise CliError(str(exc)) from None
+    """Until Ctrl-C (or --once / --count); an error when nothing arrives within --timeout."""
+    from air_hockey_agent.nodes.message_fields import to_plain
     received = []
-    probe.node.create_subscription(cls, args.topic, lambda m: (received.append(m), print(_yaml(to_plain(m)) + "\n---",
-                                                                                        flush=True)), 10)
+
+    def show(message) -> None:
+        received.append(message)
+        print(_yaml(to_plain(message)) + "\n---", flush=True)
+    probe.node.create_subscription(probe.topic_class(args.topic, args.wait), args.topic, show, 10)
     limit = 1 if args.once else args.count
-    deadline = time.monotonic() + args.timeout if args.timeout else math.inf
-    while (not limit or len(received) < limit) and time.monotonic() < deadline:
+    first_by = time.monotonic() + args.timeout
+    while not limit or len(received) < limit:
         probe.executor.spin_once(timeout_sec=0.05)
-    if not received and args.timeout:
-        raise CliError(f"no message on {args.topic} within {args.timeout:g} s", 1)
+        if not received and time.monotonic() > first_by:
+            raise CliError(f"no message on {args.topic} within {args.timeout:g} s", 1)
     return 0
 
 
 def topic_hz(probe: Probe, args) -> int:
-    from air_hockey_agent.nodes.message_fields import FieldError, interface_class
-    type_name = probe.topic_type(args.topic, args.wait)
-    try:
-        cls = interface_class(type_name, "msg")
-    except FieldError as exc:
-        raise CliError(str(exc)) from None
     stamps: list[float] = []
-    probe.node.create_subscription(cls, args.topic, lambda _: stamps.append(time.monotonic()), 100, raw=True)
+    probe.node.create_subscription(probe.topic_class(args.topic, args.wait), args.topic, lambda _: stamps.append(time.monotonic()), 100, raw=True)
     start, last_report = time.monotonic(), time.monotonic()
     while not args.duration or time.monotonic() - start < args.duration:
         probe.executor.spin_once(timeout_sec=0.05)
