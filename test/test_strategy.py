@@ -125,3 +125,30 @@ def test_states_from_before_a_reported_contact_ended_are_not_a_rest_after_the_hi
         if w.done:
             break
     assert w.done and w.result().goal
+
+
+def test_a_slow_slide_is_decided_once_its_remaining_travel_cannot_change_the_outcome():
+    """With the table's damping d a puck at v slides at most v / d: a Cut or Prepare trial ends when that
+    disc is clear of the smash area's edge, the rims and the centre line, and not before."""
+    s = TrialSettings.from_params(load_strategy_params(), damping=0.5)
+    trial = make_trial("prepare", 0, 0, s)
+    x0, y0 = trial.state[:2]
+    inside_x = -HALF + 0.45  # the area's middle: 0.23 m from its depth edges, y 0
+    for speed, decided in ((0.1, True), (0.12, False)):  # reach 0.2 m < margin 0.23 m; 0.24 m > 0.23 m
+        w = TrialWatcher(trial, s)
+        w.state(0.0, x0, y0, 0.0, 0.0)
+        w.contact(0.0, 0.01)
+        w.state(0.5, inside_x, 0.0, speed, 0.0)
+        assert w.done is decided, (speed, w.result().reason)
+        if decided:
+            assert w.result().success and "decided" in w.result().reason
+    far = TrialWatcher(trial, s)  # outside the area, clear of it: decided as partial
+    far.state(0.0, x0, y0, 0.0, 0.0)
+    far.contact(0.0, 0.01)
+    far.state(0.5, -HALF + 0.80, 0.0, 0.055, 0.0)  # 0.12 m beyond the area, reach 0.11 m
+    assert far.done and not far.result().success and far.result().partial
+    undecided = TrialWatcher(trial, TrialSettings.from_params(load_strategy_params()))  # no damping known
+    undecided.state(0.0, x0, y0, 0.0, 0.0)
+    undecided.contact(0.0, 0.01)
+    undecided.state(0.5, inside_x, 0.0, 0.06, 0.0)
+    assert not undecided.done

@@ -27,6 +27,7 @@ from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.nodes.messages import to_seconds
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.strategy_params import PARAM_FILES, STRATEGY_PARAMS
+from air_hockey_agent.sim.params import load_sim_params
 
 ROBOT = "iiwa_front"
 TACTIC_IDS = {name: tactic for tactic, name in NAMES.items()}
@@ -52,7 +53,8 @@ class StrategyTestNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         p = self.params
-        self.settings = TrialSettings.from_params(p)
+        # the outcome of a slow slide is decided before it stops, by the simulated table's own damping
+        self.settings = TrialSettings.from_params(p, damping=load_sim_params()["surface_damping"])
         try:
             self.queue = [make_trial(name, index, p["seed"], self.settings) for name, index in parse_trials(p["trials"])]
         except ValueError as exc:

@@ -85,8 +85,11 @@ class TrialWatcher:
             if self.trial.strategy in ("prepare", "cut") and r.hit:
                 return self._end("crossed the centre line")
         after_hit = r.hit and t > self._last_hit
-        if math.hypot(vx, vy) < s.rest_speed and (after_hit or (not r.hit and self.trial.strategy in ("cut", "repel"))):
+        speed = math.hypot(vx, vy)
+        if speed < s.rest_speed and (after_hit or (not r.hit and self.trial.strategy in ("cut", "repel"))):
             return self._end("at rest", rest=(x, y))
+        if after_hit and self.trial.strategy in ("cut", "prepare") and self._decided(x, y, speed):
+            return self._end("decided: stops within its remaining travel", rest=(x, y))
         kind = self.trial.strategy
         if (kind.startswith("smash") or kind == "repel") and r.hit and t - self._last_hit > s.after_hit:
             return self._end(f"no goal {s.after_hit:g} s after the hit")
@@ -94,6 +97,19 @@ class TrialWatcher:
             return self._end(f"timeout after {s.hit_timeout:g} s without a hit")
         if r.duration > s.timeout:
             return self._end(f"timeout after {s.timeout:g} s")
+
+    def _decided(self, x: float, y: float, speed: float) -> bool:
+        """The puck cannot change the outcome any more: under the table's damping it slides at most
+        speed / damping (friction only shortens that), and that disc touches no rim, not the centre line
+        and not the smash area's edge, so where it stops is inside the area or outside it for certain
+        (the last seconds of a slow slide otherwise took most of a Cut or Prepare trial)."""
+        s, half = self.s, self.s.table.length / 2
+        if s.damping <= 0.0:
+            return False
+        reach = speed / s.damping
+        clear_of_rims = (abs(y) + reach < s.table.y_limit and x + reach < 0.0
+                         and x - reach > -(half - s.table.puck_radius))
+        return clear_of_rims and abs(s.area_margin(x, y)) > reach
 
     def _end(self, reason: str, goal: bool = False, conceded: bool = False, rest: tuple | None = None) -> None:
         r = self._result

@@ -5,6 +5,8 @@ so a run gives the same trials whatever number of workers shares them.
 """
 from __future__ import annotations
 
+import math
+
 import zlib
 from dataclasses import dataclass
 from typing import Any, Mapping
@@ -35,11 +37,23 @@ class TrialSettings:
     hit_timeout: float
     after_hit: float
     settle: float
+    damping: float = 0.0  # [1/s] the simulated table's viscous damping (0: outcomes are only known at rest)
 
     @classmethod
-    def from_params(cls, p: Mapping[str, Any]) -> "TrialSettings":
-        names = [f for f in cls.__dataclass_fields__ if f != "table"]
-        return cls(TableGeometry.from_params(p), **{n: tuple(p[n]) if isinstance(p[n], list) else p[n] for n in names})
+    def from_params(cls, p: Mapping[str, Any], damping: float = 0.0) -> "TrialSettings":
+        names = [f for f in cls.__dataclass_fields__ if f not in ("table", "damping")]
+        return cls(TableGeometry.from_params(p), **{n: tuple(p[n]) if isinstance(p[n], list) else p[n] for n in names},
+                   damping=damping)
+
+    def area_margin(self, x: float, y: float) -> float:
+        """Distance [m] of (x, y) inside the smash area's box; negative outside (then minus the distance
+        to the box, where that is the nearer edge)."""
+        depth = x + self.table.length / 2
+        dx = max(self.smash_depth[0] - depth, depth - self.smash_depth[1])
+        dy = abs(y) - (self.table.y_limit - self.smash_rim_margin)
+        if dx <= 0.0 and dy <= 0.0:
+            return min(-dx, -dy)
+        return -math.hypot(max(dx, 0.0), max(dy, 0.0))
 
     def in_smash_area(self, x: float, y: float) -> bool:
         depth = x + self.table.length / 2
