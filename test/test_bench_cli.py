@@ -38,4 +38,4 @@ def test_bench_smash_json_shape():
         assert r["shots"] == 2 and 0 <= r["planned"] <= 2 and 0.0 <= r["goal_rate"] <= 1.0
         assert set(r["offset_m"]) == {"mean", "std"} and set(r["direction_error_deg"]) == {"mean", "std"}
     bad = subprocess.run([str(exe), "bench", "smash", "--shots", "0"], capture_output=True, text=True, timeout=60)
-    assert bad.returncode == 2 and "--shots must be >= 1" in bad.stderr
+    assert bad.returncode == 2 and "argument --shots: must be an integer >= 1" in bad.stderr

@@ -75,10 +75,7 @@ class AirHockeyNode(Node):
         # complete executor (one constructed after a shutdown printed rclpy's __del__ tracebacks)
         self.executor_ = SingleThreadedExecutor(context=self.context)
         self.executor_.add_node(self)
-        changed = {k: v for k, v in self.params.items() if v != defaults[k]}
-        if changed:
-            self.get_logger().info("parameters other than the defaults: "
-                                   + ", ".join(f"{k}={v!r}" for k, v in sorted(changed.items())))
+        self.changed_params = {k: v for k, v in self.params.items() if v != defaults[k]}
 
     def _check_parameter_update(self, parameters: list) -> SetParametersResult:
         """Refuse run-time parameter changes that fail their spec; apply the rest."""
@@ -163,6 +160,9 @@ def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int
     node = None
     try:
         node = node_cls()
+        if node.changed_params:  # once the node stands (a refused start stays one line)
+            node.get_logger().info("parameters other than the defaults: "
+                                   + ", ".join(f"{k}={v!r}" for k, v in sorted(node.changed_params.items())))
         node.get_logger().info(f"{READY_MARKER} {node.get_fully_qualified_name()}")
         node.spin()
     except (ParameterFileError, ParameterValueError, ParameterException, NodeStartupError) as exc:

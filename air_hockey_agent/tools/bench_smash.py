@@ -14,7 +14,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 from dataclasses import replace
 
 import numpy as np
@@ -63,9 +62,6 @@ def _plan(selector, planner, situation, mallet: np.ndarray, start):
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.shots < 1:
-        print("air-hockey bench smash: error: --shots must be >= 1", file=sys.stderr)
-        return 2
     from air_hockey_agent.agent_params import build_selector, load_agent_params
     from air_hockey_agent.core.game.situation import build_situation
     from air_hockey_agent.core.game.strategy.trials import TrialSettings, make_trial

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import sys
 import time
 from collections import Counter
 
@@ -56,9 +55,6 @@ def random_episode(rng: np.random.Generator, length: float, width: float) -> np.
 
 
 def run(args: argparse.Namespace) -> int:
-    if args.episodes < 1:
-        print("air-hockey bench tactics: error: --episodes must be >= 1", file=sys.stderr)
-        return 2
     from air_hockey_agent.agent_params import build_selector, load_agent_params
     from air_hockey_agent.core.game.situation import build_situation
     from air_hockey_agent.core.game.tactics.base import NAMES
