@@ -16,7 +16,8 @@ def run(args, env=None, timeout=120, cwd=None):
 
 
 def assert_one_line_error(result, *words):
-    lines = result.stderr.strip().splitlines()
+    # pybullet prints its build banner when a node that simulates imports it
+    lines = [line for line in result.stderr.strip().splitlines() if not line.startswith("pybullet build time")]
     assert result.returncode == 2, (result.returncode, result.stderr[-2000:])
     assert len(lines) == 1 and "Traceback" not in result.stderr, result.stderr[-2000:]
     for word in words:
@@ -144,3 +145,24 @@ def test_prediction_optimizer_without_a_tracker_fails_in_one_line(ros_env, tmp_p
     lines = result.stderr.strip().splitlines()
     assert result.returncode == 1 and "Traceback" not in result.stderr, result.stderr[-2000:]
     assert lines[-1].startswith("[prediction_optimizer] error: optimisation stopped: service /nobody/")
+
+
+def test_gui_without_a_display_is_a_one_line_error(ros_env):
+    env = {k: v for k, v in ros_env.items() if k not in ("DISPLAY", "WAYLAND_DISPLAY")}
+    assert_one_line_error(run([BIN / "air-hockey", "game", "--gui", "--duration", "2"], env=env),
+                          "--gui needs a display")
+    result = run([BIN / "table_sim", "--ros-args", "-p", "gui:=true"], env=env, timeout=60)
+    assert_one_line_error(result, "[table_sim] error: gui:=true needs a display")
+
+
+@pytest.mark.parametrize("delay", [0.05, 0.4, 1.0])
+def test_a_node_stopped_while_it_starts_leaves_no_traceback(ros_env, delay):
+    """The launcher stops a node that is not ready yet with SIGTERM (it may still be importing, where
+    SIGINT printed a KeyboardInterrupt traceback), a ready one with SIGINT."""
+    from air_hockey_agent.tools.launch import Launcher, ProcessSpec
+    with Launcher(ros_env, echo=None) as launcher:
+        running = launcher.start(ProcessSpec("tactics", [str(BIN / "tactics"), "--ros-args", "-r", "__ns:=/iiwa_front"]))
+        time.sleep(delay)
+        launcher.stop("tactics", grace=10.0)
+    output = "\n".join(running.lines)
+    assert "Traceback" not in output and "KeyboardInterrupt" not in output, output[-2000:]

@@ -15,6 +15,7 @@ The world and the output schedule are :mod:`air_hockey_agent.sim`; this module o
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 
@@ -34,7 +35,7 @@ from air_hockey_agent.core.frames import quaternion_from_yaw
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.nodes.messages import state_msg, to_seconds, to_stamp
-from air_hockey_agent.nodes.runtime import AirHockeyNode, run
+from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.sim.params import PARAM_FILES, ROBOTS, SIM_PARAMS
 from air_hockey_agent.sim.runner import Every, SimRunner
 from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld, arm_joint_order
@@ -53,6 +54,9 @@ class TableSimNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         p = self.params
+        if p["gui"] and sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
+                                                                   or os.environ.get("WAYLAND_DISPLAY")):
+            raise NodeStartupError("gui:=true needs a display (DISPLAY is not set); run with gui:=false")
         self.world = TableWorld(SimSettings.from_params(p), gui=p["gui"])
         self.runner = SimRunner(self.world, p["mocap_rate"], MocapImperfections.from_params(p),
                                 np.random.default_rng(p["seed"]), p["clock_rate"], p["joint_state_rate"],

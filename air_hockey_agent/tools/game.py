@@ -13,12 +13,12 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from air_hockey_agent.nodes.runtime import READY_MARKER
 from air_hockey_agent.params import ParamSpec, load_defaults
 from air_hockey_agent.paths import config_file
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
@@ -131,6 +131,9 @@ def run(args: argparse.Namespace) -> int:
     try:
         _check_args(args)
         settings = load_defaults([config_file("game.yaml")], "/game", GAME_PARAMS)
+        if args.gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY") \
+                and not os.environ.get("WAYLAND_DISPLAY"):
+            raise GameError("--gui needs a display (DISPLAY is not set); leave --gui out to play headless", 2)
         rtf = args.real_time_factor if args.real_time_factor is not None else (1.0 if args.gui else 0.0)
         prepare_speed_map(say)
         with tempfile.TemporaryDirectory(prefix="air_hockey_game_") as tmp:
@@ -196,10 +199,10 @@ def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
             tail = "; ".join(f"{label} exit {code}: {launcher.processes[label].lines[-1:] or ''}"
                              for label, code in dead.items())
             raise GameError(f"nodes failed to start: {tail}")
-        if all(any(READY_MARKER in line for line in p.lines) for p in launcher.processes.values()):
+        if all(p.ready for p in launcher.processes.values()):
             return
         time.sleep(0.1)
-    missing = [label for label, p in launcher.processes.items() if not any(READY_MARKER in line for line in p.lines)]
+    missing = [label for label, p in launcher.processes.items() if not p.ready]
     raise GameError(f"nodes not ready after {timeout:g} s: {', '.join(missing)}")
 
 

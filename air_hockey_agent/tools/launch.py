@@ -1,7 +1,8 @@
 """A small process supervisor for ROS nodes (``launch`` is not available as a wheel).
 
 Starts node processes, prefixes their output with their name, reports exits, and shuts every
-process down on request: SIGINT, then SIGTERM, then SIGKILL, so nothing is left running.
+process down on request: SIGINT (SIGTERM for one that is not ready yet), then SIGTERM, then SIGKILL, so
+nothing is left running.
 """
 from __future__ import annotations
 
@@ -33,6 +34,18 @@ class RunningProcess:
     @property
     def returncode(self) -> int | None:
         return self.popen.poll()
+
+    @property
+    def ready(self) -> bool:
+        """The node logged that it stands (runtime.READY_MARKER)."""
+        from air_hockey_agent.nodes.runtime import READY_MARKER
+        return any(READY_MARKER in line for line in list(self.lines))
+
+    @property
+    def stop_signal(self) -> int:
+        """SIGINT for a node that said it is ready (its handlers shut it down cleanly); SIGTERM before that,
+        which ends a process still importing silently where SIGINT printed a KeyboardInterrupt traceback."""
+        return signal.SIGINT if self.ready else signal.SIGTERM
 
 
 class Launcher:
@@ -90,7 +103,7 @@ class Launcher:
     def stop(self, label: str, grace: float = 5.0) -> int:
         """Stop one process (SIGINT, SIGTERM, SIGKILL, each after ``grace`` seconds); return its exit code."""
         running = self.processes[label]
-        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+        for sig in dict.fromkeys((running.stop_signal, signal.SIGTERM, signal.SIGKILL)):
             if running.returncode is not None:
                 break
             try:
@@ -110,7 +123,7 @@ class Launcher:
         for label in list(self.processes):
             if self.processes[label].returncode is None:
                 try:
-                    os.killpg(self.processes[label].popen.pid, signal.SIGINT)
+                    os.killpg(self.processes[label].popen.pid, self.processes[label].stop_signal)
                 except ProcessLookupError:
                     pass
         return {label: self.stop(label, grace) for label in list(self.processes)}
