@@ -22,7 +22,7 @@ import numpy as np
 from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import CUT, Context, Proposal, Tactic
-from air_hockey_agent.core.game.tactics.prepare import TIE, Ranked, area_margin
+from air_hockey_agent.core.game.tactics.outcome import Ranked, worst_margin
 
 CACHE_SIZE = 16
 KEY_TIME = 0.02       # [s] predicted defend-line crossings closer than this in time ...
@@ -101,15 +101,10 @@ class Cut(Tactic):
             speed = k * st.mallet_restitution * closing / (1.0 + st.mallet_restitution)
             if speed > min(top, ctx.speed_cap) or (0.0 < speed < st.prepare_speed[0]):
                 continue
-            margins = []
-            for off in (0.0, -st.aim_noise, st.aim_noise):
-                normal = _rotate(n, off)
-                push = ctx.shots.contact(puck, normal, -speed * normal, st.prepare_end_speed, st.prepare_horizon)
-                if push.enters_goal:
-                    break
-                margins.append(area_margin(st, push.rest))
-                if off == 0.0:
-                    aimed = push
-            else:
-                out.append(((round(min(margins) / TIE), -t, -speed), t, aimed, run_on if speed > 0.0 else 0.0))
+            def contact(turn: float, speed: float = speed) -> Push:  # the mallet gives way along its normal
+                normal = _rotate(n, turn)
+                return ctx.shots.contact(puck, normal, -speed * normal, st.prepare_end_speed, st.prepare_horizon)
+            scored = worst_margin(st, contact, lambda push: push.enters_goal)
+            if scored is not None:
+                out.append(((scored[0], -t, -speed), t, scored[1], run_on if speed > 0.0 else 0.0))
         return out

@@ -19,18 +19,10 @@ import numpy as np
 from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import PREPARE, Context, Proposal, Tactic, approach_clear
-from air_hockey_agent.core.game.tactics.settings import TacticsSettings
+from air_hockey_agent.core.game.tactics.outcome import Ranked, worst_margin
 
 CACHE_SIZE = 64
 KEY_POSITION = 0.005  # [m] puck positions closer than this share a chosen push
-TIE = 0.005           # [m] margins closer than this count as equal (then the slower push wins)
-
-
-def area_margin(st: TacticsSettings, point: np.ndarray) -> float:
-    """Distance [m] of ``point`` (own frame) inside the smash area's box; negative outside."""
-    depth = point[0] + st.table.length / 2
-    half_width = st.table.y_limit - st.smash_rim_margin
-    return min(depth - st.smash_depth[0], st.smash_depth[1] - depth, half_width - abs(point[1]))
 
 
 class Prepare(Tactic):
@@ -84,34 +76,12 @@ class Prepare(Tactic):
             top = ctx.reach.max_speed(hit, d) * st.hit_speed_fraction
             run_on = ctx.reach.follow_through_length(hit, d)
             for v in speeds[speeds <= min(top, ctx.speed_cap)]:
-                margins = []
-                for turn in (0.0, -st.aim_noise, st.aim_noise):
-                    push = ctx.shots.push(puck, float(angle + turn), float(v), st.prepare_end_speed, st.prepare_horizon)
-                    if push.crosses_centre or push.enters_goal:
-                        break
-                    margins.append(area_margin(st, push.rest))
-                    if turn == 0.0:
-                        aimed = push
-                else:
-                    scored.append((round(min(margins) / TIE), -v, aimed, run_on))
+                scored_push = worst_margin(
+                    st, lambda turn: ctx.shots.push(puck, float(angle + turn), float(v), st.prepare_end_speed,
+                                                    st.prepare_horizon),
+                    lambda push: push.crosses_centre or push.enters_goal)
+                if scored_push is not None:
+                    scored.append((scored_push[0], -v, scored_push[1], run_on))
         scored.sort(key=lambda item: item[:2], reverse=True)
         return [(push, run_on) for _, _, push, run_on in scored]
 
-
-class Ranked:
-    """Ranked candidates (tuples); :meth:`first` returns the best that passes both checks, remembering the
-    outcome of the ``lasting`` check (one that does not change while the prediction stays)."""
-
-    def __init__(self, items: list[tuple]) -> None:
-        self.items = items
-        self._lasting: dict[int, bool] = {}
-
-    def first(self, now_check, lasting_check) -> tuple | None:
-        for i, item in enumerate(self.items):
-            if not now_check(*item):
-                continue
-            if i not in self._lasting:
-                self._lasting[i] = lasting_check(*item)
-            if self._lasting[i]:
-                return item
-        return None
