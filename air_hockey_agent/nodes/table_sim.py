@@ -15,7 +15,6 @@ The world and the output schedule are :mod:`air_hockey_agent.sim`; this module o
 from __future__ import annotations
 
 import math
-import os
 import sys
 import time
 
@@ -39,6 +38,7 @@ from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.sim.params import PARAM_FILES, ROBOTS, SIM_PARAMS
 from air_hockey_agent.sim.runner import Every, SimRunner
 from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld, arm_joint_order
+from air_hockey_agent.tools.ros_env import display_available
 
 
 
@@ -54,8 +54,7 @@ class TableSimNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         p = self.params
-        if p["gui"] and sys.platform.startswith("linux") and not (os.environ.get("DISPLAY")
-                                                                   or os.environ.get("WAYLAND_DISPLAY")):
+        if p["gui"] and not display_available():
             raise NodeStartupError("gui:=true needs a display (DISPLAY is not set); run with gui:=false")
         self.world = TableWorld(SimSettings.from_params(p), gui=p["gui"])
         self.runner = SimRunner(self.world, p["mocap_rate"], MocapImperfections.from_params(p),

@@ -13,7 +13,6 @@ from __future__ import annotations
 import argparse
 import json
 import math
-import os
 import sys
 import tempfile
 import time
@@ -22,7 +21,7 @@ from pathlib import Path
 from air_hockey_agent.params import ParamSpec, load_defaults
 from air_hockey_agent.paths import config_file
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
-from air_hockey_agent.tools.ros_env import node_executable, ros_environment
+from air_hockey_agent.tools.ros_env import display_available, node_executable, ros_environment
 from air_hockey_agent.tools.argtypes import count
 
 ROBOTS = ("iiwa_front", "iiwa_back")
@@ -131,8 +130,7 @@ def run(args: argparse.Namespace) -> int:
     try:
         _check_args(args)
         settings = load_defaults([config_file("game.yaml")], "/game", GAME_PARAMS)
-        if args.gui and sys.platform.startswith("linux") and not os.environ.get("DISPLAY") \
-                and not os.environ.get("WAYLAND_DISPLAY"):
+        if args.gui and not display_available():
             raise GameError("--gui needs a display (DISPLAY is not set); leave --gui out to play headless", 2)
         rtf = args.real_time_factor if args.real_time_factor is not None else (1.0 if args.gui else 0.0)
         prepare_speed_map(say)

@@ -32,6 +32,11 @@ def ros_environment(domain_id: int | None = None, ros_home: Path | None = None,
     return env
 
 
+def display_available() -> bool:
+    """A window can open: not Linux, or an X11 / Wayland display is set (pybullet's GUI needs one)."""
+    return not sys.platform.startswith("linux") or bool(os.environ.get("DISPLAY") or os.environ.get("WAYLAND_DISPLAY"))
+
+
 def node_executable(name: str) -> list[str]:
     """Command that runs node ``name``: the venv console script, else ``lib/air_hockey_agent/<name>``."""
     beside = Path(sys.executable).parent / name
