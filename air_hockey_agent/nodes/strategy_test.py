@@ -8,6 +8,11 @@ through ``/set_puck_state`` and follows ``/sim/puck_true_state`` and ``/sim/cont
 ends (:class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher`). Each result is printed as
 one line ``TRIAL_RESULT {json}``; at the end ``STRATEGY_DONE`` and the node exits. It publishes a
 running ``/game_status`` (latched) so the tactics play; the opponent runs no agent and holds its home pose.
+
+The node runs on events, not on a clock: its simulated time is the stamp of the latest true puck state
+(published at every mocap tick, whether the puck moves or not), and a trial moves on when a service
+answers or a puck state or contact arrives. It needs no ``/clock`` (run it without ``use_sim_time``);
+a 20 Hz wall-time timer only waits for the services at start and enforces ``wall_timeout``.
 """
 from __future__ import annotations
 
@@ -32,6 +37,7 @@ from air_hockey_agent.sim.params import load_sim_params
 ROBOT = "iiwa_front"
 TACTIC_IDS = {name: tactic for tactic, name in NAMES.items()}
 PARK = (0.6, 0.0)  # [m] where the puck waits between trials: the opponent's half, away from its mallet
+WALL_CHECK_PERIOD = 0.05  # [s] wall time between checks for the services at start and for wall_timeout
 
 
 def parse_trials(text: str) -> list[tuple[str, int]]:
@@ -69,31 +75,34 @@ class StrategyTestNode(AirHockeyNode):
         self.create_subscription(MalletContact, "/sim/contacts", self.on_contact, 100)
         self.watcher: TrialWatcher | None = None
         self.phase, self.pending, self.phase_start, self.wall_start = "next", None, 0.0, time.monotonic()
-        self.create_timer(0.01, self.on_tick)
-
-    def now_seconds(self) -> float:
-        return self.get_clock().now().nanoseconds * 1e-9
+        self.sim_time = 0.0  # [s] stamp of the latest true puck state: the simulation's clock
+        self.create_timer(WALL_CHECK_PERIOD, self.advance)
 
     # --- inputs --------------------------------------------------------------------------------
     def on_truth(self, msg: PuckState) -> None:
+        self.sim_time = to_seconds(msg.header.stamp)
         if self.watcher is not None and self.phase == "run":
-            self.watcher.state(to_seconds(msg.header.stamp), msg.x, msg.y, msg.vx, msg.vy)
+            self.watcher.state(self.sim_time, msg.x, msg.y, msg.vx, msg.vy)
+        self.advance()
 
     def on_contact(self, msg: MalletContact) -> None:
         if self.watcher is not None and self.phase == "run" and msg.robot == ROBOT:
             self.watcher.contact(to_seconds(msg.header.stamp), msg.duration)
+            self.advance()
 
     # --- trial phases --------------------------------------------------------------------------
     def call(self, client, request) -> None:
         self.pending = client.call_async(request)
+        self.pending.add_done_callback(lambda _: self.advance())
 
-    def on_tick(self) -> None:
+    def advance(self) -> None:
+        """Move the trial on as far as the answers and the simulated time allow (called on every event)."""
         if self.pending is not None and not self.pending.done():
             if time.monotonic() - self.wall_start > self.params["wall_timeout"]:
                 self.finish_trial(f"no answer from a service within {self.params['wall_timeout']:g} s")
             return
         self.pending = None
-        now = self.now_seconds()
+        now = self.sim_time
         if self.phase == "next":
             clients = (self.reset_client, self.puck_client, self.force_client)
             if not all(c.service_is_ready() for c in clients):  # a request sent before the server is up is lost

@@ -1,6 +1,7 @@
 """``tactics`` node (one per robot namespace): the upper layer of the agent (thesis sec. 4.1, 4.6).
 
-Subscribes ``puck/state`` and ``puck/prediction`` (the robot's puck tracker, table frame),
+Subscribes ``puck/prediction`` (the robot's puck tracker, table frame: the estimate it starts from and
+its prediction, published together with ``puck/state`` for every frame, so the state topic is not read),
 ``joint_states`` (mallet position by forward kinematics), ``/game_status`` (the referee: stopped -> Init,
 paused -> Home, running -> play) and ``trajectory_status`` (the trajectory generator's answers).
 Publishes ``hit_command`` (air_hockey_msgs/HitCommand, the robot's own frame) and ``tactic``
@@ -59,7 +60,6 @@ class TacticsNode(AirHockeyNode):
         self.command_pub = self.create_publisher(HitCommand, "hit_command", 10)
         self.tactic_pub = self.create_publisher(TacticState, "tactic", latched)
         self.sync_pub = self.create_publisher(Clock, "~/sim_sync", 10)
-        self.create_subscription(PuckState, "puck/state", self.on_state, 10)
         self.create_subscription(PuckPrediction, "puck/prediction", self.on_prediction, 10)
         self.create_subscription(JointState, "joint_states", self.on_joint_state, 10)
         self.create_subscription(GameStatus, "/game_status", self.on_game_status, latched)
@@ -72,9 +72,6 @@ class TacticsNode(AirHockeyNode):
         return self.get_clock().now().nanoseconds * 1e-9
 
     # --- inputs ------------------------------------------------------------------------------------
-    def on_state(self, msg: PuckState) -> None:
-        self.last_estimate = to_seconds(msg.header.stamp)
-
     def on_prediction(self, msg: PuckPrediction) -> None:
         try:
             t0 = to_seconds(msg.header.stamp)
@@ -82,7 +79,7 @@ class TacticsNode(AirHockeyNode):
             times = t0 + msg.sample_period * np.arange(1, len(samples) + 1)
             impacts = [(t0 + i.time_from_start, i.x, i.y) for i in msg.impacts]
             self.situation = build_situation(self.robot, t0, _state(msg.initial), times, samples, impacts)
-            self.last_estimate = max(self.last_estimate, t0)
+            self.last_estimate = t0
         except (ValueError, TypeError) as exc:
             self.get_logger().error(f"puck/prediction: message ignored ({exc})", throttle_duration_sec=1.0)
 

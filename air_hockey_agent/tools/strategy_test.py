@@ -58,8 +58,8 @@ def worker_processes(trials: list[tuple[str, int]], seed: int) -> list[ProcessSp
                                        "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
     specs += [robot_node(n, ROBOT, label=n) for n in PER_ROBOT_NODES]
     trial_list = ",".join(f"{s}:{i}" for s, i in trials)
-    specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args", "-p",
-                                               "use_sim_time:=true", "-p", f"seed:={seed}", "-p", f"trials:={trial_list}"]))
+    specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args",
+                                               "-p", f"seed:={seed}", "-p", f"trials:={trial_list}"]))
     return specs
 
 
