@@ -20,13 +20,16 @@ def write_plots(summary: dict, results: list[dict], out: Path) -> list[Path]:
     ours = [summary[k]["success_rate"] for k in keys]
     partial = [summary[k].get("partial_rate", np.nan) for k in keys]
     thesis = [THESIS[k]["success_rate"] for k in keys]
+    thesis_partial = [THESIS[k].get("partial_rate", np.nan) for k in keys]
     ax.bar(x - 0.2, partial, 0.4, color="tab:blue", alpha=0.35, label="partial success (ours)")
     ax.bar(x - 0.2, ours, 0.4, color="tab:blue", label="success (ours)")
+    ax.bar(x + 0.2, thesis_partial, 0.4, color="tab:gray", alpha=0.35, label="partial success (thesis)")
     ax.bar(x + 0.2, thesis, 0.4, color="tab:gray", label="success (thesis fig. 5.7)")
     ax.set_xticks(x, keys, rotation=20)
     ax.set_ylim(0, 1)
     ax.set_ylabel("rate")
-    ax.legend(loc="lower right")
+    # below the axes: inside, it covered the Prepare and Repel bars
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2, frameon=False)
     fig.tight_layout()
     bars = out / "strategy_success.png"
     fig.savefig(bars, dpi=120)
