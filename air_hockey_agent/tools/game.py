@@ -81,7 +81,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--duration", type=float, default=60.0,
                         help="seconds of simulated time to play (default 60)")
-    parser.add_argument("--goals", type=int, default=0, help="stop after this many goals instead (0: off)")
+    parser.add_argument("--goals", type=int, default=0,
+                        help="also stop after this many goals, whichever comes first (0: off)")
     parser.add_argument("--real-time-factor", type=float, default=None,
                         help="simulation speed: 1 watchable, >1 faster, 0 as fast as possible "
                              "(default: 1 with --gui, else 0)")

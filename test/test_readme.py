@@ -1,0 +1,143 @@
+"""Runs every ```bash block of README.md as a user would, so the README cannot drift from the code.
+
+Each block runs in the order of the README, as one ``bash -eu -o pipefail`` script, in one scratch
+directory shared by all blocks (a later block may use what an earlier one wrote, e.g. the bags of
+``synth-bag``) that links the repository's ``.venv`` and ``config``. The line just before a block's
+fence may set how it runs:
+
+* (nothing): every command must exit 0.
+* ``<!-- readme-test: nodes -->``: each line starts a node that must say it is ready, keep running, and
+  stop with exit code 0 and no traceback on Ctrl-C.
+* ``<!-- readme-test: tested by test/FILE.py -->``: that test runs the block with its expected
+  output; this one only checks that the file exists and reads the README.
+* ``<!-- readme-test: skip: REASON -->``: not runnable here (a display, a ROS install); the reason is
+  shown as the skip reason.
+
+Synopses with placeholders (``[--option N]``, ``BAG...``) are ```text blocks, never run.
+"""
+from __future__ import annotations
+
+import os
+import re
+import signal
+import subprocess
+import threading
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import pytest
+
+from air_hockey_agent.nodes.runtime import READY_MARKER
+
+pytestmark = pytest.mark.integration
+ROOT = Path(__file__).resolve().parents[1]
+README = ROOT / "README.md"
+BLOCK_TIMEOUT = 600.0  # [s] per block; the longest (sysid, a game) take about a minute here
+NODE_READY_TIMEOUT = 60.0  # [s]
+NODE_STOP_TIMEOUT = 20.0  # [s]
+SETUP = ("make game", "make test")  # the README's two set-up commands: CI runs them itself
+POLICY = re.compile(r"<!--\s*readme-test:\s*(.*?)\s*-->")
+
+
+@dataclass(frozen=True)
+class Block:
+    line: int     # of the opening fence
+    policy: str   # "run", "nodes", "tested by ...", "skip: ..."
+    text: str
+
+
+def bash_blocks(text: str) -> list[Block]:
+    """The README's ```bash blocks with the policy set on the line before each."""
+    lines, blocks, i = text.splitlines(), [], 0
+    while i < len(lines):
+        if lines[i].strip() == "```bash":
+            end = next(j for j in range(i + 1, len(lines)) if lines[j].strip() == "```")
+            match = POLICY.fullmatch(lines[i - 1].strip()) if i > 0 else None
+            blocks.append(Block(i + 1, match.group(1) if match else "run", "\n".join(lines[i + 1:end]) + "\n"))
+            i = end
+        i += 1
+    return blocks
+
+
+BLOCKS = bash_blocks(README.read_text())
+
+
+def commands(block: Block) -> list[str]:
+    return [line.split("  #")[0].strip() for line in block.text.splitlines() if line.strip()]
+
+
+@pytest.fixture(scope="module")
+def scratch(tmp_path_factory) -> Path:
+    work = tmp_path_factory.mktemp("readme")
+    for name in (".venv", "config"):
+        (work / name).symlink_to(ROOT / name)
+    return work
+
+
+def test_every_block_has_a_known_policy_and_no_placeholders():
+    assert BLOCKS, "README.md has no ```bash block"
+    for block in BLOCKS:
+        assert block.policy in ("run", "nodes") or block.policy.startswith(("tested by test/", "skip: ")), \
+            f"README.md line {block.line}: unknown readme-test policy '{block.policy}'"
+        if block.policy.startswith("skip: "):
+            continue
+        for command in commands(block):
+            assert not re.search(r"\[--|\.\.\.|<[a-z ]+>", command), \
+                f"README.md line {block.line}: '{command}' has a placeholder (synopses go in ```text blocks)"
+
+
+@pytest.mark.parametrize("block", BLOCKS, ids=[f"line{b.line}" for b in BLOCKS])
+def test_readme_block(block: Block, scratch: Path, ros_env):
+    if all(c.startswith(SETUP) for c in commands(block)):
+        pytest.skip("the README's set-up commands: CI runs `make test` itself, and `make game` is tested by "
+                    "test/test_node_cli.py")
+    if block.policy.startswith("skip: "):
+        pytest.skip(block.policy[len("skip: "):])
+    if block.policy.startswith("tested by "):
+        test_file = ROOT / block.policy[len("tested by "):]
+        assert test_file.exists() and "README" in test_file.read_text(), \
+            f"README.md line {block.line}: {test_file} does not exist or does not read the README"
+        return
+    if block.policy == "nodes":
+        for command in commands(block):
+            run_node(command, scratch, ros_env, block.line)
+        return
+    result = subprocess.run(["bash", "-eu", "-o", "pipefail", "-c", block.text], cwd=scratch, env=ros_env,
+                            capture_output=True, text=True, timeout=BLOCK_TIMEOUT)
+    assert result.returncode == 0, (f"README.md block at line {block.line} exited {result.returncode}:\n"
+                                    f"{result.stdout[-3000:]}\n{result.stderr[-3000:]}")
+    assert "Traceback" not in result.stderr, result.stderr[-3000:]
+
+
+def run_node(command: str, cwd: Path, env: dict, line: int) -> None:
+    """Start ``command``, wait for the ready line, interrupt it like Ctrl-C, expect a clean exit."""
+    proc = subprocess.Popen(["bash", "-c", f"exec {command}"], cwd=cwd, env=env, stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, start_new_session=True)
+    output: list[str] = []
+    reader = threading.Thread(target=lambda: output.extend(proc.stdout), daemon=True)
+    reader.start()
+    try:
+        deadline = time.monotonic() + NODE_READY_TIMEOUT
+        while time.monotonic() < deadline and proc.poll() is None and READY_MARKER not in "".join(output):
+            time.sleep(0.1)
+        assert proc.poll() is None, f"README.md line {line}: '{command}' exited {proc.returncode}:\n{''.join(output)}"
+        assert READY_MARKER in "".join(output), f"README.md line {line}: '{command}' never said it was ready"
+        proc.send_signal(signal.SIGINT)
+        proc.wait(timeout=NODE_STOP_TIMEOUT)
+    finally:
+        if proc.poll() is None:
+            os.killpg(proc.pid, signal.SIGKILL)
+            proc.wait()
+        reader.join(timeout=5.0)
+    text = "".join(output)
+    assert proc.returncode == 0, f"README.md line {line}: '{command}' exited {proc.returncode} on Ctrl-C:\n{text}"
+    assert "Traceback" not in text, text
+
+
+def test_blocks_are_found_with_their_policies():
+    text = ("intro\n```bash\necho one\n```\n<!-- readme-test: skip: needs a display -->\n```bash\nviewer\n```\n"
+            "```text\ntool [--flag N]\n```\n<!-- readme-test: nodes -->\n```bash\nnode --ros-args\n```\n")
+    blocks = bash_blocks(text)
+    assert [(b.line, b.policy, b.text) for b in blocks] == [
+        (2, "run", "echo one\n"), (6, "skip: needs a display", "viewer\n"), (13, "nodes", "node --ros-args\n")]
