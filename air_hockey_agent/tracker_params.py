@@ -34,6 +34,8 @@ TRACKER_PARAMS = (
     ParamSpec("max_consecutive_rejections", int, "rejected frames in a row before re-initialising", 1, 1000),
     ParamSpec("outside_table_margin", float, "[m] drop measurements this far beyond the rims", 0.0, 10.0),
     ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),
+    ParamSpec("glitch_speed", float, "[m/s] evaluation: a pose that jumps faster than this from both "
+              "neighbours is a marker glitch, not ground truth", 0.1, 1000.0),
     ParamSpec("prediction_horizon", float, "[s] horizon of puck/prediction", 0.0, 10.0),
     ParamSpec("prediction_sample_period", float, "[s] spacing of predicted states", 0.001, 1.0),
     ParamSpec("defend_line_offset", float, "[m] defend line distance from each short rim", 0.0, 1.0),

@@ -27,7 +27,10 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     out = cli("eval-prediction", bags / "a", bags / "b", "--json")
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)  # the whole of stdout is one JSON document
-    assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected"}
+    assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "rejected_fraction",
+                           "reinit_per_s", "nis"}
+    assert set(report["nis"]) == {"median", "mean"}
+    assert 0.0 <= report["rejected_fraction"] < 0.1 and report["reinit_per_s"] >= 0.0
     assert set(report["horizons"]) == {"0.5", "1.0", "1.5"}
     assert set(report["horizons"]["1.0"]) == {"mean_m", "median_m", "p95_m", "n"}
     assert report["bags"] == 2 and report["frames"] > 1000

@@ -105,3 +105,53 @@ def test_loglik_and_stride(params):
     evaluate_stream(ekf, frames, sparse)
     assert len(full.nll["0.5"]) == len(full.errors["0.5"]) > 0 and not sparse.nll["0.5"]
     assert len(sparse.errors["0.5"]) == pytest.approx(len(full.errors["0.5"]) / 3, abs=2)
+
+
+def test_rejecting_frames_does_not_make_a_filter_look_better(params):
+    """Issue #13: predictions start from every frame with a state and end at every valid pose, so a
+    gate that throws most frames away keeps the comparisons and does not shrink the error."""
+    frames = frames_of(session(PuckEKF.from_params(params), seed=7, n_shots=3, noise=MocapImperfections()))
+    reports = {}
+    for name, gate in (("normal", params["gate_threshold"]), ("strict", 0.5)):
+        totals = EvaluationTotals((0.5,))
+        evaluate_stream(PuckEKF.from_params({**params, "gate_threshold": gate}), frames, totals)
+        reports[name] = totals.summary()
+    normal, strict = reports["normal"], reports["strict"]
+    assert strict["rejected_fraction"] > 0.3 > normal["rejected_fraction"]
+    assert strict["reinit_per_s"] > normal["reinit_per_s"]
+    assert strict["horizons"]["0.5"]["n"] >= 0.95 * normal["horizons"]["0.5"]["n"]
+    assert strict["horizons"]["0.5"]["median_m"] >= normal["horizons"]["0.5"]["median_m"]
+
+
+def test_nis_of_a_filter_fed_its_own_noise_is_that_of_a_consistent_filter(params):
+    """A filter whose R matches the measurement noise and whose model is the data's: NIS median near the
+    3-dof chi-square median 2.37 (the statistic issue #13 checks on real data)."""
+    std = np.sqrt(np.asarray(params["measurement_noise"]))
+    noise = MocapImperfections(position_std=float(std[0]), angle_std=float(std[2]))
+    ekf = PuckEKF.from_params(params)
+    totals = EvaluationTotals((0.5,))
+    evaluate_stream(ekf, frames_of(session(ekf, seed=11, n_shots=3, noise=noise)), totals)
+    assert 1.5 < totals.summary()["nis"]["median"] < 3.5
+
+
+def test_valid_poses_screen_glitches_and_off_table_poses_only(params):
+    from air_hockey_agent.core.estimation.evaluation import valid_poses
+    ekf = PuckEKF.from_params(params)
+    dt = 1 / 120
+    frames = [(k * dt, (0.1 + 0.01 * k, 0.0, 0.0)) for k in range(10)]
+    frames[4] = (4 * dt, (0.6, 0.3, 0.0))          # a one-frame jump of 0.5 m: 60 m/s
+    frames[7] = (7 * dt, None)                     # lost
+    frames[8] = (8 * dt, (5.0, 0.0, 0.0))          # off the table
+    assert valid_poses(frames, ekf) == [True, True, True, True, False, True, True, False, False, True]
+
+
+def test_off_table_warning_and_poses_in_the_table_frame(params):
+    from air_hockey_agent.bags.reader import PoseRecord
+    from air_hockey_agent.bags.trajectories import measurements_of, off_table_warning
+    records = [PoseRecord(k / 120, (0.1 * k - 0.5, 0.2, 0.0), (0.0, 0.0, 0.0, 1.0), k / 120, "table")
+               for k in range(10)]
+    away = {**params, "mocap_table_pose": [3.0, 2.0, 0.0, 0.0]}
+    assert off_table_warning(measurements_of(records, away["mocap_table_pose"]), away) == ""  # frame_id table
+    mocap = [PoseRecord(r.stamp, r.position, r.orientation, r.log_time, "optitrack") for r in records]
+    warning = off_table_warning(measurements_of(mocap, away["mocap_table_pose"]), away)
+    assert warning.startswith("100% of the poses lie off the table") and "frame_id is 'table'" in warning

@@ -82,6 +82,7 @@ def test_cli_writes_params_that_eval_prediction_accepts(tmp_path):
                           "--json"], capture_output=True, text=True, timeout=600)
     assert run.returncode == 2  # the junk bag is reported ...
     assert "junk: cannot read" in run.stderr
+    assert run.stdout, run.stderr[-3000:]
     report = json.loads(run.stdout)  # ... and the good one still used
     assert report["after"]["train"]["loss_m"] < report["before"]["train"]["loss_m"]
     assert report["bags"] == 1 and report["bad_bags"] == 1
@@ -122,6 +123,7 @@ def test_plot_cli_writes_three_pngs(tmp_path):
 
 def test_errors_through_steps_match_the_offline_loss(tracker, trajectories):
     """The service path of prediction_optimizer (a step function) gives the offline loss exactly."""
+    from air_hockey_agent.core.estimation.evaluation import valid_poses
     from air_hockey_agent.core.identification.sysid import errors_through_steps
     ekf = PuckEKF.from_params(tracker)
 
@@ -132,7 +134,7 @@ def test_errors_through_steps_match_the_offline_loss(tracker, trajectories):
     errors = []
     for traj in trajectories:
         ekf.reset()
-        errors.extend(errors_through_steps(traj, 1.0, step))
+        errors.extend(errors_through_steps(traj, 1.0, step, valid_poses(list(traj.frames()), ekf)))
     offline = loss_report(tracker, trajectories, 1.0)
     assert len(errors) == offline.comparisons and np.mean(errors) == pytest.approx(offline.loss, rel=1e-9)
 

@@ -34,6 +34,7 @@ class PoseRecord:
     position: tuple[float, float, float]
     orientation: tuple[float, float, float, float]  # quaternion x, y, z, w
     log_time: float  # [s] when the recorder received it
+    frame_id: str = ""  # the header's frame ("table": already in the table frame)
 
 
 def bag_directory(path: Path | str) -> Path:
@@ -62,7 +63,7 @@ def read_poses(path: Path | str, topic: str) -> list[PoseRecord]:
     if not records:
         raise BagError(directory, f"no messages on {topic}")
     if all(r.stamp == 0.0 for r in records):  # a publisher that leaves the header empty: use log times
-        records = [PoseRecord(r.log_time, r.position, r.orientation, r.log_time) for r in records]
+        records = [PoseRecord(r.log_time, r.position, r.orientation, r.log_time, r.frame_id) for r in records]
     return records
 
 
@@ -79,7 +80,8 @@ def _topic_connections(reader: AnyReader, directory: Path, topic: str, msgtype: 
 
 def _pose_record(msg, log_ns: int) -> PoseRecord:
     p, q, s = msg.pose.position, msg.pose.orientation, msg.header.stamp
-    return PoseRecord(s.sec + s.nanosec * 1e-9, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w), log_ns * 1e-9)
+    return PoseRecord(s.sec + s.nanosec * 1e-9, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w), log_ns * 1e-9,
+                      msg.header.frame_id)
 
 
 def _one_line(exc: BaseException) -> str:

@@ -8,7 +8,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from air_hockey_agent.bags.reader import BagError, read_poses
-from air_hockey_agent.core.frames import pose_to_measurement
+from air_hockey_agent.core.frames import TABLE_FRAME, pose_to_measurement
+from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.core.identification.preprocess import (cut_rest, interpolate_frozen, split_trajectories,
                                               to_model_grid)
 
@@ -62,10 +63,11 @@ def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, A
             result.errors.append(str(exc))
             continue
         result.bags += 1
-        measurements = [pose_to_measurement(r.position, r.orientation, tracker["mocap_table_pose"]) for r in records]
-        note = _stream_problems([r.stamp for r in records], measurements)
-        if note:
-            result.warnings.append(f"{bag}: {note}")
+        measurements = measurements_of(records, tracker["mocap_table_pose"])
+        for note in (_stream_problems([r.stamp for r in records], measurements),
+                     off_table_warning(measurements, tracker)):
+            if note:
+                result.warnings.append(f"{bag}: {note}")
         grid = to_model_grid([r.stamp for r in records], measurements, dt)
         result.frozen += interpolate_frozen(grid, prep["frozen_threshold"])
         for piece in split_trajectories(grid, prep["max_gap"]):
@@ -88,6 +90,25 @@ def split_train_validation(n: int, fraction: float, seed: int) -> tuple[list[int
     return sorted(order[:cut]), sorted(order[cut:])
 
 
+
+
+def measurements_of(records: Sequence, table_pose: Sequence[float]) -> list:
+    """Table-frame measurements (x, y, theta) of pose records (None for unusable poses); a pose whose
+    frame_id is the table frame needs no table pose."""
+    return [pose_to_measurement(r.position, r.orientation, table_pose, r.frame_id) for r in records]
+
+
+def off_table_warning(measurements: Sequence, tracker: Mapping[str, Any]) -> str:
+    """One line when most usable poses lie off the table (beyond ``outside_table_margin``): the filter
+    drops them all, which usually means a bag recorded in another frame than ``mocap_table_pose`` says."""
+    table = TableGeometry.from_params(tracker)
+    usable = [m for m in measurements if m is not None]
+    off = sum(not table.contains(m[0], m[1], tracker["outside_table_margin"]) for m in usable)
+    if not usable or off <= len(usable) / 2:
+        return ""
+    return (f"{off / len(usable):.0%} of the poses lie off the table with mocap_table_pose "
+            f"{list(tracker['mocap_table_pose'])} (dropped by the filter); recorded in another frame? "
+            f"Poses whose frame_id is '{TABLE_FRAME}' need no table pose")
 
 
 def _stream_problems(stamps: Sequence[float], measurements: Sequence) -> str:

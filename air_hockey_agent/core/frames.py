@@ -12,6 +12,8 @@ from typing import Sequence
 from air_hockey_agent.core.puck.model import wrap_angle
 
 ROBOT_YAW = {"iiwa_front": 0.0, "iiwa_back": math.pi}
+TABLE_FRAME = "table"  # frame_id of poses and states given in the table frame
+IDENTITY_POSE = (0.0, 0.0, 0.0, 0.0)  # the table frame's pose in itself
 MIN_QUATERNION_NORM2 = 0.5  # squared norm below which a mocap quaternion is invalid (unit: 1; zero: lost body)
 
 
@@ -41,8 +43,9 @@ def table_to_mocap(x: float, y: float, yaw: float, table_pose: Sequence[float]) 
 
 
 def pose_to_measurement(position: Sequence[float], quaternion: Sequence[float],
-                        table_pose: Sequence[float]) -> tuple[float, float, float] | None:
+                        table_pose: Sequence[float], frame_id: str = "") -> tuple[float, float, float] | None:
     """Mocap pose (position x, y, z [m]; quaternion x, y, z, w) -> table-frame measurement (x, y, theta).
+    A pose whose ``frame_id`` is the table frame is one already: ``table_pose`` does not apply.
 
     Returns None for a pose that cannot be a measurement (non-finite values or a quaternion far from
     unit length, as OptiTrack sends for a lost rigid body); the filter treats it as a lost frame.
@@ -51,7 +54,8 @@ def pose_to_measurement(position: Sequence[float], quaternion: Sequence[float],
     if not all(math.isfinite(v) for v in values) or sum(q * q for q in quaternion) < MIN_QUATERNION_NORM2:
         return None
     qx, qy, qz, qw = quaternion
-    return mocap_to_table(position[0], position[1], yaw_from_quaternion(qx, qy, qz, qw), table_pose)
+    pose = IDENTITY_POSE if frame_id == TABLE_FRAME else table_pose
+    return mocap_to_table(position[0], position[1], yaw_from_quaternion(qx, qy, qz, qw), pose)
 
 
 def table_to_robot(x: float, y: float, yaw: float, robot: str) -> tuple[float, float, float]:

@@ -33,7 +33,7 @@ def pose_measurement(msg: PoseStamped, table_pose) -> tuple[float, float, float]
     """Table-frame measurement (x, y, theta) of a mocap PoseStamped; None for an unusable pose
     (see :func:`air_hockey_agent.core.frames.pose_to_measurement`)."""
     p, q = msg.pose.position, msg.pose.orientation
-    return pose_to_measurement((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), table_pose)
+    return pose_to_measurement((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), table_pose, msg.header.frame_id)
 
 
 def state_msg(state: np.ndarray, cov: np.ndarray, seconds: float, flags: int = 0) -> PuckState:

@@ -18,6 +18,8 @@ import numpy as np
 from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetPhysicalParams
 
 from air_hockey_agent.bags.trajectories import load_trajectories, split_train_validation
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.estimation.evaluation import valid_poses
 from air_hockey_agent.core.identification.sysid import PHYSICAL, errors_through_steps, identify
 from air_hockey_agent.nodes.messages import to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeFailure, NodeStartupError, run
@@ -61,6 +63,9 @@ class PredictionOptimizerNode(AirHockeyNode):
                                    + loaded.why_none(p))
         train_idx, _ = split_train_validation(len(loaded.trajectories), p["split"], p["seed"])
         self.train = [loaded.trajectories[i] for i in train_idx]
+        # which poses count as ground truth (the evaluation's definition, on the tracker's table)
+        reference = PuckEKF.from_params(self.tracker_defaults)
+        self.valid = {id(traj): valid_poses(list(traj.frames()), reference) for traj in self.train}
         prefix = p["tracker"].rstrip("/")
         self.set_params = self.create_client(SetPhysicalParams, f"{prefix}/set_physical_params")
         self.reset = self.create_client(ResetFilter, f"{prefix}/reset")
@@ -99,7 +104,8 @@ class PredictionOptimizerNode(AirHockeyNode):
             errors = []
             for traj in self.train:
                 self.call(self.reset, ResetFilter.Request())
-                errors.extend(errors_through_steps(traj, self.params["horizon"], self.kalman_step))
+                errors.extend(errors_through_steps(traj, self.params["horizon"], self.kalman_step,
+                                                   self.valid[id(traj)]))
             values.append(float(np.mean(errors)) if errors else float("inf"))
         return values
 

@@ -2,7 +2,8 @@
 
 * ``velocity.png``: the filter's velocity and spin against finite differences of the measurements;
 * ``prediction.png``: measured x, y, theta against the prediction made ``--horizon`` seconds before;
-* ``error_vs_horizon.png``: mean and median prediction error over all trajectories against the horizon.
+* ``error_vs_horizon.png``: mean prediction error over all comparisons and the median of the trajectories'
+  mean errors (the thesis's median column) against the horizon.
 
 One trajectory (``--trajectory``, default the longest) is drawn in the first two; trajectories come
 from the same preprocessing as ``sysid``. ``--params-file`` plots with other (e.g. identified)
@@ -132,7 +133,7 @@ def _error_vs_horizon(out: Path, trajectories, sets: dict) -> Path:
     for (name, params), color in zip(sets.items(), ("tab:orange", "tab:green")):
         reports = [loss_report(params, trajectories, float(h)) for h in HORIZON_GRID]
         ax.plot(HORIZON_GRID, [r.loss * 1e3 for r in reports], "o-", color=color, label=f"mean ({name})")
-        ax.plot(HORIZON_GRID, [r.median * 1e3 for r in reports], "s--", color=color, label=f"median ({name})")
+        ax.plot(HORIZON_GRID, [r.median * 1e3 for r in reports], "s--", color=color, label=f"median of trajectory means ({name})")
     ax.set_xlabel("prediction horizon [s]")
     ax.set_ylabel("position error [mm]")
     ax.grid(alpha=0.3)

@@ -150,7 +150,7 @@ def _objective_text(loss: str, value: float) -> str:
 def format_report(result: dict, out: Path | None) -> str:
     """Thesis-style tables: parameters with loss/min/median before and after; table 5.4 if asked."""
     names = ("friction_surface", "friction_rim", "damping", "restitution")
-    head = f"{'':<22}" + "".join(f"{n:>17}" for n in names) + f"{'loss [mm]':>11}{'min [mm]':>10}{'median [mm]':>13}"
+    head = f"{'':<22}" + "".join(f"{n:>17}" for n in names) + f"{'loss [mm]':>11}{'traj. min [mm]':>16}{'traj. median [mm]':>19}"
     lines = [f"loss {result['loss']}, horizon {result['horizon']} s, {result['evaluations']} evaluations in "
              f"{result['seconds']} s", head]
     for label, params, key in (("initial (train)", result["initial"], "before"),
@@ -159,7 +159,7 @@ def format_report(result: dict, out: Path | None) -> str:
             r = result[key][subset]
             tag = label.replace("(train)", f"({subset})")
             lines.append(f"{tag:<22}" + "".join(f"{params[n]:>17.6g}" for n in names)
-                         + f"{r['loss_m'] * 1e3:>11.2f}{r['min_m'] * 1e3:>10.2f}{r['median_m'] * 1e3:>13.2f}")
+                         + f"{r['loss_m'] * 1e3:>11.2f}{r['min_m'] * 1e3:>16.2f}{r['median_m'] * 1e3:>19.2f}")
     before, after = result["before"]["validation"]["loss_m"], result["after"]["validation"]["loss_m"]
     if before > 0:
         change = 100.0 * (after - before) / before

@@ -50,6 +50,7 @@ class FilterSettings:
     outside_table_margin: float      # [m]
     max_prediction_gap: float        # [s]
     frozen_threshold: float = 1e-6   # [m] thesis sec. 4.5.1
+    glitch_speed: float | None = None  # [m/s] evaluation only: a pose this far from both neighbours is no truth
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "FilterSettings":
@@ -58,7 +59,7 @@ class FilterSettings:
                    gate_threshold=params["gate_threshold"],
                    max_consecutive_rejections=params["max_consecutive_rejections"],
                    outside_table_margin=params["outside_table_margin"],
-                   max_prediction_gap=params["max_prediction_gap"])
+                   max_prediction_gap=params["max_prediction_gap"], glitch_speed=params["glitch_speed"])
 
 
 @dataclass
@@ -113,6 +114,9 @@ class PuckEKF:
     stats: FilterStats = field(default_factory=FilterStats)
     _pending: list = field(default_factory=list)      # measurements awaiting (re)initialisation
     _last_z: np.ndarray | None = None
+    # normalised innovation squared y^T S^-1 y of the last frame that reached the gate (fused or rejected),
+    # None when the last frame did not (lost, frozen, initialising): the filter's consistency check
+    last_nis: float | None = None
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "PuckEKF":
@@ -195,6 +199,7 @@ class PuckEKF:
         Returns ``FLAG_*`` bits describing what was done.
         """
         self.stats.frames += 1
+        self.last_nis = None
         flags = 0
         if z is not None:
             z = np.asarray(z, float)
@@ -228,6 +233,7 @@ class PuckEKF:
 
     def _gate_and_update(self, t: float, z: np.ndarray) -> int:
         y, s_inv, d2 = self.innovation(z)
+        self.last_nis = float(d2)
         if d2 <= self.settings.gate_threshold:
             self._pending.clear()
             self._apply_update(y, s_inv)

@@ -11,6 +11,9 @@ from the current parameters, then polishes the best point with a bounded Nelder-
 """
 from __future__ import annotations
 
+import contextlib
+import sys
+
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Sequence
 
@@ -116,7 +119,10 @@ def identify(objective: Objective, bounds: Mapping[str, Sequence[float]], initia
     optimiser.observe(pd.DataFrame([start]), np.array([[history[0][1]]]))
     total = iterations * batch + polish_evaluations
     for _ in range(iterations):
-        suggestions = optimiser.suggest(n_suggestions=batch)
+        # HEBO's GP prints its Cholesky jitter retries ("jitter = 1e-07") on stdout, where --json promises
+        # exactly one object: they go to stderr
+        with contextlib.redirect_stdout(sys.stderr):
+            suggestions = optimiser.suggest(n_suggestions=batch)
         candidates = [{n: float(row[n]) for n in names} for _, row in suggestions.iterrows()]
         values = objective(candidates)
         optimiser.observe(suggestions, np.array(values, float).reshape(-1, 1))
@@ -154,22 +160,24 @@ def _polish(objective: Objective, bounds, best: dict, best_value: float, budget:
 StepFn = Callable[[float, "np.ndarray | None", float], "tuple[int, tuple[float, float]]"]
 
 
-def errors_through_steps(traj: GridTrajectory, horizon: float, step: StepFn) -> list[float]:
+def errors_through_steps(traj: GridTrajectory, horizon: float, step: StepFn, valid: Sequence[bool]) -> list[float]:
     """Prediction errors of one trajectory computed through a filter behind ``step`` (e.g. the tracker's
     ``kalman_step`` service): ``step(t, z, horizon) -> (flags, predicted (x, y) at t + horizon)``.
 
-    The same comparison as :func:`loss_report`: from every fused frame (not a re-initialisation) to the
-    measurement ``horizon`` later, on the model grid.
+    The same comparison as :func:`loss_report` (:mod:`.evaluation`): from every frame after which the
+    filter has a state (it fused, rejected or bridged the frame) to the pose ``horizon`` later on the
+    model grid, when ``valid`` (:func:`~air_hockey_agent.core.estimation.evaluation.valid_poses` of
+    ``traj.frames()``) says that pose is ground truth.
     """
-    from air_hockey_agent.core.estimation.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED
+    from air_hockey_agent.core.estimation.ekf import FLAG_MEASUREMENT_USED, FLAG_PREDICTED
     steps = int(round(horizon / traj.dt))
     predictions: dict[int, tuple[float, float]] = {}
     errors = []
     for row, (t, z) in enumerate(traj.frames()):
         flags, predicted = step(t, z, horizon)
-        if row in predictions and z is not None and flags & FLAG_MEASUREMENT_USED:
+        if row in predictions and valid[row]:
             px, py = predictions.pop(row)
             errors.append(float(np.hypot(px - z[0], py - z[1])))
-        if flags & FLAG_MEASUREMENT_USED and not flags & FLAG_REINITIALISED:
+        if flags & (FLAG_MEASUREMENT_USED | FLAG_PREDICTED):
             predictions[row + steps] = predicted
     return errors
