@@ -85,6 +85,9 @@ def test_cli_writes_params_that_eval_prediction_accepts(tmp_path):
     assert run.stdout, run.stderr[-3000:]
     report = json.loads(run.stdout)  # ... and the good one still used
     assert report["after"]["train"]["loss_m"] < report["before"]["train"]["loss_m"]
+    objective = report["objective"]  # what was minimised, reported as such (issue #13)
+    assert objective["set"] == "train" and objective["stride"] >= 1
+    assert objective["identified"] <= objective["initial"] and isinstance(report["on_bounds"], list)
     assert report["bags"] == 1 and report["bad_bags"] == 1
     assert "ros__parameters" in out.read_text()
     check = subprocess.run([str(EXE), "eval-prediction", str(bags / "a"), "--params-file", str(out), "--json"],
@@ -182,3 +185,12 @@ def test_cross_validation_table(tmp_path):
     assert set(report["learned"]) == {"0.5", "1.0", "1.5"}
     assert set(report["cross_validation"]) == {"0.5", "1.0", "1.5"}
     assert all(set(row) == {"0.5", "1.0", "1.5"} for row in report["cross_validation"].values())
+
+
+def test_results_on_a_search_bound_are_named():
+    from air_hockey_agent.core.identification.sysid import on_bounds
+    box = {"damping": (0.2, 0.8), "restitution": (0.5, 1.0), "friction_rim": (0.0, 0.6)}
+    values = {"damping": 0.2055, "restitution": 0.9999, "friction_rim": 0.3}
+    assert on_bounds(values, box, 0.01) == ["damping 0.2055 at its lower bound 0.2",
+                                            "restitution 0.9999 at its upper bound 1"]
+    assert on_bounds(values, box, 0.0) == []

@@ -15,12 +15,14 @@ import argparse
 import json
 import multiprocessing
 import os
+import sys
 import time
 from datetime import datetime, timezone
 from pathlib import Path
 
 from air_hockey_agent.bags.trajectories import split_train_validation
-from air_hockey_agent.core.identification.sysid import LOSSES, PHYSICAL, combine, identify, loss_report, partial_loss
+from air_hockey_agent.core.identification.sysid import (LOSSES, PHYSICAL, combine, identify, loss_report, on_bounds,
+                                                      partial_loss)
 from air_hockey_agent.params import yaml_float
 from air_hockey_agent.sysid_params import bounds
 from air_hockey_agent.tools.files import write_text_atomic
@@ -97,6 +99,9 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None:
         write_params_yaml(args.out, result["identified"], result["summary_line"])
     result.pop("summary_line")
+    for phrase in result["on_bounds"]:
+        print(f"{PROG}: warning: {phrase}: the search ended on the edge of its box (config/sysid.yaml "
+              f"bounds); the model or the box may not fit these recordings", file=sys.stderr)
     print(json.dumps(result) if args.json else format_report(result, args.out))
     return 2 if loaded.errors else 0
 
@@ -127,6 +132,10 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
     initial = {n: tracker[n] for n in PHYSICAL}
     result = {"loss": args.loss, "horizon": args.horizon, "initial": initial, "identified": chosen.best,
               "evaluations": sum(r.evaluations for r in runs.values()), "seconds": round(time.monotonic() - start, 1),
+              # exactly what was minimised, next to the reports below (every frame, both sets)
+              "objective": {"loss": args.loss, "horizon": args.horizon, "stride": settings["stride"],
+                            "set": "train", "initial": chosen.initial_objective, "identified": chosen.best_objective},
+              "on_bounds": on_bounds(chosen.best, bounds(settings), settings["bound_margin"]),
               "before": {}, "after": {}}
     for name, trajs in (("train", train), ("validation", validation)):
         result["before"][name] = loss_report(tracker, trajs, args.horizon).as_dict()
@@ -160,6 +169,10 @@ def format_report(result: dict, out: Path | None) -> str:
             tag = label.replace("(train)", f"({subset})")
             lines.append(f"{tag:<22}" + "".join(f"{params[n]:>17.6g}" for n in names)
                          + f"{r['loss_m'] * 1e3:>11.2f}{r['min_m'] * 1e3:>16.2f}{r['median_m'] * 1e3:>19.2f}")
+    o = result["objective"]
+    lines.append(f"optimised objective ({o['loss']} loss at {o['horizon']} s on the training set, predictions "
+                 f"from every {o['stride']}. frame with a state): {_objective_text(o['loss'], o['initial'])} -> "
+                 f"{_objective_text(o['loss'], o['identified'])}")
     before, after = result["before"]["validation"]["loss_m"], result["after"]["validation"]["loss_m"]
     if before > 0:
         change = 100.0 * (after - before) / before

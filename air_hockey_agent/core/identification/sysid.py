@@ -99,6 +99,18 @@ class Identification:
 Objective = Callable[[list[dict]], list[float]]  # a batch of parameter sets -> their objectives
 
 
+def on_bounds(values: Mapping[str, float], bounds: Mapping[str, Sequence[float]], margin: float) -> list[str]:
+    """One phrase per value within ``margin`` (a share of its range) of a search bound, e.g.
+    'damping 0.2003 at its lower bound 0.2': the search ended on the edge of its box."""
+    out = []
+    for name, (low, high) in bounds.items():
+        value, room = values[name], margin * (high - low)
+        for side, bound in (("lower", low), ("upper", high)):
+            if abs(value - bound) <= room:
+                out.append(f"{name} {value:.4g} at its {side} bound {bound:g}")
+    return out
+
+
 def identify(objective: Objective, bounds: Mapping[str, Sequence[float]], initial: Mapping[str, float],
              iterations: int, batch: int, seed: int, random_samples: int, polish_evaluations: int,
              progress: Callable[[int, int, float], None] = lambda done, total, best: None) -> Identification:
