@@ -16,6 +16,7 @@ SYSID_PARAMS = (
     ParamSpec("random_samples", int, "HEBO's initial random suggestions", 1, 1000),
     ParamSpec("polish_evaluations", int, "Nelder-Mead evaluations after HEBO (0 = off)", 0, 100000),
     ParamSpec("stride", int, "predict from every stride-th frame with a state while optimising", 1, 1000),
+    ParamSpec("calibrated_nis", list, "NIS median band of a calibrated filter (--loss loglik)", 0.0, 1000.0, 2),
     ParamSpec("bound_margin", float, "[-] share of a search range within which a result is on its bound", 0.0, 0.5),
     ParamSpec("workers", int, "processes evaluating a batch in parallel", 1, 64),
     ParamSpec("frozen_threshold", float, "[m] frozen-frame threshold", 0.0, 1.0),

@@ -194,3 +194,14 @@ def test_results_on_a_search_bound_are_named():
     assert on_bounds(values, box, 0.01) == ["damping 0.2055 at its lower bound 0.2",
                                             "restitution 0.9999 at its upper bound 1"]
     assert on_bounds(values, box, 0.0) == []
+
+
+def test_loglik_warns_unless_the_filter_is_calibrated(tracker, trajectories):
+    from air_hockey_agent.core.identification.sysid import nis_median
+    from air_hockey_agent.tools.sysid import _calibration_warning
+    nis = nis_median(tracker, trajectories)
+    assert nis is not None and nis > 0.0
+    assert _calibration_warning("position", tracker, {"calibrated_nis": [nis + 1, nis + 2]}, trajectories) == ""
+    assert _calibration_warning("loglik", tracker, {"calibrated_nis": [nis - 0.1, nis + 0.1]}, trajectories) == ""
+    warning = _calibration_warning("loglik", tracker, {"calibrated_nis": [nis + 1, nis + 2]}, trajectories)
+    assert f"median NIS on the training set is {nis:.2f}" in warning

@@ -70,6 +70,16 @@ def partial_loss(params: Mapping[str, Any], trajectories: Sequence[GridTrajector
     return part
 
 
+def nis_median(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory]) -> float | None:
+    """Median normalised innovation squared of the filter with tracker parameters ``params`` over every
+    gated frame of ``trajectories`` (3 dof: 2.37 when the filter is calibrated), None without any."""
+    ekf = PuckEKF.from_params(params)
+    totals = EvaluationTotals(())
+    for traj in trajectories:
+        evaluate_stream(ekf, traj.frames(), totals)
+    return totals.summary()["nis"]["median"]
+
+
 def combine(parts: Sequence[PartialLoss], loss: str = "position") -> LossReport:
     """One report from the partial sums of disjoint sets of trajectories."""
     count = sum(p.count for p in parts)
