@@ -9,7 +9,7 @@ import numpy as np
 
 from air_hockey_agent.bags.reader import BagError, read_poses
 from air_hockey_agent.core.frames import TABLE_FRAME, pose_to_measurement
-from air_hockey_agent.core.table import TableGeometry
+from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.identification.preprocess import (cut_rest, interpolate_frozen, split_trajectories,
                                               to_model_grid)
 
@@ -101,9 +101,9 @@ def measurements_of(records: Sequence, table_pose: Sequence[float]) -> list:
 def off_table_warning(measurements: Sequence, tracker: Mapping[str, Any]) -> str:
     """One line when most usable poses lie off the table (beyond ``outside_table_margin``): the filter
     drops them all, which usually means a bag recorded in another frame than ``mocap_table_pose`` says."""
-    table = TableGeometry.from_params(tracker)
+    ekf = PuckEKF.from_params(tracker)
     usable = [m for m in measurements if m is not None]
-    off = sum(not table.contains(m[0], m[1], tracker["outside_table_margin"]) for m in usable)
+    off = sum(not ekf.plausible(m) for m in usable)
     if not usable or off <= len(usable) / 2:
         return ""
     return (f"{off / len(usable):.0%} of the poses lie off the table with mocap_table_pose "

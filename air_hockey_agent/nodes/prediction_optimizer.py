@@ -65,7 +65,7 @@ class PredictionOptimizerNode(AirHockeyNode):
         self.train = [loaded.trajectories[i] for i in train_idx]
         # which poses count as ground truth (the evaluation's definition, on the tracker's table)
         reference = PuckEKF.from_params(self.tracker_defaults)
-        self.valid = {id(traj): valid_poses(list(traj.frames()), reference) for traj in self.train}
+        self.train_valid = [(traj, valid_poses(list(traj.frames()), reference)) for traj in self.train]
         prefix = p["tracker"].rstrip("/")
         self.set_params = self.create_client(SetPhysicalParams, f"{prefix}/set_physical_params")
         self.reset = self.create_client(ResetFilter, f"{prefix}/reset")
@@ -102,10 +102,9 @@ class PredictionOptimizerNode(AirHockeyNode):
             if not answer.success:
                 raise RuntimeError(f"tracker refused parameters: {answer.message}")
             errors = []
-            for traj in self.train:
+            for traj, valid in self.train_valid:
                 self.call(self.reset, ResetFilter.Request())
-                errors.extend(errors_through_steps(traj, self.params["horizon"], self.kalman_step,
-                                                   self.valid[id(traj)]))
+                errors.extend(errors_through_steps(traj, self.params["horizon"], self.kalman_step, valid))
             values.append(float(np.mean(errors)) if errors else float("inf"))
         return values
 

@@ -6,8 +6,8 @@ frame at which the filter has a state the position is predicted ``h`` seconds ah
 valid pose at ``t + h``, fused by the filter or not (marker glitches excepted), so rejecting frames does
 not make a filter look better. Reported per horizon: mean, median and 95th percentile of the error [m]
 over all comparisons and their number; frames, lost frames, rejected outliers, the rejected fraction of
-the poses, re-initialisations per second and the normalised innovation squared (NIS). A bag that cannot be used gives a one-line error on
-stderr and exit code 2; the other bags are still evaluated.
+the poses, re-initialisations per second and the normalised innovation squared (NIS). A bag that cannot
+be used gives a one-line error on stderr and exit code 2; the other bags are still evaluated.
 """
 from __future__ import annotations
 

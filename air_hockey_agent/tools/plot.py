@@ -133,7 +133,8 @@ def _error_vs_horizon(out: Path, trajectories, sets: dict) -> Path:
     for (name, params), color in zip(sets.items(), ("tab:orange", "tab:green")):
         reports = [loss_report(params, trajectories, float(h)) for h in HORIZON_GRID]
         ax.plot(HORIZON_GRID, [r.loss * 1e3 for r in reports], "o-", color=color, label=f"mean ({name})")
-        ax.plot(HORIZON_GRID, [r.median * 1e3 for r in reports], "s--", color=color, label=f"median of trajectory means ({name})")
+        ax.plot(HORIZON_GRID, [r.median * 1e3 for r in reports], "s--", color=color,
+                label=f"median of trajectory means ({name})")
     ax.set_xlabel("prediction horizon [s]")
     ax.set_ylabel("position error [mm]")
     ax.grid(alpha=0.3)

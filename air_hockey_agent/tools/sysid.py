@@ -177,7 +177,8 @@ def _objective_text(loss: str, value: float) -> str:
 def format_report(result: dict, out: Path | None) -> str:
     """Thesis-style tables: parameters with loss/min/median before and after; table 5.4 if asked."""
     names = ("friction_surface", "friction_rim", "damping", "restitution")
-    head = f"{'':<22}" + "".join(f"{n:>17}" for n in names) + f"{'loss [mm]':>11}{'traj. min [mm]':>16}{'traj. median [mm]':>19}"
+    head = (f"{'':<22}" + "".join(f"{n:>17}" for n in names)
+            + f"{'loss [mm]':>11}{'traj. min [mm]':>16}{'traj. median [mm]':>19}")
     lines = [f"loss {result['loss']}, horizon {result['horizon']} s, {result['evaluations']} evaluations in "
              f"{result['seconds']} s", head]
     for label, params, key in (("initial (train)", result["initial"], "before"),

@@ -193,6 +193,13 @@ class PuckEKF:
         p = self.P - gain @ p_ht.T
         self.P = 0.5 * (p + p.T)
 
+    def plausible(self, z: Sequence[float]) -> bool:
+        """A measurement (x, y, theta) can be the puck: finite and on the table within
+        ``outside_table_margin`` (farther out it is a glitch, dropped before the gate)."""
+        z = np.asarray(z, float)
+        margin = self.settings.outside_table_margin
+        return bool(np.all(np.isfinite(z))) and self.model.table.contains(z[0], z[1], margin)
+
     def process(self, t: float, z: Sequence[float] | None) -> int:
         """Handle one mocap frame at time ``t`` [s]: measurement ``z`` (x, y, theta) or None (lost).
 
@@ -203,8 +210,7 @@ class PuckEKF:
         flags = 0
         if z is not None:
             z = np.asarray(z, float)
-            if not np.all(np.isfinite(z)) or not self.model.table.contains(
-                    z[0], z[1], self.settings.outside_table_margin):
+            if not self.plausible(z):
                 self.stats.outliers_rejected += 1
                 z, flags = None, FLAG_OUTLIER_REJECTED
         if not self.initialised:

@@ -7,10 +7,11 @@ ahead and compared with the *valid measurement* nearest to ``t + h`` (within hal
 prediction runs to that frame's exact stamp). A valid measurement is any finite pose on the table, whether
 the filter fused it or not, so a filter that rejects more frames does not look better. The error is the
 planar distance [m]. A pose that jumps from both neighbouring poses faster than ``glitch_speed``
-(config/tracker.yaml) is a marker glitch and no ground truth. Alongside: the fraction of poses the filter rejected, its re-initialisations per
-second of recording (beyond the first of each recording) and the normalised innovation squared (NIS) of
-every frame that reached the gate (3 degrees of freedom: median 2.37 and mean 3 when consistent).
-eval-prediction, sysid and plot all use this definition.
+(config/tracker.yaml) is a marker glitch and no ground truth. Alongside: the fraction of poses the filter
+rejected, its re-initialisations per second of recording (beyond the first of each recording) and the
+normalised innovation squared (NIS) of every frame that reached the gate (3 degrees of freedom: median
+2.37 and mean 3 when consistent). eval-prediction, sysid, prediction_optimizer and plot all use this
+definition.
 """
 from __future__ import annotations
 
@@ -91,12 +92,11 @@ class _FrameRecord:
 
 
 def valid_poses(frames: Sequence[Frame], ekf: PuckEKF) -> list[bool]:
-    """For each frame, whether its pose is ground truth: finite, on ``ekf``'s table (within
-    ``outside_table_margin``) and not a marker glitch (:func:`_glitches`), whatever the filter makes of it."""
-    table, s = ekf.model.table, ekf.settings
+    """For each frame, whether its pose is ground truth: plausible to ``ekf`` (:meth:`PuckEKF.plausible`)
+    and not a marker glitch (:func:`_glitches`), whatever the filter makes of it."""
+    s = ekf.settings
     poses = [None if z is None else np.asarray(z, float) for _, z in frames]
-    ok = [z is not None and bool(np.all(np.isfinite(z))) and table.contains(z[0], z[1], s.outside_table_margin)
-          for z in poses]
+    ok = [z is not None and ekf.plausible(z) for z in poses]
     if s.glitch_speed is not None:
         for k in _glitches([t for t, _ in frames], poses, ok, s.glitch_speed, s.max_prediction_gap):
             ok[k] = False
@@ -207,7 +207,5 @@ def prediction_series(ekf: PuckEKF, frames: Iterable[Frame], horizon: float) -> 
         if j is not None and start_t[j] < stamp and abs(start_t[j] - (stamp - horizon)) <= tolerance:
             predicted[k] = predict_fast(ekf.model, starts[j].x, None, stamp - start_t[j], ekf.settings.dt,
                                         ekf.settings.q).state
-        elif horizon == 0.0 and not np.isnan(estimated[k, 0]):
-            predicted[k] = estimated[k]
     return PredictionSeries(horizon, np.array(t), np.array([r.z for r in measured]).reshape(-1, 3),
                             estimated, predicted)
