@@ -11,7 +11,8 @@ import numpy as np
 import pytest
 
 from air_hockey_agent.core.frames import table_to_robot
-from air_hockey_agent.core.motion.hit_config import best_hit_configuration, max_speed_along
+from air_hockey_agent.core.motion.hit_config import (best_hit_configuration, max_speed_along, max_speed_along_highs,
+                                                    max_speed_closed_form)
 from air_hockey_agent.core.motion.ik import solve_ik
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
 from air_hockey_agent.core.motion.planner import (ACCEPTED, INVALID, LIMITS, OUTSIDE_REGION, TOO_FAST, TOO_LATE,
@@ -110,6 +111,24 @@ def test_max_speed_lp_is_feasible_and_tight(front):
         # no faster motion along d exists: 1 % more needs some joint beyond its limit
         faster, _ = max_speed_along(jac, d, front.limits.dq_max / 1.01)
         assert faster == pytest.approx(speed / 1.01, rel=1e-6)
+
+
+def test_max_speed_closed_form_matches_highs(front):
+    """The dual-vertex closed form against scipy's HiGHS (an independent LP solver) over the whole joint
+    range, where the shoulder's and the wrist's intersecting axes make dual vertices degenerate."""
+    rng = np.random.default_rng(11)
+    for _ in range(300):
+        q = rng.uniform(front.limits.q_min, front.limits.q_max)
+        _, jac = front.kin.position_and_jacobian(q)
+        angle = rng.uniform(-math.pi, math.pi)
+        d = np.array([math.cos(angle), math.sin(angle)])
+        closed = max_speed_closed_form(jac, d, front.limits.dq_max)
+        assert closed is not None
+        speed, dq = closed
+        reference, _ = max_speed_along_highs(jac, d, front.limits.dq_max)
+        assert speed == pytest.approx(reference, rel=1e-9)
+        assert np.allclose(jac @ dq, speed * np.array([*d, 0.0]), atol=1e-9)
+        assert np.all(np.abs(dq) <= front.limits.dq_max)
 
 
 def test_hit_posture_is_at_least_as_fast_as_the_ik_posture_and_on_the_point(front):

@@ -6,7 +6,13 @@ ROS 1 stack's LP):
 
     max s  subject to  J(q) dq = s (d, 0),  |dq_i| <= dq_max_i,
 
-solved with scipy's HiGHS. The posture is chosen in the arm's redundancy (q with mallet(q) = p) by
+solved through its dual, min over lambda in R^3 with lambda . (d, 0) = 1 of sum_i dq_max_i |J_i . lambda|
+(J_i: column i). That is a convex piecewise-linear function on a plane, least where two of its terms
+vanish, so all such points (at most 21 for 7 joints) are compared in one vectorised step, and the primal
+joint velocities follow from complementary slackness. Cases this does not settle (no two independent
+columns, more than one free direction) go to scipy's HiGHS, which is also the tests' reference. The
+closed form gives the same optimum (to 1e-13) in about a seventh of HiGHS's time; the LP had been half
+of the hit planning time. The posture is chosen in the arm's redundancy (q with mallet(q) = p) by
 projected gradient ascent on the smooth surrogate m(q) = 1 / ((d,0)^T (J D^2 J^T)^-1 (d,0)), D =
 diag(dq_max): the squared speed along d reachable with unit weighted joint-velocity norm.
 """
@@ -38,7 +44,98 @@ class HitConfiguration:
 
 def max_speed_along(jac: np.ndarray, direction: np.ndarray, dq_max: np.ndarray) -> tuple[float, np.ndarray]:
     """Fastest mallet speed [m/s] along the planar unit ``direction`` under ``|dq| <= dq_max`` at Jacobian
-    ``jac`` (3x7), and the joint velocities that reach it (the LP above; HiGHS)."""
+    ``jac`` (3x7), and the joint velocities that reach it (the LP above: the closed form, HiGHS where it
+    does not settle the case). Joints that do not move the mallet stay still."""
+    closed = max_speed_closed_form(jac, direction, dq_max)
+    return closed if closed is not None else max_speed_along_highs(jac, direction, dq_max)
+
+
+def max_speed_closed_form(jac: np.ndarray, direction: np.ndarray,
+                          dq_max: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """:func:`max_speed_along` from the dual's vertices (module docstring), or None when they do not settle it."""
+    task = np.array([direction[0], direction[1], 0.0])
+    moving = np.any(np.abs(jac) >= 1e-12, axis=0)
+    vertex = _dual_vertex_solution(jac[:, moving], task, np.asarray(dq_max, float)[moving])
+    if vertex is None:
+        return None
+    dq = np.zeros(jac.shape[1])
+    dq[moving] = vertex[1]
+    return vertex[0], dq
+
+
+def _dual_vertex_solution(jac: np.ndarray, task: np.ndarray, dq_max: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """The LP's optimum from its dual's vertices (module docstring), or None when no vertex gives a
+    primal solution within the limits (parallel columns, ties the vertex does not resolve)."""
+    n = jac.shape[1]
+    if n < 3:
+        return None
+    across = np.array([-task[1], task[0], 0.0])
+    # lambda = task / |task|^2 + a * across / |across| + b * z; term k is |alpha_k + beta_k a + gamma_k b|
+    alpha = jac.T @ task / float(task @ task)
+    beta = jac.T @ across / float(np.linalg.norm(across))
+    gamma = jac[2]
+    i, j = np.triu_indices(n, 1)
+    det = beta[i] * gamma[j] - beta[j] * gamma[i]
+    crossing = np.abs(det) > 1e-12
+    i, j, det = i[crossing], j[crossing], det[crossing]
+    a = (alpha[j] * gamma[i] - alpha[i] * gamma[j]) / det
+    b = (alpha[i] * beta[j] - alpha[j] * beta[i]) / det
+    terms = alpha[None] + a[:, None] * beta[None] + b[:, None] * gamma[None]
+    values = np.abs(terms) @ dq_max
+    if len(values) == 0:
+        return None
+    best = float(np.min(values))
+    scale = max(1.0, best)
+    for k in np.flatnonzero(values <= best + 1e-12 * scale):
+        dq = _primal_at_vertex(jac, task, dq_max, best, terms[k], 1e-9 * scale)
+        if dq is not None:
+            return best, dq
+    return None
+
+
+def _primal_at_vertex(jac: np.ndarray, task: np.ndarray, dq_max: np.ndarray, speed: float, terms: np.ndarray,
+                      tol: float) -> np.ndarray | None:
+    """Joint velocities of the LP's optimum from the dual optimum's terms (complementary slackness): a joint
+    whose term is not zero is at its limit with the term's sign; the others solve J dq = speed (d, 0)
+    within their limits. Their columns can be dependent: three joint axes through one point (the iiwa's
+    shoulder, its wrist) have coplanar position columns, so one free direction is searched for a
+    solution within the limits; None when none is found."""
+    free = np.abs(terms) <= tol
+    dq = np.where(free, 0.0, dq_max * np.sign(terms))
+    sub, bound = jac[:, free], dq_max[free]
+    rhs = speed * task - jac @ dq
+    x = np.linalg.lstsq(sub, rhs, rcond=None)[0]
+    if np.max(np.abs(sub @ x - rhs), initial=0.0) > 1e-9 * max(1.0, speed):
+        return None
+    if np.any(np.abs(x) > bound):
+        _, sv, vt = np.linalg.svd(sub)
+        rank = int(np.sum(sv > 1e-10))
+        if vt.shape[0] - rank != 1:
+            return None
+        x = _inside_box_along(x, vt[-1], bound)
+        if x is None:
+            return None
+    dq[free] = np.clip(x, -bound, bound)
+    return dq
+
+
+def _inside_box_along(x: np.ndarray, direction: np.ndarray, bound: np.ndarray) -> np.ndarray | None:
+    """The middle of the segment of the line ``x + t direction`` inside ``|.| <= bound``, or None."""
+    lo, hi = -np.inf, np.inf
+    for xk, nk, bk in zip(x, direction, bound):
+        if abs(nk) < 1e-12:
+            if abs(xk) > bk * (1 + 1e-9):
+                return None
+            continue
+        t1, t2 = (-bk - xk) / nk, (bk - xk) / nk
+        lo, hi = max(lo, min(t1, t2)), min(hi, max(t1, t2))
+    if lo > hi + 1e-12:
+        return None
+    return x + 0.5 * (lo + hi) * direction
+
+
+def max_speed_along_highs(jac: np.ndarray, direction: np.ndarray, dq_max: np.ndarray) -> tuple[float, np.ndarray]:
+    """:func:`max_speed_along` by scipy's HiGHS (the fallback, and the tests' reference)."""
     n = jac.shape[1]
     task = np.array([direction[0], direction[1], 0.0])
     cost = np.zeros(n + 1)
@@ -49,7 +146,7 @@ def max_speed_along(jac: np.ndarray, direction: np.ndarray, dq_max: np.ndarray) 
     if result.status != 0:
         return 0.0, np.zeros(n)
     dq = result.x[:n].copy()
-    dq[np.all(np.abs(jac) < 1e-12, axis=0)] = 0.0  # joints that do not move the mallet stay still
+    dq[np.all(np.abs(jac) < 1e-12, axis=0)] = 0.0
     return float(result.x[-1]), dq
 
 
