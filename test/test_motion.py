@@ -15,8 +15,11 @@ from air_hockey_agent.core.motion.hit_config import (best_hit_configuration, max
                                                     max_speed_closed_form)
 from air_hockey_agent.core.motion.ik import solve_ik
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.motion.linalg3 import inverse_sym3, solve_sym3
 from air_hockey_agent.core.motion.planner import (ACCEPTED, INVALID, LIMITS, OUTSIDE_REGION, TOO_FAST, TOO_LATE,
                                                   UNREACHABLE, ArmState, Command)
+from air_hockey_agent.core.motion import task_motion as tm
+from air_hockey_agent.core.motion.tracking import track
 from air_hockey_agent.motion_params import build_planner, load_motion_params
 
 ROBOTS = ("iiwa_front", "iiwa_back")
@@ -260,3 +263,45 @@ def test_tracked_slower_speed_scales_velocity_linearly_and_acceleration_by_the_s
     assert Tracked(empty, False, "", 2.0, "velocity").slower_speed(3.0) == pytest.approx(1.5)
     assert Tracked(empty, False, "", 4.0, "acceleration").slower_speed(3.0) == pytest.approx(1.5)
     assert math.isnan(Tracked(empty, False, "position").slower_speed(3.0))
+
+
+def test_cofactor_solves_match_numpy():
+    rng = np.random.default_rng(12)
+    for _ in range(50):
+        jac = rng.normal(size=(3, 7))
+        a, b = jac @ jac.T, rng.normal(size=3)
+        assert np.allclose(inverse_sym3(a, 1e-4), np.linalg.inv(a + 1e-4 * np.eye(3)), rtol=1e-9, atol=1e-12)
+        assert np.allclose(solve_sym3(a, b), np.linalg.solve(a, b), rtol=1e-9, atol=1e-12)
+
+
+def test_must_settle_stops_only_approaches_that_would_end_away_from_the_posture(front):
+    """An approach to a point and a hold there, toward another posture of the arm at that point: stopped
+    early (must_settle) only when tracking it to the end leaves the arm beyond the tolerance, and else
+    the same joint positions. The cases include both outcomes."""
+    s, dt = front.s, front.s.dt
+    rng = np.random.default_rng(13)
+    start_q = solve_ik(front.kin, front.limits, np.array([-0.7, 0.0, s.height]), s.reference, s.reference,
+                       s.ik_iterations, s.ik_tolerance).q
+    stopped = settled = 0
+    for _ in range(30):
+        goal = np.array([*front.region.random_point(rng), s.height])
+        seed = s.reference + rng.uniform(-0.6, 0.6, 7)
+        anchor = solve_ik(front.kin, front.limits, goal, seed, seed, s.ik_iterations, s.ik_tolerance)
+        if not anchor.ok:
+            continue
+        n_move, n_hold = int(rng.integers(25, 50)), int(rng.integers(0, 25))
+        path, _ = tm.hermite(front.kin.position(start_q)[:2], np.zeros(2), goal[:2], np.zeros(2), n_move, dt)
+        targets = np.vstack([np.hstack([path, np.full((n_move, 1), s.height)]), np.repeat(goal[None], n_hold, axis=0)])
+        args = (front.kin, front.limits, front.qp, start_q, np.zeros(7), targets, dt, anchor.q, s.posture_gain)
+        full = track(*args, settle=s.posture_tolerance)
+        early = track(*args, settle=s.posture_tolerance, must_settle=True)
+        if not full.ok:
+            continue
+        gap = float(np.max(np.abs(full.q[-1] - anchor.q)))
+        if early.ok:  # possibly still beyond the tolerance: the early stop is conservative
+            settled += gap <= s.posture_tolerance
+            assert np.array_equal(early.q, full.q)
+        else:
+            stopped += 1
+            assert early.limit == "posture" and gap > s.posture_tolerance and len(early.q) < len(targets)
+    assert stopped >= 3 and settled >= 3

@@ -26,10 +26,12 @@ from scipy.optimize import linprog
 from air_hockey_agent.core.motion.ik import weighted_pinv
 from air_hockey_agent.core.motion.kinematics import MalletKinematics
 from air_hockey_agent.core.motion.limits import JointLimits
+from air_hockey_agent.core.motion.linalg3 import solve_sym3
 
 FD_STEP = 1e-5      # [rad] finite-difference step of the surrogate's gradient
 ASCENT_STEP = 0.15  # [rad] largest posture change per ascent iteration
 ASCENT_ITERATIONS = 10
+ON_POINT = 1e-9     # [m] Newton steps back onto the hit point stop at this distance (numerical)
 
 
 @dataclass(frozen=True)
@@ -152,7 +154,7 @@ def max_speed_along_highs(jac: np.ndarray, direction: np.ndarray, dq_max: np.nda
 
 def _surrogate(jac: np.ndarray, task: np.ndarray, scale: np.ndarray) -> float:
     js = jac * scale
-    return 1.0 / float(task @ np.linalg.solve(js @ js.T, task))
+    return 1.0 / float(task @ solve_sym3(js @ js.T, task))
 
 
 def best_hit_configuration(kin: MalletKinematics, limits: JointLimits, q_start: np.ndarray,
@@ -206,5 +208,8 @@ def _back_on_point(kin: MalletKinematics, lo: np.ndarray, hi: np.ndarray, q: np.
     """Newton steps that put the mallet back on ``target`` after a null-space move, inside [lo, hi]."""
     for _ in range(3):
         p, jac = kin.position_and_jacobian(q)
-        q = np.clip(q + weighted_pinv(jac) @ (target - p), lo, hi)
+        error = target - p
+        if float(error @ error) < ON_POINT ** 2:
+            break
+        q = np.clip(q + weighted_pinv(jac) @ error, lo, hi)
     return q

@@ -12,6 +12,7 @@ import numpy as np
 
 from air_hockey_agent.core.motion.kinematics import MalletKinematics
 from air_hockey_agent.core.motion.limits import JointLimits
+from air_hockey_agent.core.motion.linalg3 import inverse_sym3
 
 DAMPING = 1e-4        # [m^2] damped least squares regularisation (numerical, far below a reachable step)
 NULL_SPACE_GAIN = 0.2  # fraction of the posture error removed per iteration in the null space
@@ -30,7 +31,7 @@ class IKResult:
 
 def weighted_pinv(jac: np.ndarray, damping: float = 0.0) -> np.ndarray:
     """Right pseudo-inverse J^T (J J^T + damping I)^-1 of a 3x7 Jacobian."""
-    return jac.T @ np.linalg.inv(jac @ jac.T + damping * np.eye(jac.shape[0]))
+    return jac.T @ inverse_sym3(jac @ jac.T, damping)
 
 
 def solve_ik(kin: MalletKinematics, limits: JointLimits, target: np.ndarray, seed: np.ndarray,

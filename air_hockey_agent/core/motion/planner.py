@@ -274,8 +274,10 @@ class MotionPlanner:
         pos, _ = tm.hermite(p0, v0, run_start, np.zeros(2), n_move, dt)
         targets = np.vstack([pos, np.repeat(run_start[None], n_approach - n_move, axis=0)])
         approach = track(self.kin, self.limits, self.qp, start.q, start.dq, self._from_start(targets, start), dt,
-                         strike_q[0], s.posture_gain, settle=s.posture_tolerance)
+                         strike_q[0], s.posture_gain, settle=s.posture_tolerance, must_settle=True)
         if not approach.ok:
+            if approach.limit == "posture":
+                return refused(TOO_LATE, f"the arm cannot take the hit posture in time ({approach.reason})")
             return refused(LIMITS, f"the approach {approach.reason}")
         gap = float(np.max(np.abs(approach.q[-1] - strike_q[0])))
         if gap > s.posture_tolerance:
