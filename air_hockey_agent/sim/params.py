@@ -4,14 +4,13 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterable
 
+from air_hockey_agent.core.estimation.synthetic import MOCAP_FIELDS
 from air_hockey_agent.params import ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import MOCAP_POSE_PARAM, TABLE_PARAMS
 
 NODE_NAME = "/table_sim"
 PARAM_FILES = ("table.yaml", "sim.yaml")
 ROBOTS = ("iiwa_front", "iiwa_back")
-MOCAP_FIELDS = ("position_std", "angle_std", "jitter_std", "lost_rate", "repeat_rate", "glitch_rate",
-                "glitch_size", "gap_rate", "gap_max")
 
 ROBOT_BASE_PARAMS = tuple(  # config/table.yaml
     ParamSpec(f"robot_base.{name}", list, f"{name} base in the table frame: x, y, z [m], yaw [rad]", -10.0, 10.0, 4)

@@ -7,6 +7,11 @@ Topics: ``/optitrack/puck`` (geometry_msgs/PoseStamped, mocap frame; lost frames
 The model's parameters come from ``config/tracker.yaml`` unless ``--params-file`` overrides them, so a
 bag with known parameters can test system identification.
 
+``--source testbed`` takes it from the test bed's real-table physics (``core/puck/real_table.py``,
+``testbed.*`` in config/synthetic.yaml): a resting puck hit by a human after a random delay, a tilted
+surface, an uneven air film, random accelerations, rim restitution falling with the normal speed and
+a tangential impulse softer than Coulomb's, effects the tracker's model lacks (issue #13 item 1).
+
 ``--source sim`` takes the truth from the pybullet table instead (``config/sim.yaml``, the puck alone
 at the simulation's physics rate): the same shots and imperfections, with the simulation's physics
 (its own air film, rim impact coefficients and goals: a puck in a goal stops there, where the
@@ -26,7 +31,8 @@ from air_hockey_agent.bags.types import typestore
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.frames import quaternion_from_yaw, table_to_mocap
-from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
+from air_hockey_agent.core.puck.real_table import RealTablePuck, TableEffects
+from air_hockey_agent.core.estimation.synthetic import MOCAP_FIELDS, MocapImperfections, ShotRanges, synthetic_session
 from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import load_tracker_params
 from air_hockey_agent.tools.argtypes import count
@@ -43,8 +49,25 @@ SESSION_PARAMS = (
     ParamSpec("fine_dt", float, "[s] integration step of the truth", 1e-5, 0.1),
     ParamSpec("start_time", float, "[s] stamp of the first frame", 0.0, 1e10),
 ) + tuple(ParamSpec(f"mocap.{name}", float, "measurement imperfection (config/synthetic.yaml)", 0.0, 10.0)
-          for name in ("position_std", "angle_std", "jitter_std", "lost_rate", "repeat_rate", "glitch_rate",
-                       "glitch_size", "gap_rate", "gap_max"))
+          for name in MOCAP_FIELDS) + (
+    ParamSpec("testbed.damping", float, "[1/s] test bed's viscous damping", 0.0, 10.0),
+    ParamSpec("testbed.friction_surface", float, "[m/s^2] test bed's constant deceleration", 0.0, 10.0),
+    ParamSpec("testbed.tilt", float, "[rad] slope of the test bed's surface", 0.0, 0.1),
+    ParamSpec("testbed.tilt_heading", float, "[rad] direction the surface falls toward", -7.0, 7.0),
+    ParamSpec("testbed.air_film_amplitude", float, "[m/s^2] peak acceleration of the air film's field", 0.0, 10.0),
+    ParamSpec("testbed.air_film_wavelength", float, "[m] wavelength of the air film's field", 0.01, 100.0),
+    ParamSpec("testbed.random_acceleration", float, "[m/s^2] std of the random acceleration", 0.0, 10.0),
+    ParamSpec("testbed.random_acceleration_time", float, "[s] how long one random acceleration holds", 0.001, 10.0),
+    ParamSpec("testbed.restitution_slow", float, "[-] rim restitution at low normal speed", 0.0, 1.0),
+    ParamSpec("testbed.restitution_fast", float, "[-] rim restitution at high normal speed", 0.0, 1.0),
+    ParamSpec("testbed.restitution_speed_low", float, "[m/s] normal speed up to which restitution_slow holds",
+              0.0, 20.0),
+    ParamSpec("testbed.restitution_speed_high", float, "[m/s] normal speed from which restitution_fast holds",
+              0.0, 20.0),
+    ParamSpec("testbed.friction_rim", float, "[-] rim friction of the Coulomb bound", 0.0, 2.0),
+    ParamSpec("testbed.tangential_scale", float, "[-] tangential impulse as a fraction of Coulomb's", 0.0, 1.0),
+    ParamSpec("testbed.hit_delay", list, "[s] range of the rest before the human hit", 0.0, 600.0, 2),
+)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -54,8 +77,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--shots", type=count(1), help="number of shots (default: config/synthetic.yaml)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="bag storage (default mcap)")
-    parser.add_argument("--source", choices=("model", "sim"), default="model",
-                        help="truth from the puck model (default) or from the pybullet table simulation")
+    parser.add_argument("--source", choices=("model", "sim", "testbed"), default="model",
+                        help="truth from the puck model (default), the pybullet table simulation, or the test "
+                             "bed's real-table physics (testbed.* in config/synthetic.yaml)")
     parser.add_argument("--params-file", type=Path, action="append", default=[],
                         help="parameter YAML overriding the tracker's model parameters and/or the session "
                              "(synth_bag node); may be repeated")
@@ -79,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
     except BagExistsError as exc:
         print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
         return 2
-    with _truth_source(args.source, args.params_file) as simulate:
+    with _truth_source(args.source, args.params_file, session, model.table, args.seed) as simulate:
         frames = synthetic_session(model, shots, session["shots"], session["rate"],
                                    MocapImperfections.from_params(session), np.random.default_rng(args.seed),
                                    session["fine_dt"], simulate)
@@ -98,11 +122,14 @@ def run(args: argparse.Namespace) -> int:
 
 
 @contextlib.contextmanager
-def _truth_source(source: str, params_files):
-    """None for the puck model (synthetic_session's default), else a shot simulator on the pybullet table
-    without robots (imported here: pybullet prints a banner when loaded)."""
+def _truth_source(source: str, params_files, session, table, seed: int):
+    """None for the puck model (synthetic_session's default), the test bed's shot simulator, or one on
+    the pybullet table without robots (imported here: pybullet prints a banner when loaded)."""
     if source == "model":
         yield None
+        return
+    if source == "testbed":
+        yield _testbed_shots(session, table, np.random.default_rng([seed, 1]))
         return
     from air_hockey_agent.sim.params import load_sim_params
     from air_hockey_agent.sim.world import SimSettings, TableWorld, simulate_shot
@@ -111,6 +138,24 @@ def _truth_source(source: str, params_files):
         yield lambda state, duration: simulate_shot(world, state, duration)
     finally:
         world.close()
+
+
+def _testbed_shots(session, table, rng: np.random.Generator):
+    """Shots on the test bed's real table (core/puck/real_table.py): the puck rests where the shot starts
+    (at least 10 cm inside the rims), held for a random delay, then a human hit gives it the shot's
+    velocity (speed and direction as drawn by the session)."""
+    effects = TableEffects.from_params(session)
+    margin = 0.1
+
+    def simulate(state: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
+        puck = RealTablePuck(table, effects, rng)
+        rest = state.copy()
+        rest[0] = np.clip(rest[0], -table.x_limit + margin, table.x_limit - margin)
+        rest[1] = np.clip(rest[1], -table.y_limit + margin, table.y_limit - margin)
+        rest[2:4], rest[5] = 0.0, 0.0
+        delay = rng.uniform(*session["testbed.hit_delay"])
+        return puck.simulate(rest, duration, session["fine_dt"], delay, state[2:4])
+    return simulate
 
 
 def _messages(frames, start_time: float, table_pose):

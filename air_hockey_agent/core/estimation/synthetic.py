@@ -19,7 +19,8 @@ from air_hockey_agent.core.puck.model import PuckModel, wrap_angle
 class MocapImperfections:
     """Rates and sizes of the measurement imperfections (all may be zero)."""
 
-    position_std: float = 1e-4       # [m] per axis
+    position_std: float = 1e-4       # [m] per axis, at rest
+    position_std_per_speed: float = 0.0  # [s] the position std grows by this per m/s of puck speed
     angle_std: float = 1e-2          # [rad]
     jitter_std: float = 2e-4         # [s] timestamp jitter
     lost_rate: float = 0.0           # probability that a frame is missing
@@ -33,6 +34,9 @@ class MocapImperfections:
     def from_params(cls, params: Mapping[str, Any], prefix: str = "mocap.") -> "MocapImperfections":
         """From parameters named ``<prefix><field>`` (e.g. ``mocap.lost_rate``)."""
         return cls(**{f.name: float(params[prefix + f.name]) for f in fields(cls)})
+
+
+MOCAP_FIELDS = tuple(f.name for f in fields(MocapImperfections))  # parameter names: mocap.<field>
 
 
 @dataclass(frozen=True)
@@ -78,7 +82,8 @@ class MocapSampler:
 
     def sample(self, t: float, pose_at: Callable[[float], Sequence[float]],
                t_max: float = math.inf) -> tuple[float, np.ndarray | None] | None:
-        """Frame due at nominal time ``t`` [s]: None inside a dropout, else (stamp, (x, y, theta) or None)."""
+        """Frame due at nominal time ``t`` [s]: None inside a dropout, else (stamp, (x, y, theta) or None).
+        ``pose_at(stamp)`` gives the true (x, y, theta) and optionally the speed [m/s] after them."""
         noise, rng = self.noise, self.rng
         if t < self.gap_until:
             return None
@@ -89,8 +94,10 @@ class MocapSampler:
         stamp = float(np.clip(stamp, 0.0, t_max))
         if rng.random() < noise.lost_rate:
             return stamp, None
-        x, y, theta = pose_at(stamp)
-        z = np.array([x + rng.normal(0.0, noise.position_std), y + rng.normal(0.0, noise.position_std),
+        pose = pose_at(stamp)
+        x, y, theta = pose[:3]
+        std = noise.position_std + (noise.position_std_per_speed * pose[3] if len(pose) > 3 else 0.0)
+        z = np.array([x + rng.normal(0.0, std), y + rng.normal(0.0, std),
                       wrap_angle(theta + rng.normal(0.0, noise.angle_std))])
         if self.previous is not None and rng.random() < noise.repeat_rate:
             z = self.previous.copy()
@@ -107,8 +114,8 @@ def mocap_stream(model: PuckModel, times: np.ndarray, states: np.ndarray, rate: 
     sampler = MocapSampler(noise, rng)
 
     def pose_at(stamp: float) -> Sequence[float]:
-        x, y, _, _, theta, _ = true_state_at(model, times, states, stamp)
-        return x, y, theta
+        x, y, vx, vy, theta, _ = true_state_at(model, times, states, stamp)
+        return x, y, theta, math.hypot(vx, vy)
 
     frames = (sampler.sample(k / rate, pose_at, times[-1]) for k in range(int(times[-1] * rate)))
     return [f for f in frames if f is not None]

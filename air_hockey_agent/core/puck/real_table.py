@@ -1,0 +1,181 @@
+"""A puck on a table with the effects of real tables that the tracker's model lacks (issue #13 item 1).
+
+This is the physics of the test bed, written separately from :mod:`.model` so that a filter or an
+identification tested on it meets effects its own model does not contain. State and frame as in
+:mod:`.model`: ``(x, y, vx, vy, theta, omega)`` in the table frame [m, m/s, rad, rad/s].
+
+Integrated with a fixed fine step (semi-implicit Euler), the puck accelerates by
+
+    a = -d v - mu_s v/|v|                 flight law of the same form as the model's (eq. 3.1), with the
+                                          test bed's own d, mu_s
+      + g sin(tilt) (cos h, sin h)        a surface that falls toward heading h
+      + A (sin(2 pi y / L + p1), sin(2 pi x / L + p2))   an uneven air film: a smooth field of amplitude A
+                                          [m/s^2] and wavelength L [m]
+      + w(t)                              random accelerations: a Gaussian value of std sigma held for a
+                                          correlation time, then drawn again
+
+and at a rim (the centre on the rim line outside a goal mouth) the normal velocity reverses with a
+restitution that falls with the normal speed, from ``restitution_slow`` below the first of
+``restitution_speeds`` linearly to ``restitution_fast`` above the second (rim rubber: faster impacts lose
+more), while the tangential impulse is the Routh/Coulomb one (thesis eq. 3.2-3.3) scaled by
+``tangential_scale``: below one it is softer than Coulomb's. With constant restitution and scale one
+the impact is the thesis's Routh impact (tested against :func:`.impact.rim_impact`).
+
+A *human hit* sets the velocity of a puck at rest: :func:`hit_from_rest` draws one.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, fields
+from typing import Any, Mapping
+
+import numpy as np
+
+from air_hockey_agent.core.puck.model import wrap_angle
+from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
+
+GRAVITY = 9.81  # [m/s^2]
+
+
+@dataclass(frozen=True)
+class TableEffects:
+    """The real table's physics (``testbed.*`` in ``config/synthetic.yaml``; every effect may be zero)."""
+
+    damping: float = 0.0                      # d [1/s]
+    friction_surface: float = 0.0             # mu_s [m/s^2]
+    tilt: float = 0.0                         # [rad] slope of the surface
+    tilt_heading: float = 0.0                 # [rad] direction (table frame) the surface falls toward
+    air_film_amplitude: float = 0.0           # [m/s^2] peak acceleration of the air film's field
+    air_film_wavelength: float = 1.0          # [m]
+    random_acceleration: float = 0.0          # [m/s^2] std of the random acceleration
+    random_acceleration_time: float = 0.1     # [s] how long one random acceleration holds
+    restitution_slow: float = 0.9             # [-] restitution at low normal speed ...
+    restitution_fast: float = 0.9             # [-] ... and at high normal speed
+    restitution_speed_low: float = 0.5        # [m/s] normal speed up to which restitution_slow holds
+    restitution_speed_high: float = 2.0       # [m/s] normal speed from which restitution_fast holds
+    friction_rim: float = 0.1                 # mu_rim [-] of the Coulomb bound
+    tangential_scale: float = 1.0             # [-] tangential impulse as a fraction of Routh/Coulomb's
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], prefix: str = "testbed.") -> "TableEffects":
+        """From parameters named ``<prefix><field>`` (e.g. ``testbed.tilt``)."""
+        return cls(**{f.name: float(params[prefix + f.name]) for f in fields(cls)})
+
+    def restitution(self, normal_speed: float) -> float:
+        """Restitution [-] at normal speed ``normal_speed`` [m/s] (>= 0)."""
+        low, high = self.restitution_speed_low, self.restitution_speed_high
+        share = float(normal_speed > low) if high <= low else min(1.0, max(0.0, (normal_speed - low) / (high - low)))
+        return self.restitution_slow + share * (self.restitution_fast - self.restitution_slow)
+
+
+def real_rim_impact(vb: float, vn: float, omega: float, radius: float, effects: TableEffects) -> tuple[float, float, float]:
+    """Post-impact (vb, vn, omega) in the impact frame of :mod:`.impact` (``vn < 0`` approaching): the
+    normal velocity reverses with the speed-dependent restitution, the tangential impulse is the Routh
+    one scaled by ``tangential_scale``."""
+    e = effects.restitution(abs(vn))
+    slip = vb + radius * omega  # contact point velocity along the rim
+    coulomb = effects.friction_rim * (1.0 + e) * abs(vn)  # |P_b| / m when sliding
+    impulse = -math.copysign(min(abs(slip) / 3.0, coulomb), slip) * effects.tangential_scale
+    return vb + impulse, -e * vn, omega + 2.0 * impulse / radius
+
+
+class RealTablePuck:
+    """Integrates a puck on a :class:`TableEffects` table; ``rng`` draws the air film's phases and the
+    random accelerations."""
+
+    def __init__(self, table: TableGeometry, effects: TableEffects, rng: np.random.Generator) -> None:
+        self.table, self.effects, self.rng = table, effects, rng
+        self.phases = rng.uniform(0.0, 2.0 * math.pi, 2)
+        slope = GRAVITY * math.sin(effects.tilt)
+        self.tilt_acceleration = np.array([slope * math.cos(effects.tilt_heading),
+                                           slope * math.sin(effects.tilt_heading)])
+        self._random = np.zeros(2)
+        self._random_until = -math.inf
+
+    def external(self, x: float, y: float, t: float) -> np.ndarray:
+        """Acceleration [m/s^2] at (x, y) and time ``t`` [s] that does not depend on the velocity: the
+        surface's field plus the random acceleration held at ``t``."""
+        a = self.field(x, y)
+        fx = self.effects
+        if fx.random_acceleration > 0.0:
+            if t >= self._random_until:
+                self._random = self.rng.normal(0.0, fx.random_acceleration, 2)
+                self._random_until = t + fx.random_acceleration_time
+            a = a + self._random
+        return a
+
+    def field(self, x: float, y: float) -> np.ndarray:
+        """Acceleration of the surface [m/s^2] at (x, y): tilt plus the air film."""
+        amplitude, k = self.effects.air_film_amplitude, 2.0 * math.pi / self.effects.air_film_wavelength
+        film = amplitude * np.array([math.sin(k * y + self.phases[0]), math.sin(k * x + self.phases[1])])
+        return self.tilt_acceleration + film
+
+    def step(self, state: np.ndarray, t: float, dt: float) -> np.ndarray:
+        """State after ``dt`` [s] from ``state`` at ``t`` [s]: flight, then any rim contact. Surface friction
+        (mu_s) opposes the motion and, at rest, holds the puck against a weaker external acceleration."""
+        fx = self.effects
+        s = np.array(state, float)
+        v = s[2:4]
+        external = self.external(s[0], s[1], t)
+        speed = math.hypot(v[0], v[1])
+        if speed == 0.0:
+            push = math.hypot(external[0], external[1])
+            new_v = np.zeros(2) if push <= fx.friction_surface else \
+                dt * (push - fx.friction_surface) / push * external
+        else:
+            new_v = v + dt * (external - fx.damping * v - fx.friction_surface * v / speed)
+            if float(new_v @ v) <= 0.0:
+                new_v = np.zeros(2)  # friction stopped it within the step
+        s[2:4] = new_v
+        s[0:2] += dt * new_v
+        s[4] = wrap_angle(s[4] + dt * s[5])
+        return self._rims(s)
+
+    def _rims(self, s: np.ndarray) -> np.ndarray:
+        """Reflect a puck whose centre crossed a rim line (outside a goal mouth) and apply the impact."""
+        table = self.table
+        for wall, (nx, ny) in enumerate(WALL_NORMALS):
+            distance = nx * s[0] + ny * s[1] + table.wall_offset(wall)
+            vn = nx * s[2] + ny * s[3]
+            if distance >= 0.0 or vn >= 0.0:
+                continue
+            if wall in SHORT_WALLS and table.in_goal_mouth(s[1]):
+                continue
+            bx, by = ny, -nx
+            vb = bx * s[2] + by * s[3]
+            vb, vn, s[5] = real_rim_impact(vb, vn, s[5], table.puck_radius, self.effects)
+            s[0] -= 2.0 * distance * nx  # mirror the overshoot back onto the table
+            s[1] -= 2.0 * distance * ny
+            s[2], s[3] = bx * vb + nx * vn, by * vb + ny * vn
+        return s
+
+    def simulate(self, state: np.ndarray, duration: float, dt: float,
+                 hit_at: float | None = None, hit_velocity: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """True states every ``dt`` [s] for ``duration`` [s] from ``state``; with ``hit_at`` [s], the puck's
+        velocity becomes ``hit_velocity`` [m/s] then (a human hit; the puck is held still before). Returns
+        times (n,), states (n, 6)."""
+        n = int(round(duration / dt)) + 1
+        states = np.empty((n, 6))
+        states[0] = state
+        hit_step = 0 if hit_at is None else int(round(hit_at / dt))
+        for i in range(1, n):
+            if i < hit_step:  # held by the hand until the hit
+                states[i] = states[i - 1]
+                continue
+            if i == hit_step:
+                states[i - 1, 2:4] = hit_velocity
+            states[i] = self.step(states[i - 1], (i - 1) * dt, dt)
+        return np.arange(n) * dt, states
+
+
+def hit_from_rest(table: TableGeometry, speed: tuple[float, float], rng: np.random.Generator,
+                  margin: float = 0.1) -> tuple[np.ndarray, np.ndarray]:
+    """A resting puck anywhere on the table at least ``margin`` [m] inside the rims, and the velocity a
+    human hit gives it: toward the table's centre region (within 60 deg of the direction to the
+    centre), ``speed`` [m/s] uniform."""
+    x = rng.uniform(-table.x_limit + margin, table.x_limit - margin)
+    y = rng.uniform(-table.y_limit + margin, table.y_limit - margin)
+    heading = math.atan2(-y, -x) + rng.uniform(-math.pi / 3, math.pi / 3)
+    v = rng.uniform(*speed)
+    return np.array([x, y, 0.0, 0.0, rng.uniform(-math.pi, math.pi), 0.0]), \
+        v * np.array([math.cos(heading), math.sin(heading)])

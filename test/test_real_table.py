@@ -1,0 +1,94 @@
+"""The test bed's real-table physics (core/puck/real_table.py), against independent references: the
+thesis's Routh impact, closed forms of the flight law and of a tilted surface, and energy."""
+import math
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections, MocapSampler
+from air_hockey_agent.core.puck.impact import rim_impact
+from air_hockey_agent.core.puck.real_table import GRAVITY, RealTablePuck, TableEffects, real_rim_impact
+from air_hockey_agent.core.table import TableGeometry
+
+TABLE = TableGeometry(1.956, 1.042, 0.25, 0.03165)  # config/table.yaml
+RADIUS = TABLE.puck_radius
+
+
+def test_constant_restitution_and_full_tangential_impulse_is_the_routh_impact():
+    rng = np.random.default_rng(0)
+    effects = TableEffects(restitution_slow=0.8, restitution_fast=0.8, friction_rim=0.15, tangential_scale=1.0)
+    for _ in range(500):
+        vb, vn, omega = rng.uniform(-3, 3), -rng.uniform(0.01, 4), rng.uniform(-60, 60)
+        expected = rim_impact(vb, vn, omega, RADIUS, 0.8, 0.15)
+        assert real_rim_impact(vb, vn, omega, RADIUS, effects) == pytest.approx(expected[:3], abs=1e-12)
+
+
+def test_restitution_falls_linearly_between_its_speeds():
+    effects = TableEffects(restitution_slow=0.96, restitution_fast=0.67, restitution_speed_low=0.5,
+                           restitution_speed_high=2.0)
+    assert effects.restitution(0.2) == 0.96 and effects.restitution(3.0) == 0.67
+    assert effects.restitution(1.25) == pytest.approx((0.96 + 0.67) / 2)
+    _, vn_slow, _ = real_rim_impact(0.0, -0.3, 0.0, RADIUS, effects)
+    _, vn_fast, _ = real_rim_impact(0.0, -3.0, 0.0, RADIUS, effects)
+    assert vn_slow == pytest.approx(0.96 * 0.3) and vn_fast == pytest.approx(0.67 * 3.0)
+
+
+def test_a_softer_tangential_impulse_changes_less_and_energy_never_grows():
+    rng = np.random.default_rng(1)
+    soft = TableEffects(restitution_slow=0.9, restitution_fast=0.6, friction_rim=0.3, tangential_scale=0.3)
+    full = TableEffects(restitution_slow=0.9, restitution_fast=0.6, friction_rim=0.3, tangential_scale=1.0)
+    for _ in range(500):
+        vb, vn, omega = rng.uniform(-3, 3), -rng.uniform(0.01, 4), rng.uniform(-60, 60)
+        energy = vb ** 2 + vn ** 2 + RADIUS ** 2 * omega ** 2 / 2  # per unit mass x2: disc, I = m r^2 / 2
+        for effects in (soft, full):
+            b, n, w = real_rim_impact(vb, vn, omega, RADIUS, effects)
+            assert b ** 2 + n ** 2 + RADIUS ** 2 * w ** 2 / 2 <= energy + 1e-12
+        assert abs(real_rim_impact(vb, vn, omega, RADIUS, soft)[0] - vb) == pytest.approx(
+            0.3 * abs(real_rim_impact(vb, vn, omega, RADIUS, full)[0] - vb), abs=1e-12)
+
+
+def test_flight_follows_the_closed_form_of_damping_and_constant_deceleration():
+    # dv/dt = -d v - mu along a straight line: v(t) = (v0 + mu/d) exp(-d t) - mu/d until it stops
+    effects = TableEffects(damping=0.2, friction_surface=0.05)
+    puck = RealTablePuck(TABLE, effects, np.random.default_rng(2))
+    _, states = puck.simulate(np.array([-0.5, 0.0, 0.6, 0.0, 0.0, 0.0]), 1.0, 1e-4)
+    v_closed = (0.6 + 0.05 / 0.2) * math.exp(-0.2) - 0.05 / 0.2
+    assert states[-1, 2] == pytest.approx(v_closed, rel=1e-3)
+    assert states[-1, 3] == 0.0
+
+
+def test_a_tilted_surface_accelerates_a_free_puck_by_g_sin_tilt_and_friction_holds_a_resting_one():
+    tilt = 0.003
+    puck = RealTablePuck(TABLE, TableEffects(tilt=tilt, tilt_heading=math.pi / 2), np.random.default_rng(3))
+    _, states = puck.simulate(np.array([0.0, 0.0, 0.0, 0.0, 0.0, 0.0]), 1.0, 1e-3)
+    assert states[-1, 3] == pytest.approx(GRAVITY * math.sin(tilt) * 1.0, rel=1e-2)
+    assert states[-1, 1] == pytest.approx(GRAVITY * math.sin(tilt) / 2, rel=2e-2)
+    held = RealTablePuck(TABLE, TableEffects(tilt=tilt, friction_surface=0.05), np.random.default_rng(3))
+    _, still = held.simulate(np.zeros(6), 1.0, 1e-3)
+    assert np.all(still[:, :4] == 0.0)
+
+
+def test_rims_keep_the_puck_on_the_table_and_a_goal_mouth_lets_it_through():
+    effects = TableEffects(restitution_slow=0.96, restitution_fast=0.67, tangential_scale=0.3, friction_rim=0.1)
+    puck = RealTablePuck(TABLE, effects, np.random.default_rng(4))
+    _, states = puck.simulate(np.array([0.0, 0.3, 1.0, 3.0, 0.0, 0.0]), 2.0, 1e-3)
+    assert np.all(np.abs(states[:, 1]) <= TABLE.y_limit + 1e-9) and np.all(np.abs(states[:, 0]) <= TABLE.x_limit)
+    _, into_goal = puck.simulate(np.array([0.5, 0.0, 3.0, 0.0, 0.0, 0.0]), 0.5, 1e-3)
+    assert into_goal[-1, 0] > TABLE.x_limit
+
+
+def test_a_human_hit_moves_a_resting_puck_at_its_time():
+    puck = RealTablePuck(TABLE, TableEffects(), np.random.default_rng(5))
+    times, states = puck.simulate(np.array([0.1, 0.2, 0.0, 0.0, 0.0, 0.0]), 1.0, 1e-3, 0.4, np.array([1.0, 0.0]))
+    before, after = states[times < 0.399], states[times > 0.401]
+    assert np.all(before[:, :4] == [0.1, 0.2, 0.0, 0.0])
+    assert after[-1, 0] == pytest.approx(0.1 + 1.0 * 0.6, abs=2e-3)
+
+
+def test_marker_noise_grows_with_speed():
+    noise = MocapImperfections(position_std=1e-4, position_std_per_speed=4e-4, angle_std=0.0, jitter_std=0.0)
+    sampler = MocapSampler(noise, np.random.default_rng(6))
+    resting = np.array([sampler.sample(k / 120, lambda _t: (0.0, 0.0, 0.0, 0.0))[1][0] for k in range(4000)])
+    fast = np.array([sampler.sample(k / 120, lambda _t: (0.0, 0.0, 0.0, 3.0))[1][0] for k in range(4000)])
+    assert np.std(resting) == pytest.approx(1e-4, rel=0.05)
+    assert np.std(fast) == pytest.approx(1e-4 + 3.0 * 4e-4, rel=0.05)
