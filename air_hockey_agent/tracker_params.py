@@ -30,7 +30,11 @@ TRACKER_PARAMS = (
     ParamSpec("measurement_noise", list, "R diagonal (x, y, theta) [m^2, m^2, rad^2]", 1e-15, 1.0, 3),
     ParamSpec("process_noise", list, "Q diagonal per step (x, y, vx, vy, theta, omega)", 1e-18, 1e3, 6),
     ParamSpec("initial_covariance", list, "P0 diagonal after (re)initialisation", 1e-15, 1e4, 6),
-    ParamSpec("gate_threshold", float, "squared Mahalanobis gate on the innovation", 0.1, 1e6),
+    ParamSpec("gate_threshold", float, "squared Mahalanobis gate on the position innovation (2 dof)", 0.1, 1e6),
+    ParamSpec("angle_gate_threshold", float, "squared angle innovation over its variance beyond which the "
+              "angle is not fused (1 dof)", 0.1, 1e6),
+    ParamSpec("measurement_noise_per_speed", float, "[s] position noise std added per m/s of speed", 0.0, 1.0),
+    ParamSpec("impact_noise", float, "[-] velocity/spin std after a rim impact, fraction of their size", 0.0, 10.0),
     ParamSpec("max_consecutive_rejections", int, "rejected frames in a row before re-initialising", 1, 1000),
     ParamSpec("outside_table_margin", float, "[m] drop measurements this far beyond the rims", 0.0, 10.0),
     ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),

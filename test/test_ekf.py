@@ -1,4 +1,6 @@
 """Puck EKF against simulated ground truth: tracking, lost frames, outliers, re-initialisation."""
+from dataclasses import replace
+
 import numpy as np
 import pytest
 
@@ -127,3 +129,70 @@ def test_time_jumping_back_restarts_the_filter():
     flags = ekf.process(50.0 + DT, [0.301, 0.2, 0.0])
     assert flags & FLAG_REINITIALISED and ekf.stamp == pytest.approx(50.0 + DT)
     assert ekf.x[0] == pytest.approx(0.301)
+
+
+def test_speed_dependent_noise_matches_marker_noise_that_grows_with_speed():
+    """Markers noisier at speed (the lab: 0.15 mm at rest, 1.5 mm at 2-5 m/s): a filter whose R grows the
+    same way is consistent (NIS median near the 3-dof chi-square median 2.37) and rejects fewer frames
+    than one with a constant R."""
+    noise = MocapImperfections(position_std=1e-4, position_std_per_speed=4e-4, angle_std=1e-2, jitter_std=0.0)
+    results = {}
+    for name, per_speed in (("constant", 0.0), ("grows", 4e-4)):
+        m = model()
+        times, states = simulate_truth(m, START, 4.0, DT / 10)
+        frames = mocap_stream(m, times, states, 120.0, noise, np.random.default_rng(21))
+        ekf = PuckEKF(m, replace(SETTINGS, r_per_speed=per_speed, gate_threshold=13.82))
+        nis = []
+        for stamp, z in frames:
+            ekf.process(stamp, z)
+            if ekf.last_nis is not None:
+                nis.append(ekf.last_nis)
+        results[name] = (float(np.median(nis)), ekf.stats.outliers_rejected)
+    assert 1.9 < results["grows"][0] < 2.9 < results["constant"][0]
+    assert results["grows"][1] < results["constant"][1]
+
+
+def test_a_bad_angle_does_not_throw_away_a_good_position():
+    m = model()
+    ekf = PuckEKF(m, replace(SETTINGS, gate_threshold=13.82, angle_gate_threshold=10.83))
+    rng = np.random.default_rng(3)
+    for k in range(30):  # at rest, angle 0 (noisy like markers: identical poses would be frozen frames)
+        ekf.process(k * DT, [0.2 + rng.normal(0, 1e-4), 0.1 + rng.normal(0, 1e-4), rng.normal(0, 1e-2)])
+    rejected, before = ekf.stats.outliers_rejected, ekf.x.copy()
+    flags = ekf.process(30 * DT, [0.2003, 0.1, 1.0])  # position 0.3 mm off (3 sigma), angle 1 rad off
+    assert flags & FLAG_MEASUREMENT_USED and not flags & FLAG_OUTLIER_REJECTED
+    assert ekf.stats.outliers_rejected == rejected
+    # the position moved toward it by the Kalman gain (about 1/30 after 30 frames), the angle did not move
+    assert ekf.x[0] - before[0] > 0.01 * (0.2003 - before[0]) and abs(ekf.x[4] - before[4]) < 1e-3
+    for k in range(31, 34):  # the angle stays there: after max_consecutive_rejections the angle restarts
+        ekf.process(k * DT, [0.2 + rng.normal(0, 1e-4), 0.1 + rng.normal(0, 1e-4), 1.0 + rng.normal(0, 1e-2)])
+    assert ekf.x[4] == pytest.approx(1.0, abs=1e-2)
+    assert ekf.stats.reinitialisations == 1  # the position track was never restarted
+
+
+def test_reacquisition_fits_all_frames_since_the_event():
+    """After a hit the filter restarts from a least-squares fit over the rejected frames (seed 003), with
+    the fit's covariance: the velocity is better than a two-point difference of the same noisy frames."""
+    rng = np.random.default_rng(5)
+    fit_errors, pair_errors = [], []
+    for _ in range(200):
+        m = model()
+        ekf = PuckEKF(m, replace(SETTINGS, max_consecutive_rejections=5))
+        for k in range(20):  # at rest (marker noise)
+            ekf.process(k * DT, [-0.5 + rng.normal(0, 1e-4), rng.normal(0, 1e-4), rng.normal(0, 1e-2)])
+        assert not ekf._pending
+        t0 = 19 * DT
+        frames = [(t0 + k * DT, np.array([-0.5, -2.0 * k * DT, 0.0]) + [0.0, rng.normal(0, 1e-3), 0.0])
+                  for k in range(1, 6)]
+        for t, z in frames:
+            ekf.process(t, z)
+        assert ekf.stats.reinitialisations == 2
+        fit_errors.append(ekf.x[3] + 2.0)
+        pair_errors.append((frames[-1][1][1] - frames[-2][1][1]) / DT + 2.0)
+    fit_errors, pair_errors = np.array(fit_errors), np.array(pair_errors)
+    assert np.std(fit_errors) < 0.5 * np.std(pair_errors)
+    # the fit's covariance describes its error (noise as the filter's R says: 1e-4 m, so ask the ratio)
+    ekf_r = SETTINGS.r[1, 1]
+    times = np.arange(5) * DT
+    predicted_var = ekf_r / np.sum((times - times.mean()) ** 2)
+    assert ekf.P[3, 3] == pytest.approx(predicted_var, rel=1e-6)

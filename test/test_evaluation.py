@@ -112,7 +112,7 @@ def test_rejecting_frames_does_not_make_a_filter_look_better(params):
     gate that throws most frames away keeps the comparisons and does not shrink the error."""
     frames = frames_of(session(PuckEKF.from_params(params), seed=7, n_shots=3, noise=MocapImperfections()))
     reports = {}
-    for name, gate in (("normal", params["gate_threshold"]), ("strict", 0.5)):
+    for name, gate in (("normal", params["gate_threshold"]), ("strict", 0.05)):
         totals = EvaluationTotals((0.5,))
         evaluate_stream(PuckEKF.from_params({**params, "gate_threshold": gate}), frames, totals)
         reports[name] = totals.summary()
@@ -127,7 +127,8 @@ def test_nis_of_a_filter_fed_its_own_noise_is_that_of_a_consistent_filter(params
     """A filter whose R matches the measurement noise and whose model is the data's: NIS median near the
     3-dof chi-square median 2.37 (the statistic issue #13 checks on real data)."""
     std = np.sqrt(np.asarray(params["measurement_noise"]))
-    noise = MocapImperfections(position_std=float(std[0]), angle_std=float(std[2]))
+    noise = MocapImperfections(position_std=float(std[0]), angle_std=float(std[2]),
+                               position_std_per_speed=params["measurement_noise_per_speed"])
     ekf = PuckEKF.from_params(params)
     totals = EvaluationTotals((0.5,))
     evaluate_stream(ekf, frames_of(session(ekf, seed=11, n_shots=3, noise=noise)), totals)

@@ -16,12 +16,13 @@ def random_states(n, seed):
                         rng.uniform(-3, 3), rng.uniform(-20, 20)]), float(rng.choice([0.5, 1.0, 1.5, 1.2345]))
 
 
-@pytest.mark.parametrize("friction, cov_rtol", [(0.0, 1e-10), (2.28e-4, 1e-5), (0.05, 1e-3)])
-def test_fast_prediction_agrees_with_stepwise(friction, cov_rtol):
+@pytest.mark.parametrize("friction, cov_rtol, impact_noise", [(0.0, 1e-10, 0.0), (2.28e-4, 1e-5, 0.0), (0.05, 1e-3, 0.0),
+                                                             (2.28e-4, 1e-5, 0.15)])
+def test_fast_prediction_agrees_with_stepwise(friction, cov_rtol, impact_noise):
     m = model(friction_surface=friction)
     for state, horizon in random_states(60, seed=int(friction * 1e6)):
-        a = predict_stepwise(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6)
-        b = predict_fast(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6)
+        a = predict_stepwise(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, impact_noise=impact_noise)
+        b = predict_fast(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, impact_noise=impact_noise)
         diff = a.state - b.state
         diff[4] = (diff[4] + np.pi) % (2 * np.pi) - np.pi
         assert np.abs(diff).max() < 1e-10
@@ -46,3 +47,21 @@ def test_prediction_stops_the_puck_and_keeps_it_still():
     m = model(friction_surface=0.5)
     a = predict_fast(m, np.array([0.0, 0.0, 0.2, 0.0, 0.0, 0.0]), P0, 1.5, DT, Q)
     assert a.state[2] == 0.0 and a.state[0] < 0.2
+
+
+def test_impact_noise_adds_its_covariance_after_a_rim_impact_only():
+    m = model()
+    toward_rim = np.array([0.0, 0.4, 0.0, 2.0, 0.0, 5.0])  # hits the right rim within 0.05 s
+    along = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 5.0])
+    for state, impacts in ((toward_rim, True), (along, False)):
+        plain = predict_fast(m, state, P0, 0.1, DT, Q)
+        noisy = predict_fast(m, state, P0, 0.1, DT, Q, impact_noise=0.2)
+        assert bool(plain.impacts) == impacts
+        extra = noisy.covariance - plain.covariance
+        if not impacts:
+            assert np.array_equal(extra, np.zeros((6, 6)))
+            continue
+        speed2 = float(plain.state[2] ** 2 + plain.state[3] ** 2)
+        # added at the impact step, then carried by the later steps: at least 0.2^2 |v|^2 shrunk by damping
+        assert extra[2, 2] == pytest.approx(0.04 * speed2, rel=0.1) and extra[3, 3] == pytest.approx(0.04 * speed2, rel=0.1)
+        assert extra[5, 5] > 0.0

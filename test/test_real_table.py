@@ -91,4 +91,4 @@ def test_marker_noise_grows_with_speed():
     resting = np.array([sampler.sample(k / 120, lambda _t: (0.0, 0.0, 0.0, 0.0))[1][0] for k in range(4000)])
     fast = np.array([sampler.sample(k / 120, lambda _t: (0.0, 0.0, 0.0, 3.0))[1][0] for k in range(4000)])
     assert np.std(resting) == pytest.approx(1e-4, rel=0.05)
-    assert np.std(fast) == pytest.approx(1e-4 + 3.0 * 4e-4, rel=0.05)
+    assert np.std(fast) == pytest.approx(math.hypot(1e-4, 3.0 * 4e-4), rel=0.05)

@@ -21,7 +21,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.puck.prediction import Prediction, predict_fast
+from air_hockey_agent.core.puck.prediction import Prediction, impact_covariance, predict_fast
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, wrap_angle
 from air_hockey_agent.core.table import TableGeometry
 
@@ -51,6 +51,9 @@ class FilterSettings:
     max_prediction_gap: float        # [s]
     frozen_threshold: float = 1e-6   # [m] thesis sec. 4.5.1
     glitch_speed: float | None = None  # [m/s] evaluation only: a pose this far from both neighbours is no truth
+    r_per_speed: float = 0.0         # [s] position noise std added (in quadrature) per m/s of puck speed
+    angle_gate_threshold: float = math.inf  # squared angle innovation / its variance; beyond: position only
+    impact_noise: float = 0.0        # [-] velocity/spin std after a rim impact, as a fraction of their size
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "FilterSettings":
@@ -59,7 +62,20 @@ class FilterSettings:
                    gate_threshold=params["gate_threshold"],
                    max_consecutive_rejections=params["max_consecutive_rejections"],
                    outside_table_margin=params["outside_table_margin"],
-                   max_prediction_gap=params["max_prediction_gap"], glitch_speed=params["glitch_speed"])
+                   max_prediction_gap=params["max_prediction_gap"], glitch_speed=params["glitch_speed"],
+                   r_per_speed=params["measurement_noise_per_speed"],
+                   angle_gate_threshold=params["angle_gate_threshold"], impact_noise=params["impact_noise"])
+
+    def measurement_noise(self, speed: float) -> np.ndarray:
+        """R [m^2, m^2, rad^2] for a puck moving at ``speed`` [m/s]: marker noise and timestamp jitter
+        grow the position noise with the speed (issue #13: 0.15 mm at rest, 1.5 mm at 2-5 m/s)."""
+        if self.r_per_speed == 0.0:
+            return self.r
+        r = self.r.copy()
+        extra = (self.r_per_speed * speed) ** 2
+        r[0, 0] += extra
+        r[1, 1] += extra
+        return r
 
 
 @dataclass
@@ -114,6 +130,7 @@ class PuckEKF:
     stats: FilterStats = field(default_factory=FilterStats)
     _pending: list = field(default_factory=list)      # measurements awaiting (re)initialisation
     _last_z: np.ndarray | None = None
+    _angle_rejections: int = 0                          # good positions in a row fused without their angle
     # normalised innovation squared y^T S^-1 y of the last frame that reached the gate (fused or rejected),
     # None when the last frame did not (lost, frozen, initialising): the filter's consistency check
     last_nis: float | None = None
@@ -141,13 +158,26 @@ class PuckEKF:
         self.initialised, self.stamp = True, stamp
 
     def _initialise_from_pending(self) -> None:
-        """Restart from the latest two collected measurements (finite differences) and forget the rest."""
-        first, second = self._pending[-2], self._pending[-1]
-        dt = second.t - first.t
-        velocity = (second.z[:2] - first.z[:2]) / dt
-        spin = wrap_angle(second.z[2] - first.z[2]) / dt
-        self.reset([second.z[0], second.z[1], velocity[0], velocity[1], second.z[2], spin], second.t)
-        self._last_z = second.z
+        """Restart from the collected measurements (all since the event: the frames rejected in a row, or
+        the first two of a track) by a least-squares constant-velocity fit (seed 003's batch estimate
+        over the frames since the event, short enough for the model's deceleration not to matter), with
+        the fit's own covariance; then forget them."""
+        last = self._pending[-1]
+        t = np.array([m.t for m in self._pending]) - last.t
+        z = np.array([m.z for m in self._pending])
+        z[:, 2] = last.z[2] + np.array([wrap_angle(a - last.z[2]) for a in z[:, 2]])
+        design = np.column_stack([np.ones_like(t), t])
+        gram_inv = np.linalg.inv(design.T @ design)  # (A^T A)^-1: the fit's covariance per unit noise
+        coef = gram_inv @ design.T @ z               # rows: value at the last frame, rate
+        speed = math.hypot(coef[1, 0], coef[1, 1])
+        r = np.diag(self.settings.measurement_noise(speed))
+        state = [coef[0, 0], coef[0, 1], coef[1, 0], coef[1, 1], wrap_angle(coef[0, 2]), coef[1, 2]]
+        self.reset(state, last.t)
+        for value, rate, noise in ((0, 2, r[0]), (1, 3, r[1]), (4, 5, r[2])):
+            block = noise * gram_inv
+            self.P[value, value], self.P[rate, rate] = block[0, 0], block[1, 1]
+            self.P[value, rate] = self.P[rate, value] = block[0, 1]
+        self._last_z = last.z
         self.stats.reinitialisations += 1
 
     # --- filter steps -----------------------------------------------------------------------------
@@ -160,8 +190,11 @@ class PuckEKF:
             res = self.model.step(self.x, dt)
             self.x = res.state
             self.P = res.jacobian @ self.P @ res.jacobian.T + self.settings.q * (dt / self.settings.dt)
+            if res.impacts and self.settings.impact_noise:
+                self.P += impact_covariance(self.x, self.settings.impact_noise)
         else:
-            pred = predict_fast(self.model, self.x, self.P, dt, self.settings.dt, self.settings.q)
+            pred = predict_fast(self.model, self.x, self.P, dt, self.settings.dt, self.settings.q,
+                                impact_noise=self.settings.impact_noise)
             self.x, self.P = pred.state, pred.covariance
         self.stamp = t
 
@@ -173,10 +206,14 @@ class PuckEKF:
 
     def innovation(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Innovation y (angle wrapped), its covariance S and squared Mahalanobis distance."""
-        y = self.residual(z)
-        s = self.P[_MEASURED_BLOCK] + self.settings.r
+        y, s = self._innovation_and_covariance(z)
         s_inv = _inverse3(s)
         return y, s_inv, float(y @ s_inv @ y)
+
+    def _innovation_and_covariance(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Innovation y (angle wrapped) and its covariance S = P_zz + R(speed)."""
+        return self.residual(z), self.P[_MEASURED_BLOCK] + self.settings.measurement_noise(
+            math.hypot(self.x[2], self.x[3]))
 
     def update(self, z: np.ndarray) -> float:
         """Fuse measurement z = (x, y, theta) unconditionally (eq. 3.7-3.11); returns its distance."""
@@ -238,11 +275,23 @@ class PuckEKF:
         return frozen
 
     def _gate_and_update(self, t: float, z: np.ndarray) -> int:
-        y, s_inv, d2 = self.innovation(z)
-        self.last_nis = float(d2)
-        if d2 <= self.settings.gate_threshold:
+        """Position and angle are gated apart: a position beyond ``gate_threshold`` (2 dof) rejects the
+        frame; a good position with an angle beyond ``angle_gate_threshold`` (1 dof) is fused without
+        its angle, and after ``max_consecutive_rejections`` such angles in a row the angle and spin
+        restart from the measurement (the spin model, not the marker, was wrong)."""
+        y, s = self._innovation_and_covariance(z)
+        s_inv = _inverse3(s)
+        self.last_nis = float(y @ s_inv @ y)
+        (sxx, sxy, _), (_, syy, _), (_, _, saa) = s.tolist()
+        yx, yy, ya = y.tolist()
+        position_d2 = (syy * yx * yx - 2.0 * sxy * yx * yy + sxx * yy * yy) / (sxx * syy - sxy * sxy)
+        if position_d2 <= self.settings.gate_threshold:
             self._pending.clear()
-            self._apply_update(y, s_inv)
+            if ya * ya <= self.settings.angle_gate_threshold * saa:
+                self._angle_rejections = 0
+                self._apply_update(y, s_inv)
+            else:
+                self._update_position_only(y[:2], s[:2, :2], z[2])
             return FLAG_MEASUREMENT_USED
         self.stats.outliers_rejected += 1
         self._pending.append(_Measurement(t, z))
@@ -250,6 +299,23 @@ class PuckEKF:
             self._initialise_from_pending()
             return FLAG_OUTLIER_REJECTED | FLAG_REINITIALISED | FLAG_MEASUREMENT_USED
         return FLAG_OUTLIER_REJECTED | FLAG_PREDICTED
+
+    def _update_position_only(self, y: np.ndarray, s: np.ndarray, angle: float) -> None:
+        """Fuse the position innovation ``y`` (covariance ``s``) alone; restart angle and spin from the
+        measured ``angle`` after too many rejected angles in a row."""
+        p_ht = self.P[:, :2]
+        gain = p_ht @ np.linalg.inv(s)
+        self.x = self.x + gain @ y
+        p = self.P - gain @ p_ht.T
+        self.P = 0.5 * (p + p.T)
+        self._angle_rejections += 1
+        if self._angle_rejections >= self.settings.max_consecutive_rejections:
+            self._angle_rejections = 0
+            self.x[4], self.x[5] = angle, 0.0
+            self.P[4:6, :] = 0.0
+            self.P[:, 4:6] = 0.0
+            self.P[4, 4], self.P[5, 5] = self.settings.r[2, 2], self.settings.p0[5, 5]
+        self.x[4] = wrap_angle(self.x[4])
 
     def _collect_for_initialisation(self, t: float, z: np.ndarray | None) -> int:
         if z is None:
@@ -266,4 +332,4 @@ class PuckEKF:
     def predict(self, horizon: float, lines: Sequence[float] = (), sample_every: int = 0) -> Prediction:
         """Prediction from the current estimate over ``horizon`` [s] (filter state unchanged)."""
         return predict_fast(self.model, self.x, self.P, horizon, self.settings.dt, self.settings.q,
-                            lines=lines, sample_every=sample_every)
+                            lines=lines, sample_every=sample_every, impact_noise=self.settings.impact_noise)

@@ -20,7 +20,7 @@ class MocapImperfections:
     """Rates and sizes of the measurement imperfections (all may be zero)."""
 
     position_std: float = 1e-4       # [m] per axis, at rest
-    position_std_per_speed: float = 0.0  # [s] the position std grows by this per m/s of puck speed
+    position_std_per_speed: float = 0.0  # [s] std added in quadrature per m/s of puck speed
     angle_std: float = 1e-2          # [rad]
     jitter_std: float = 2e-4         # [s] timestamp jitter
     lost_rate: float = 0.0           # probability that a frame is missing
@@ -96,7 +96,8 @@ class MocapSampler:
             return stamp, None
         pose = pose_at(stamp)
         x, y, theta = pose[:3]
-        std = noise.position_std + (noise.position_std_per_speed * pose[3] if len(pose) > 3 else 0.0)
+        std = math.hypot(noise.position_std, noise.position_std_per_speed * pose[3]) if len(pose) > 3 \
+            else noise.position_std
         z = np.array([x + rng.normal(0.0, std), y + rng.normal(0.0, std),
                       wrap_angle(theta + rng.normal(0.0, noise.angle_std))])
         if self.previous is not None and rng.random() < noise.repeat_rate:

@@ -53,6 +53,16 @@ class Prediction:
     crossings: dict = field(default_factory=dict)    # line_x -> Crossing (first crossing only)
 
 
+def impact_covariance(state: np.ndarray, ratio: float) -> np.ndarray:
+    """Process noise [6x6] of a rim impact: velocity and spin uncertain by ``ratio`` of their size after it
+    (restitution and rim friction of real rims vary with the impact: issue #13)."""
+    q = np.zeros((6, 6))
+    speed2 = state[2] ** 2 + state[3] ** 2
+    q[2, 2] = q[3, 3] = ratio ** 2 * speed2
+    q[5, 5] = ratio ** 2 * state[5] ** 2
+    return q
+
+
 def _split_horizon(horizon: float, dt: float) -> tuple[int, float]:
     steps = int(math.floor(horizon / dt + STEP_EPS))
     remainder = horizon - steps * dt
@@ -87,30 +97,39 @@ class _Recorder:
 
 
 def _finish(model: PuckModel, rec: _Recorder, s: np.ndarray, p: np.ndarray | None, t: float, remainder: float,
-            dt: float, q: np.ndarray) -> Prediction:
+            dt: float, q: np.ndarray, impact_noise: float) -> Prediction:
     """Last, shorter step of the horizon (noise scaled by its length); store the final state."""
     if remainder:
         res = model.step(s, remainder, with_jacobian=p is not None)
         rec.step(t, remainder, s, res.state, res.impacts)
         s = res.state
         if p is not None:
-            p = res.jacobian @ p @ res.jacobian.T + q * (remainder / dt)
+            p = _with_impact_noise(res.jacobian @ p @ res.jacobian.T + q * (remainder / dt), s, res.impacts,
+                                   impact_noise)
     rec.result.state, rec.result.covariance = s, p
     return rec.result
 
 
+def _with_impact_noise(p: np.ndarray, state: np.ndarray, impacts, ratio: float) -> np.ndarray:
+    """``p`` plus the impact covariance when the step had a rim impact (and ``ratio`` > 0)."""
+    return p + impact_covariance(state, ratio) if impacts and ratio else p
+
+
 def predict_stepwise(model: PuckModel, state: np.ndarray, cov: np.ndarray, horizon: float, dt: float,
-                     q: np.ndarray, lines: Sequence[float] = (), sample_every: int = 0) -> Prediction:
-    """Reference prediction: ``horizon`` [s] in model steps of ``dt`` [s] with per-step noise ``q``."""
+                     q: np.ndarray, lines: Sequence[float] = (), sample_every: int = 0,
+                     impact_noise: float = 0.0) -> Prediction:
+    """Reference prediction: ``horizon`` [s] in model steps of ``dt`` [s] with per-step noise ``q`` (and
+    :func:`impact_covariance` of ``impact_noise`` after each step with a rim impact)."""
     steps, remainder = _split_horizon(horizon, dt)
     rec = _Recorder(lines, sample_every)
     s, p = np.asarray(state, float), np.asarray(cov, float)
     for i in range(steps):
         res = model.step(s, dt)
         rec.step(i * dt, dt, s, res.state, res.impacts)
-        s, p = res.state, res.jacobian @ p @ res.jacobian.T + q
+        s, p = res.state, _with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, res.state, res.impacts,
+                                             impact_noise)
         rec.sample(i + 1, (i + 1) * dt, s, p)
-    return _finish(model, rec, s, p, steps * dt, remainder, dt, q)
+    return _finish(model, rec, s, p, steps * dt, remainder, dt, q, impact_noise)
 
 
 class _FreeMotion:
@@ -248,7 +267,8 @@ def noise_table(dt: float, damping: float, q: np.ndarray) -> NoiseTable:
 
 
 def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horizon: float, dt: float,
-                 q: np.ndarray, lines: Sequence[float] = (), sample_every: int = 0) -> Prediction:
+                 q: np.ndarray, lines: Sequence[float] = (), sample_every: int = 0,
+                 impact_noise: float = 0.0) -> Prediction:
     """Prediction by closed-form jumps between impacts; agrees with :func:`predict_stepwise`.
 
     With ``cov=None`` only the mean is propagated (``Prediction.covariance`` is None): the offline
@@ -280,10 +300,10 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, ho
             rec.step(done * dt, dt, s, res.state, res.impacts)
             s = res.state
             if with_cov:
-                p = res.jacobian @ p @ res.jacobian.T + q
+                p = _with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, s, res.impacts, impact_noise)
             done += 1
             rec.sample(done, done * dt, s, p)
-    return _finish(model, rec, s, p, steps * dt, remainder, dt, q)
+    return _finish(model, rec, s, p, steps * dt, remainder, dt, q, impact_noise)
 
 
 def _record_free_crossings(rec: _Recorder, free: _FreeMotion, t0: float, n: int) -> None:
