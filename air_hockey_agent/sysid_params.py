@@ -13,6 +13,7 @@ SYSID_PARAMS = (
     ParamSpec("bounds.friction_rim", list, "[-] search bounds (thesis table 4.1)", 0.0, 2.0, 2),
     ParamSpec("bounds.restitution", list, "[-] search bounds (thesis table 4.1)", 0.0, 1.0, 2),
     ParamSpec("bounds.damping", list, "[1/s] search bounds (thesis table 4.1)", 0.0, 10.0, 2),
+    ParamSpec("bounds.restitution_slope", list, "[s/m] search bounds (--identify restitution_slope)", 0.0, 10.0, 2),
     ParamSpec("random_samples", int, "HEBO's initial random suggestions", 1, 1000),
     ParamSpec("polish_evaluations", int, "Nelder-Mead evaluations after HEBO (0 = off)", 0, 100000),
     ParamSpec("stride", int, "predict from every stride-th frame with a state while optimising", 1, 1000),
@@ -31,7 +32,7 @@ def load_sysid_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     return load_node_params(PARAM_FILES, NODE_NAME, SYSID_PARAMS, extra_files)
 
 
-def bounds(params: dict[str, Any]) -> dict[str, tuple[float, float]]:
-    """Search box per physical parameter, in the order of ``core.identification.sysid.PHYSICAL``."""
+def bounds(params: dict[str, Any], names: Iterable[str] | None = None) -> dict[str, tuple[float, float]]:
+    """Search box per identified parameter (default: ``core.identification.sysid.PHYSICAL``, in its order)."""
     from air_hockey_agent.core.identification.sysid import PHYSICAL
-    return {name: tuple(params[f"bounds.{name}"]) for name in PHYSICAL}
+    return {name: tuple(params[f"bounds.{name}"]) for name in (PHYSICAL if names is None else names)}

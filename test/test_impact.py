@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.puck.impact import is_sliding, rim_impact
+from air_hockey_agent.core.puck.impact import is_sliding, rim_impact, speed_restitution
 
 R, E, MU = 0.03165, 0.9, 0.1
 
@@ -49,16 +49,18 @@ def test_energy_never_increases():
         assert after <= before * (1 + 1e-12)
 
 
+@pytest.mark.parametrize("slope", [0.0, 0.2])
 @pytest.mark.parametrize("state", [(0.3, -2.0, 1.0), (2.0, -1.0, 5.0), (-2.0, -1.0, -5.0)],
                          ids=["sticking", "sliding+", "sliding-"])
-def test_branch_jacobian_matches_finite_differences(state):
+def test_branch_jacobian_matches_finite_differences(state, slope):
     h = 1e-7
-    res = rim_impact(*state, R, E, MU)
+    res = rim_impact(*state, R, E, MU, slope)
     fd = np.zeros((3, 3))
     for i in range(3):
         d = np.zeros(3)
         d[i] = h
-        plus, minus = rim_impact(*(np.add(state, d)), R, E, MU), rim_impact(*(np.subtract(state, d)), R, E, MU)
+        plus = rim_impact(*(np.add(state, d)), R, E, MU, slope)
+        minus = rim_impact(*(np.subtract(state, d)), R, E, MU, slope)
         fd[:, i] = (np.array(plus[:3]) - np.array(minus[:3])) / (2 * h)
     assert np.allclose(res.jacobian, fd, atol=1e-6)
 
@@ -66,3 +68,11 @@ def test_branch_jacobian_matches_finite_differences(state):
 def test_branch_condition_is_the_friction_cone():
     assert is_sliding(1.0, -0.1, 0.0, R, E, MU)
     assert not is_sliding(0.01, -3.0, 0.0, R, E, MU)
+
+
+def test_restitution_falls_with_the_normal_speed_and_never_below_zero():
+    slow = rim_impact(0.0, -0.5, 0.0, R, 0.95, MU, 0.2)
+    fast = rim_impact(0.0, -2.0, 0.0, R, 0.95, MU, 0.2)
+    assert slow.vn == pytest.approx((0.95 - 0.2 * 0.5) * 0.5) and fast.vn == pytest.approx((0.95 - 0.2 * 2.0) * 2.0)
+    assert speed_restitution(0.95, 0.2, -10.0) == (0.0, 0.0)
+    assert speed_restitution(0.95, 0.0, -3.0) == (0.95, 0.0)

@@ -55,13 +55,14 @@ def test_impact_on_each_rim_with_each_branch(name):
     assert nx * res.state[2] + ny * res.state[3] > 0  # moving away from the rim afterwards
 
 
+@pytest.mark.parametrize("slope", [0.0, 0.15], ids=["constant e", "e falls with speed"])
 @pytest.mark.parametrize("name", list(IMPACT_CASES) + ["free", "corner", "goal"])
-def test_step_jacobian_matches_central_finite_differences(name):
+def test_step_jacobian_matches_central_finite_differences(name, slope):
     states = {"free": np.array([0.1, 0.2, 1.0, 0.5, 0.3, 2.0]),
               "corner": np.array([X - 0.004, Y - 0.007, 1.0, 1.3, 0.1, 5.0]),
               "goal": np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0])}
     state = states.get(name, IMPACT_CASES.get(name, (None,))[0])
-    m = model()
+    m = model(restitution_slope=slope)
     assert np.allclose(m.step(state, DT).jacobian, finite_difference_jacobian(m, state, DT), atol=2e-6)
 
 

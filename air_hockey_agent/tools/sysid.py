@@ -21,7 +21,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from air_hockey_agent.bags.trajectories import split_train_validation
-from air_hockey_agent.core.identification.sysid import (LOSSES, PHYSICAL, combine, identify, loss_report, nis_median,
+from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PHYSICAL, combine, identify, loss_report, nis_median,
                                                       on_bounds, partial_loss)
 from air_hockey_agent.params import yaml_float
 from air_hockey_agent.sysid_params import bounds
@@ -45,6 +45,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--split", type=number(0.0, 1.0, low_open=True, high_open=True), default=0.9, help="training fraction of the trajectories")
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
+    parser.add_argument("--identify", nargs="+", choices=IDENTIFIABLE, default=list(PHYSICAL), metavar="NAME",
+                        help="parameters to identify (default: the thesis's four; also restitution_slope, "
+                             "the rims' loss with impact speed); choices: " + ", ".join(IDENTIFIABLE))
     parser.add_argument("--out", type=Path, help="write the identified parameters to this parameter YAML")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)
@@ -125,6 +128,7 @@ def _calibration_warning(loss: str, tracker: dict, settings: dict, train: list) 
 
 
 def _identify_all(args, tracker: dict, settings: dict, train: list, validation: list) -> dict:
+    names = list(dict.fromkeys(args.identify))  # as given, without repeats
     _WORK.update(tracker=tracker, trajectories=train, loss=args.loss, stride=settings["stride"])
     learn_at = HORIZONS if args.cross_validate else (args.horizon,)
     workers = min(settings["workers"], os.cpu_count() or 1)
@@ -138,8 +142,8 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
 
             def progress(done: int, total: int, best: float, bar: Progress = bar) -> None:
                 bar(done, total, f"evaluations, best {_objective_text(args.loss, best)}")
-            ident = identify(_Objective(pool, workers, h, args.loss), bounds(settings),
-                             {n: tracker[n] for n in PHYSICAL}, args.iterations, args.batch, args.seed,
+            ident = identify(_Objective(pool, workers, h, args.loss), bounds(settings, names),
+                             {n: tracker[n] for n in names}, args.iterations, args.batch, args.seed,
                              settings["random_samples"], settings["polish_evaluations"], progress)
             runs[h] = ident
     finally:
@@ -147,13 +151,13 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
             pool.close()
             pool.join()
     chosen = runs[args.horizon]
-    initial = {n: tracker[n] for n in PHYSICAL}
+    initial = {n: tracker[n] for n in names}
     result = {"loss": args.loss, "horizon": args.horizon, "initial": initial, "identified": chosen.best,
               "evaluations": sum(r.evaluations for r in runs.values()), "seconds": round(time.monotonic() - start, 1),
               # exactly what was minimised, next to the reports below (every frame, both sets)
               "objective": {"loss": args.loss, "horizon": args.horizon, "stride": settings["stride"],
                             "set": "train", "initial": chosen.initial_objective, "identified": chosen.best_objective},
-              "on_bounds": on_bounds(chosen.best, bounds(settings), settings["bound_margin"]),
+              "on_bounds": on_bounds(chosen.best, bounds(settings, names), settings["bound_margin"]),
               "before": {}, "after": {}}
     for name, trajs in (("train", train), ("validation", validation)):
         result["before"][name] = loss_report(tracker, trajs, args.horizon).as_dict()
@@ -176,7 +180,7 @@ def _objective_text(loss: str, value: float) -> str:
 
 def format_report(result: dict, out: Path | None) -> str:
     """Thesis-style tables: parameters with loss/min/median before and after; table 5.4 if asked."""
-    names = ("friction_surface", "friction_rim", "damping", "restitution")
+    names = list(result["identified"])
     head = (f"{'':<22}" + "".join(f"{n:>17}" for n in names)
             + f"{'loss [mm]':>11}{'traj. min [mm]':>16}{'traj. median [mm]':>19}")
     lines = [f"loss {result['loss']}, horizon {result['horizon']} s, {result['evaluations']} evaluations in "
@@ -210,6 +214,6 @@ def format_report(result: dict, out: Path | None) -> str:
 
 def write_params_yaml(path: Path, values: dict, comment: str) -> None:
     """Parameter YAML for the puck_tracker, written atomically (temporary file, then rename)."""
-    body = "".join(f"    {name}: {yaml_float(values[name])}\n" for name in PHYSICAL)
+    body = "".join(f"    {name}: {yaml_float(value)}\n" for name, value in values.items())
     text = f"# Physical parameters of the puck model, {comment}.\n/**/puck_tracker:\n  ros__parameters:\n{body}"
     write_text_atomic(path, text)

@@ -23,7 +23,8 @@ from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream, horizon_key
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 
-PHYSICAL = ("friction_surface", "damping", "restitution", "friction_rim")
+PHYSICAL = ("friction_surface", "damping", "restitution", "friction_rim")  # identified by default (thesis)
+IDENTIFIABLE = PHYSICAL + ("restitution_slope",)  # what `sysid --identify` accepts
 LOSSES = ("position", "loglik")
 
 

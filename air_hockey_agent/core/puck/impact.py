@@ -11,6 +11,11 @@ Impact frame: ``b`` along the rim, ``n`` the inward normal (into the table), rig
   ``vb' = vb + P_b/m``, ``vn' = vn + P_n/m``, ``omega' = omega + 2 P_b / (m r)``.
 
 The mass cancels. The two branches agree on the switching boundary (tested).
+
+Real rims lose more at faster impacts (issue #13: another engine's restitution falls from 0.96 below
+0.5 m/s normal speed to 0.67 above 2 m/s). With ``slope`` > 0 the restitution is
+``e(vn) = max(e0 - slope |vn|, 0)``: the thesis's constant e is ``slope = 0``; the Jacobians include
+how e changes with vn.
 """
 from __future__ import annotations
 
@@ -27,23 +32,38 @@ class ImpactResult(NamedTuple):
 
 
 def is_sliding(vb: float, vn: float, omega: float, radius: float, restitution: float, friction: float) -> bool:
-    """Branch selection: True for the sliding impact (eq. 3.3), False for sticking (eq. 3.2)."""
+    """Branch selection: True for the sliding impact (eq. 3.3), False for sticking (eq. 3.2); ``restitution``
+    is the impact's (speed-dependent) e."""
     slip = vb + radius * omega
     return abs(slip) > 3.0 * friction * (1.0 + restitution) * abs(vn)
 
 
+def speed_restitution(restitution: float, slope: float, vn: float) -> tuple[float, float]:
+    """Restitution of an impact at normal velocity ``vn`` [m/s] (< 0), and its derivative d e / d vn."""
+    e = restitution - slope * abs(vn)
+    if slope == 0.0 or e >= restitution:
+        return restitution, 0.0
+    if e <= 0.0:
+        return 0.0, 0.0
+    return e, (slope if vn < 0.0 else -slope)
+
+
 def rim_impact(vb: float, vn: float, omega: float, radius: float, restitution: float,
-               friction: float) -> ImpactResult:
-    """Post-impact (vb, vn, omega) [m/s, m/s, rad/s] and the branch's Jacobian S_j (thesis sec. 4.2)."""
-    e, mu, r = restitution, friction, radius
+               friction: float, slope: float = 0.0) -> ImpactResult:
+    """Post-impact (vb, vn, omega) [m/s, m/s, rad/s] and the branch's Jacobian S_j (thesis sec. 4.2);
+    ``restitution`` falls by ``slope`` [s/m] per m/s of normal speed (module docstring)."""
+    mu, r = friction, radius
+    e, de = speed_restitution(restitution, slope, vn)
+    dvn = -e - vn * de  # d vn' / d vn
     if is_sliding(vb, vn, omega, r, e, mu):
         s = 1.0 if vb + r * omega > 0.0 else -1.0
         k = mu * s * (1.0 + e)  # P_b / (m vn)
-        jac = ((1.0, k, 0.0),
-               (0.0, -e, 0.0),
-               (0.0, 2.0 * k / r, 1.0))
+        dk = mu * s * de * vn   # vn * d k / d vn
+        jac = ((1.0, k + dk, 0.0),
+               (0.0, dvn, 0.0),
+               (0.0, 2.0 * (k + dk) / r, 1.0))
         return ImpactResult(vb + k * vn, -e * vn, omega + 2.0 * k * vn / r, True, jac)
     jac = ((2.0 / 3.0, 0.0, -r / 3.0),
-           (0.0, -e, 0.0),
+           (0.0, dvn, 0.0),
            (-2.0 / (3.0 * r), 0.0, 1.0 / 3.0))
     return ImpactResult(2.0 / 3.0 * vb - r / 3.0 * omega, -e * vn, omega / 3.0 - 2.0 * vb / (3.0 * r), False, jac)

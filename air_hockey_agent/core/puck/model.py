@@ -50,17 +50,20 @@ class PuckParams:
     damping: float           # d [1/s]: viscous damping
     restitution: float       # e [-] in [0, 1]
     friction_rim: float      # mu_rim [-]
+    restitution_slope: float = 0.0  # [s/m] e falls by this per m/s of normal impact speed (0: the thesis's e)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "PuckParams":
-        return cls(params["friction_surface"], params["damping"], params["restitution"], params["friction_rim"])
+        return cls(params["friction_surface"], params["damping"], params["restitution"], params["friction_rim"],
+                   params["restitution_slope"])
 
     def validate(self) -> None:
         """Raise ValueError naming the first physically invalid parameter."""
         checks = (("friction_surface", self.friction_surface >= 0.0, ">= 0"),
                   ("damping", self.damping >= 0.0, ">= 0"),
                   ("restitution", 0.0 <= self.restitution <= 1.0, "in [0, 1]"),
-                  ("friction_rim", self.friction_rim >= 0.0, ">= 0"))
+                  ("friction_rim", self.friction_rim >= 0.0, ">= 0"),
+                  ("restitution_slope", self.restitution_slope >= 0.0, ">= 0"))
         for name, ok, rule in checks:
             value = getattr(self, name)
             if not ok or not math.isfinite(value):
@@ -124,7 +127,7 @@ class PuckModel:
         bx, by = ny, -nx
         vb, vn = bx * vx + by * vy, nx * vx + ny * vy
         p = self.params
-        res = rim_impact(vb, vn, om, self.table.puck_radius, p.restitution, p.friction_rim)
+        res = rim_impact(vb, vn, om, self.table.puck_radius, p.restitution, p.friction_rim, p.restitution_slope)
         xc, yc = x + tau * vx, y + tau * vy
         new_z = [xc, yc, bx * res.vb + nx * res.vn, by * res.vb + ny * res.vn, th + tau * om, res.omega, h - tau]
         if jac is not None:
