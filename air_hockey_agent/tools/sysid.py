@@ -181,7 +181,8 @@ def _objective_text(loss: str, value: float) -> str:
 def format_report(result: dict, out: Path | None) -> str:
     """Thesis-style tables: parameters with loss/min/median before and after; table 5.4 if asked."""
     names = list(result["identified"])
-    head = (f"{'':<22}" + "".join(f"{n:>17}" for n in names)
+    width = max(17, *(len(n) + 2 for n in names))
+    head = (f"{'':<22}" + "".join(f"{n:>{width}}" for n in names)
             + f"{'loss [mm]':>11}{'traj. min [mm]':>16}{'traj. median [mm]':>19}")
     lines = [f"loss {result['loss']}, horizon {result['horizon']} s, {result['evaluations']} evaluations in "
              f"{result['seconds']} s", head]
@@ -190,7 +191,7 @@ def format_report(result: dict, out: Path | None) -> str:
         for subset in ("train", "validation"):
             r = result[key][subset]
             tag = label.replace("(train)", f"({subset})")
-            lines.append(f"{tag:<22}" + "".join(f"{params[n]:>17.6g}" for n in names)
+            lines.append(f"{tag:<22}" + "".join(f"{params[n]:>{width}.6g}" for n in names)
                          + f"{r['loss_m'] * 1e3:>11.2f}{r['min_m'] * 1e3:>16.2f}{r['median_m'] * 1e3:>19.2f}")
     o = result["objective"]
     lines.append(f"optimised objective ({o['loss']} loss at {o['horizon']} s on the training set, predictions "
