@@ -205,3 +205,23 @@ def test_loglik_warns_unless_the_filter_is_calibrated(tracker, trajectories):
     assert _calibration_warning("loglik", tracker, {"calibrated_nis": [nis - 0.1, nis + 0.1]}, trajectories) == ""
     warning = _calibration_warning("loglik", tracker, {"calibrated_nis": [nis + 1, nis + 2]}, trajectories)
     assert f"median NIS on the training set is {nis:.2f}" in warning
+
+
+@pytest.mark.slow
+def test_identify_chooses_the_parameters_and_the_yaml_holds_only_those(tmp_path):
+    """`sysid --identify` on a test-bed bag (rims that lose more at speed): only the named parameters are
+    searched, reported and written; an unknown name is a one-line usage error."""
+    bag = tmp_path / "tb"
+    made = cli("synth-bag", bag, "--source", "testbed", "--shots", "4", "--seed", "2")
+    assert made.returncode == 0, made.stderr
+    out = tmp_path / "identified.yaml"
+    run = cli("sysid", bag, "--identify", "damping", "restitution_slope", "--iterations", "2", "--batch", "2",
+               "--out", out, "--json", timeout=600)
+    assert run.returncode == 0, run.stderr[-3000:]
+    report = json.loads(run.stdout)
+    assert set(report["identified"]) == set(report["initial"]) == {"damping", "restitution_slope"}
+    assert 0.0 <= report["identified"]["restitution_slope"] <= 0.4  # config/sysid.yaml bounds
+    written = [line.split(":")[0].strip() for line in out.read_text().splitlines() if line.startswith("    ")]
+    assert written == ["damping", "restitution_slope"]
+    bad = cli("sysid", bag, "--identify", "gravity")
+    assert bad.returncode == 2 and "invalid choice: 'gravity'" in bad.stderr
