@@ -1,5 +1,6 @@
 """Noise estimation (eq. 3.12, 3.13) against streams with known measurement noise."""
 import numpy as np
+import pytest
 
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.identification.noise import estimate_once, iterate
@@ -8,11 +9,12 @@ from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotR
 from air_hockey_agent.tracker_params import load_tracker_params
 
 
-def trajectories(position_std, angle_std, seed=0):
+def trajectories(position_std, angle_std, seed=0, per_speed=0.0):
     params = load_tracker_params()
     model = PuckEKF.from_params(params).model
     shots = ShotRanges(speed=(1.0, 3.0), spin=(-5.0, 5.0), duration=3.0, pause=3.0)
-    noise = MocapImperfections(position_std=position_std, angle_std=angle_std, jitter_std=0.0)
+    noise = MocapImperfections(position_std=position_std, angle_std=angle_std, jitter_std=0.0,
+                               position_std_per_speed=per_speed)
     frames = synthetic_session(model, shots, 3, 120.0, noise, np.random.default_rng(seed), 1 / 1200)
     grids, start = [], 0
     for i in range(1, len(frames) + 1):
@@ -41,3 +43,23 @@ def test_iteration_feeds_back_and_fixing_keeps_a_matrix():
     assert len(history) == 3 and history[0].q_samples > 100 and history[0].r_samples > 500
     assert not np.allclose(history[0].r, history[1].r)  # R fed back changes the next estimate
     assert np.all(history[-1].q > 0)
+
+
+def test_noise_by_speed_fit_recovers_rest_noise_and_growth():
+    from air_hockey_agent.core.identification.noise import position_noise_by_speed
+    rng = np.random.default_rng(4)
+    speeds = rng.uniform(0.0, 4.0, 20000)
+    std = np.hypot(1.5e-4, 4.3e-4 * speeds)
+    residuals = np.column_stack([rng.normal(0, std), rng.normal(0, std), np.zeros_like(speeds)])
+    r0, per_speed = position_noise_by_speed(residuals, speeds)
+    assert np.sqrt(r0) == pytest.approx(1.5e-4, rel=0.1) and per_speed == pytest.approx(4.3e-4, rel=0.05)
+    at_rest_only = position_noise_by_speed(residuals[:, :], np.zeros_like(speeds))
+    assert at_rest_only[1] == 0.0
+
+
+def test_by_speed_estimate_finds_noise_that_grows_with_speed():
+    params, grids = trajectories(1e-4, 1e-2, seed=2, per_speed=4e-4)
+    estimate = iterate(params, grids, 2, fix=("Q",), by_speed=True)[-1]
+    # posterior residuals understate the noise (the filter follows it a little), as for eq. 3.12
+    assert 0.5 * 4e-4 < estimate.r_per_speed < 1.2 * 4e-4
+    assert estimate.r[0] == estimate.r[1] < 3 * 1e-8

@@ -19,6 +19,8 @@ import json
 import sys
 from pathlib import Path
 
+import numpy as np
+
 from air_hockey_agent.core.identification.noise import iterate
 from air_hockey_agent.core.identification.sysid import loss_report
 from air_hockey_agent.params import yaml_float
@@ -37,6 +39,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--fix", choices=("R", "Q"), action="append", default=[],
                         help="keep this matrix fixed (may be given once)")
     parser.add_argument("--horizon", type=number(0.0, low_open=True), default=1.0, help="horizon of the reported prediction error [s]")
+    parser.add_argument("--by-speed", action="store_true",
+                        help="estimate the position noise at rest and its growth with speed "
+                             "(measurement_noise_per_speed) instead of one value for all speeds")
     parser.add_argument("--out", type=Path, help="write measurement_noise and process_noise to this YAML")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)
@@ -51,22 +56,28 @@ def run(args: argparse.Namespace) -> int:
     except ToolError as exc:
         return report_error(PROG, exc)
     tracker, loaded = recordings.tracker, recordings.loaded
-    history = iterate(tracker, loaded.trajectories, args.iterations, args.fix)
+    if args.by_speed and "R" in args.fix:
+        print(f"{PROG}: error: --by-speed estimates R; it cannot be combined with --fix R", file=sys.stderr)
+        return 2
+    history = iterate(tracker, loaded.trajectories, args.iterations, args.fix, args.by_speed)
     final = history[-1]
     r = tracker["measurement_noise"] if "R" in args.fix else final.r.tolist()
     q = tracker["process_noise"] if "Q" in args.fix else final.q.tolist()
-    variants = {"current": {}, "estimated_R": {"measurement_noise": r}, "estimated_Q": {"process_noise": q},
-                "estimated_both": {"measurement_noise": r, "process_noise": q}}
+    r_params = {"measurement_noise": r}
+    if final.r_per_speed is not None:
+        r_params["measurement_noise_per_speed"] = final.r_per_speed
+    variants = {"current": {}, "estimated_R": r_params, "estimated_Q": {"process_noise": q},
+                "estimated_both": {**r_params, "process_noise": q}}
     errors = {name: loss_report({**tracker, **v}, loaded.trajectories, args.horizon).as_dict()
               for name, v in variants.items()}
     result = {"trajectories": len(loaded.trajectories), "iterations": args.iterations, "fixed": args.fix,
-              "measurement_noise": r, "process_noise": q,
+              "measurement_noise": r, "process_noise": q, "measurement_noise_per_speed": final.r_per_speed,
               # a fixed matrix is what every iteration used (its estimate was not fed back)
               "history": [{"measurement_noise": r if "R" in args.fix else h.r.tolist(),
                            "process_noise": q if "Q" in args.fix else h.q.tolist()} for h in history],
               "prediction_error": {"horizon": args.horizon, **errors}}
     if args.out is not None:
-        _write(args.out, r, q, args)
+        _write(args.out, r, q, final.r_per_speed, args)
     print(json.dumps(result) if args.json else _format(result, args.out))
     return 2 if loaded.errors else 0
 
@@ -80,6 +91,11 @@ def _format(result: dict, out: Path | None) -> str:
         lines.append(f"  iteration {i}: R {fmt(h['measurement_noise'])}{fixed('R')}  "
                      f"Q {fmt(h['process_noise'])}{fixed('Q')}")
     lines.append(f"R (x, y, theta) = {fmt(result['measurement_noise'])}")
+    if result["measurement_noise_per_speed"] is not None:
+        lines.append(f"  position noise at rest above, growing by {result['measurement_noise_per_speed']:.3e} s "
+                     f"per m/s (in quadrature): {np.sqrt(result['measurement_noise'][0]) * 1e3:.3f} mm at rest, "
+                     f"{np.hypot(np.sqrt(result['measurement_noise'][0]), 3.0 * result['measurement_noise_per_speed']) * 1e3:.3f}"
+                     f" mm at 3 m/s")
     lines.append(f"Q (x, y, vx, vy, theta, omega) = {fmt(result['process_noise'])}")
     h = result["prediction_error"]["horizon"]
     lines.append(f"prediction error at {h} s: mean / median per trajectory [mm]")
@@ -91,9 +107,11 @@ def _format(result: dict, out: Path | None) -> str:
     return "\n".join(lines)
 
 
-def _write(path: Path, r: list, q: list, args: argparse.Namespace) -> None:
+def _write(path: Path, r: list, q: list, per_speed: float | None, args: argparse.Namespace) -> None:
     text = (f"# Noise covariances estimated by `air-hockey noise-estimate` (eq. 3.12, 3.13; {args.iterations} "
             f"iterations{', fixed ' + args.fix[0] if args.fix else ''}).\n/**/puck_tracker:\n  ros__parameters:\n"
             f"    measurement_noise: [{', '.join(yaml_float(v) for v in r)}]\n"
             f"    process_noise: [{', '.join(yaml_float(v) for v in q)}]\n")
+    if per_speed is not None:
+        text += f"    measurement_noise_per_speed: {yaml_float(per_speed)}\n"
     write_text_atomic(path, text)

@@ -5,7 +5,9 @@ With the filter's own estimates standing in for the true states:
 * R (eq. 3.12): covariance of ``z_k - h(x_k|k)`` over every fused frame (angle residual wrapped);
 * Q (eq. 3.13): covariance of ``f(x_k|k) - x_k+1|k+1`` over consecutive fused model steps;
 
-both without correlation terms (diagonal, thesis sec. 4.4). The estimates change the filter, which
+both without correlation terms (diagonal, thesis sec. 4.4). With ``by_speed`` the position part of R is
+the noise at rest plus a growth with speed (issue #13: the lab's marker noise grows from 0.15 mm at rest
+to 1.5 mm at 2-5 m/s), fitted to the same residuals against the filter's speed estimate. The estimates change the filter, which
 changes the estimates, so the procedure is iterated (5 times in the thesis). Either matrix can be kept
 fixed while the other is estimated.
 """
@@ -27,12 +29,37 @@ class NoiseEstimate:
     q: np.ndarray        # (6,) diagonal of Q per model step
     r_samples: int
     q_samples: int
+    # with by_speed: R's position terms are the variance at rest, and the std grows by this [s] per m/s
+    r_per_speed: float | None = None
 
 
-def estimate_once(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory]) -> NoiseEstimate:
-    """One pass of eq. 3.12 and 3.13 with the filter configured by ``params``."""
+def position_noise_by_speed(residuals: np.ndarray, speeds: np.ndarray, rounds: int = 3) -> tuple[float, float]:
+    """Position noise variance at rest [m^2] and its growth with speed [s]: the fit of
+    ``(rx^2 + ry^2) / 2 = R0 + (k v)^2`` over the fused frames (the noise model of the filter's
+    ``measurement_noise_per_speed``), both kept non-negative. The squares' own spread grows with the
+    variance, so the fit is weighted by the inverse square of the variance it predicts (iteratively
+    reweighted; the first round is ordinary least squares)."""
+    per_frame = 0.5 * (residuals[:, 0] ** 2 + residuals[:, 1] ** 2)
+    design = np.column_stack([np.ones_like(speeds), speeds ** 2])
+    weights = np.ones_like(per_frame)
+    r0, k2 = float(np.mean(per_frame)), 0.0
+    for _ in range(rounds):
+        w = np.sqrt(weights)
+        (r0, k2), *_ = np.linalg.lstsq(design * w[:, None], per_frame * w, rcond=None)
+        r0, k2 = max(float(r0), 0.0), max(float(k2), 0.0)
+        predicted = r0 + k2 * speeds ** 2
+        if np.any(predicted <= 0.0):
+            break
+        weights = 1.0 / predicted ** 2
+    return r0, float(np.sqrt(k2))
+
+
+def estimate_once(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory],
+                  by_speed: bool = False) -> NoiseEstimate:
+    """One pass of eq. 3.12 and 3.13 with the filter configured by ``params``; with ``by_speed`` the
+    position noise is split into its value at rest and its growth with the filter's speed estimate."""
     ekf = PuckEKF.from_params(params)
-    meas_res, proc_res = [], []
+    meas_res, proc_res, speeds = [], [], []
     for traj in trajectories:
         ekf.reset()
         previous = None  # (row, posterior state) of the last fused frame
@@ -44,6 +71,7 @@ def estimate_once(params: Mapping[str, Any], trajectories: Sequence[GridTrajecto
                     previous = None  # the track restarted: no model step links it to the last estimate
                 continue
             meas_res.append(ekf.residual(z))  # eq. 3.12 with the posterior standing in for the truth
+            speeds.append(float(np.hypot(ekf.x[2], ekf.x[3])))
             if previous is not None and previous[0] == row - 1:
                 step = ekf.model.step(previous[1], traj.dt, with_jacobian=False).state - ekf.x
                 step[4] = wrap_angle(step[4])
@@ -51,19 +79,26 @@ def estimate_once(params: Mapping[str, Any], trajectories: Sequence[GridTrajecto
             previous = (row, ekf.x.copy())
     r = np.var(np.array(meas_res), axis=0, ddof=1) if len(meas_res) > 1 else np.full(3, np.nan)
     q = np.var(np.array(proc_res), axis=0, ddof=1) if len(proc_res) > 1 else np.full(6, np.nan)
-    return NoiseEstimate(r, q, len(meas_res), len(proc_res))
+    per_speed = None
+    if by_speed and len(meas_res) > 2:
+        r0, per_speed = position_noise_by_speed(np.array(meas_res), np.array(speeds))
+        r[0] = r[1] = r0
+    return NoiseEstimate(r, q, len(meas_res), len(proc_res), per_speed)
 
 
 def iterate(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory], iterations: int,
-            fix: Sequence[str] = ()) -> list[NoiseEstimate]:
-    """Repeat the estimate ``iterations`` times, feeding each result back (``fix``: "R" and/or "Q" kept)."""
+            fix: Sequence[str] = (), by_speed: bool = False) -> list[NoiseEstimate]:
+    """Repeat the estimate ``iterations`` times, feeding each result back (``fix``: "R" and/or "Q" kept;
+    ``by_speed``: R's position terms at rest plus ``measurement_noise_per_speed``)."""
     current = dict(params)
     history = []
     for _ in range(iterations):
-        est = estimate_once(current, trajectories)
+        est = estimate_once(current, trajectories, by_speed and "R" not in fix)
         history.append(est)
         if "R" not in fix and np.all(np.isfinite(est.r)) and np.all(est.r > 0):
             current["measurement_noise"] = est.r.tolist()
+            if est.r_per_speed is not None:
+                current["measurement_noise_per_speed"] = est.r_per_speed
         if "Q" not in fix and np.all(np.isfinite(est.q)) and np.all(est.q > 0):
             current["process_noise"] = est.q.tolist()
     return history
