@@ -111,6 +111,13 @@ def test_noise_estimate_cli(tmp_path):
     assert all(v > 0 for v in report["measurement_noise"])
     check = cli("eval-prediction", bag, "--params-file", out, "--json")
     assert check.returncode == 0, check.stderr
+    by_speed = cli("noise-estimate", tmp_path, "--iterations", 1, "--fix", "Q", "--by-speed", "--out", out, "--json")
+    assert by_speed.returncode == 0, by_speed.stderr
+    assert json.loads(by_speed.stdout)["measurement_noise_per_speed"] >= 0.0
+    assert "measurement_noise_per_speed:" in out.read_text()
+    assert cli("eval-prediction", bag, "--params-file", out).returncode == 0
+    both = cli("noise-estimate", tmp_path, "--fix", "R", "--by-speed")
+    assert both.returncode == 2 and "--by-speed estimates R" in both.stderr and not both.stdout
 
 
 def test_plot_cli_writes_three_pngs(tmp_path):
