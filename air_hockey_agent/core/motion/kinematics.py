@@ -81,6 +81,7 @@ class MalletKinematics:
         x, y, z, yaw = (float(v) for v in base)
         c, s = np.cos(yaw), np.sin(yaw)
         self._rotation = np.array([[c, -s, 0.0], [s, c, 0.0], [0.0, 0.0, 1.0]])
+        self._turned = not np.array_equal(self._rotation, np.eye(3))  # False: skip the product (hot path)
         self._offset = np.array([x, y, z - self.tip_length])
         self.base_xy = (x, y)
 
@@ -93,5 +94,7 @@ class MalletKinematics:
     def position_and_jacobian(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Mallet position [m] and its 3x7 Jacobian d(position)/dq [m/rad], both in the own table frame."""
         jac = pin.computeFrameJacobian(self.model, self.data, q, self.frame, pin.LOCAL_WORLD_ALIGNED)[:3]
+        if not self._turned:
+            return self.data.oMf[self.frame].translation + self._offset, jac
         p = self._rotation @ self.data.oMf[self.frame].translation + self._offset
         return p, self._rotation @ jac
