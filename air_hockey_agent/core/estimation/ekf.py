@@ -3,15 +3,19 @@
 * predict: the model (:mod:`.puck_model`) over the actual time since the last frame; a normal frame is
   one step of that length (process noise scaled by its length), a longer gap uses the fast predictor
   in model steps (:func:`.prediction.predict_fast`).
-* update: measurement (x, y, theta), angle innovation wrapped to (-pi, pi] (eq. 3.7-3.11).
+* update: measurement (x, y, theta), angle innovation wrapped to (-pi, pi] (eq. 3.7-3.11); the position
+  noise grows with the speed (``measurement_noise_per_speed``, issue #13), and after a rim impact the
+  velocity and spin get ``impact_noise`` of their size as extra uncertainty.
 * lost frames: predict without update. Repeated timestamps and frozen positions (a mocap frame whose
   position equals the previous one within ``frozen_threshold``, thesis sec. 4.5.1) are not fused.
-* outliers: squared Mahalanobis distance of the innovation above ``gate_threshold`` rejects the frame;
-  after ``max_consecutive_rejections`` rejected frames in a row the filter re-initialises from the
-  latest two measurements (the puck was hit by something the model does not know, or the track was
-  lost), instead of drifting forever. Frames beyond the table by more than ``outside_table_margin``
-  are dropped before gating.
-* initialisation: from two measurements (finite-difference velocity and spin), covariance ``P0``.
+* outliers: position and angle are gated apart. A squared Mahalanobis distance of the position
+  innovation above ``gate_threshold`` (2 dof) rejects the frame; after ``max_consecutive_rejections``
+  rejected frames in a row the filter re-initialises from them (the puck was hit by something the model
+  does not know, or the track was lost), instead of drifting forever. A good position whose angle
+  fails ``angle_gate_threshold`` (1 dof) is fused without it. Frames beyond the table by more than
+  ``outside_table_margin`` are dropped before gating.
+* (re)initialisation: a least-squares constant-velocity fit over the collected frames (two at the start
+  of a track, the rejected run after an event; seed 003's batch estimate), with the fit's covariance.
 """
 from __future__ import annotations
 
