@@ -15,7 +15,7 @@ from air_hockey_agent.core.motion.hit_config import (best_hit_configuration, max
                                                     max_speed_closed_form)
 from air_hockey_agent.core.motion.ik import solve_ik
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
-from air_hockey_agent.core.motion.linalg3 import inverse_sym3, solve_sym3
+from air_hockey_agent.core.linalg3 import inverse_sym3, solve_sym3
 from air_hockey_agent.core.motion.planner import (ACCEPTED, INVALID, LIMITS, OUTSIDE_REGION, TOO_FAST, TOO_LATE,
                                                   UNREACHABLE, ArmState, Command)
 from air_hockey_agent.core.motion import task_motion as tm

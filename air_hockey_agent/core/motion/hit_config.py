@@ -23,10 +23,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linprog
 
+from air_hockey_agent.core.linalg3 import solve_sym3
 from air_hockey_agent.core.motion.ik import weighted_pinv
 from air_hockey_agent.core.motion.kinematics import MalletKinematics
 from air_hockey_agent.core.motion.limits import JointLimits
-from air_hockey_agent.core.motion.linalg3 import solve_sym3
 
 FD_STEP = 1e-5      # [rad] finite-difference step of the surrogate's gradient
 ASCENT_STEP = 0.15  # [rad] largest posture change per ascent iteration

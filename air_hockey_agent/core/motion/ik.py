@@ -10,9 +10,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from air_hockey_agent.core.linalg3 import inverse_sym3
 from air_hockey_agent.core.motion.kinematics import MalletKinematics
 from air_hockey_agent.core.motion.limits import JointLimits
-from air_hockey_agent.core.motion.linalg3 import inverse_sym3
 
 DAMPING = 1e-4        # [m^2] damped least squares regularisation (numerical, far below a reachable step)
 NULL_SPACE_GAIN = 0.2  # fraction of the posture error removed per iteration in the null space

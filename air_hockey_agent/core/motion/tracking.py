@@ -20,9 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 import daqp
 
+from air_hockey_agent.core.linalg3 import solve_sym3
 from air_hockey_agent.core.motion.kinematics import MalletKinematics
 from air_hockey_agent.core.motion.limits import JointLimits
-from air_hockey_agent.core.motion.linalg3 import solve_sym3
 
 JOINTS = 7
 DAMPING = 1e-8  # [m^2] regularises J J^T at the (excluded) singular configurations
