@@ -25,6 +25,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from air_hockey_agent.core.linalg3 import inverse_sym3
 from air_hockey_agent.core.puck.prediction import Prediction, impact_covariance, predict_fast
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, wrap_angle
 from air_hockey_agent.core.table import TableGeometry
@@ -109,16 +110,6 @@ def check_covariance(matrix: np.ndarray, size: int, name: str) -> np.ndarray:
     if np.linalg.eigvalsh(matrix).min() <= 0.0:
         raise ValueError(f"{name} is not positive definite")
     return matrix
-
-
-def _inverse3(m: np.ndarray) -> np.ndarray:
-    """Inverse of a 3x3 matrix by cofactors (faster than numpy.linalg for this size)."""
-    (a, b, c), (d, e, f), (g, h, i) = m.tolist()
-    co = (e * i - f * h, f * g - d * i, d * h - e * g)
-    det = a * co[0] + b * co[1] + c * co[2]
-    return np.array([[co[0], c * h - b * i, b * f - c * e],
-                     [co[1], a * i - c * g, c * d - a * f],
-                     [co[2], b * g - a * h, a * e - b * d]]) / det
 
 
 @dataclass
@@ -211,7 +202,7 @@ class PuckEKF:
     def innovation(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
         """Innovation y (angle wrapped), its covariance S and squared Mahalanobis distance."""
         y, s = self._innovation_and_covariance(z)
-        s_inv = _inverse3(s)
+        s_inv = inverse_sym3(s)
         return y, s_inv, float(y @ s_inv @ y)
 
     def _innovation_and_covariance(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -284,7 +275,7 @@ class PuckEKF:
         its angle, and after ``max_consecutive_rejections`` such angles in a row the angle and spin
         restart from the measurement (the spin model, not the marker, was wrong)."""
         y, s = self._innovation_and_covariance(z)
-        s_inv = _inverse3(s)
+        s_inv = inverse_sym3(s)
         self.last_nis = float(y @ s_inv @ y)
         (sxx, sxy, _), (_, syy, _), (_, _, saa) = s.tolist()
         yx, yy, ya = y.tolist()
