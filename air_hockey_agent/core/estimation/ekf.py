@@ -26,11 +26,12 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from air_hockey_agent.core.linalg3 import inverse_sym3
-from air_hockey_agent.core.puck.prediction import Prediction, impact_covariance, predict_fast
+from air_hockey_agent.core.puck.prediction import Prediction, predict_fast, with_impact_noise
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, wrap_angle
 from air_hockey_agent.core.table import TableGeometry
 
 MEASURED = (0, 1, 4)  # state indices of the measurement (x, y, theta)
+POSITION = (0, 1)     # ... and of its position part (fused alone when the angle fails its gate)
 _MEASURED_ROWS = np.array(MEASURED)
 _MEASURED_BLOCK = np.ix_(MEASURED, MEASURED)  # index of the 3x3 measured block of P (built once: it is hot)
 
@@ -184,9 +185,8 @@ class PuckEKF:
         if dt <= SINGLE_STEP_LIMIT * self.settings.dt:
             res = self.model.step(self.x, dt)
             self.x = res.state
-            self.P = res.jacobian @ self.P @ res.jacobian.T + self.settings.q * (dt / self.settings.dt)
-            if res.impacts and self.settings.impact_noise:
-                self.P += impact_covariance(self.x, self.settings.impact_noise)
+            p = res.jacobian @ self.P @ res.jacobian.T + self.settings.q * (dt / self.settings.dt)
+            self.P = with_impact_noise(p, self.x, res.impacts, self.settings.impact_noise)
         else:
             pred = predict_fast(self.model, self.x, self.P, dt, self.settings.dt, self.settings.q,
                                 impact_noise=self.settings.impact_noise)
@@ -216,9 +216,10 @@ class PuckEKF:
         self._apply_update(y, s_inv)
         return d2
 
-    def _apply_update(self, y: np.ndarray, s_inv: np.ndarray) -> None:
-        """Kalman gain, mean and covariance update from innovation y and S^-1 (eq. 3.9-3.11)."""
-        p_ht = self.P[:, MEASURED]
+    def _apply_update(self, y: np.ndarray, s_inv: np.ndarray, rows: Sequence[int] = MEASURED) -> None:
+        """Kalman gain, mean and covariance update from innovation y and S^-1 (eq. 3.9-3.11) of the
+        measured state components ``rows`` (all three, or the position alone)."""
+        p_ht = self.P[:, rows]
         gain = p_ht @ s_inv
         self.x = self.x + gain @ y
         self.x[4] = wrap_angle(self.x[4])
@@ -298,19 +299,14 @@ class PuckEKF:
     def _update_position_only(self, y: np.ndarray, s: np.ndarray, angle: float) -> None:
         """Fuse the position innovation ``y`` (covariance ``s``) alone; restart angle and spin from the
         measured ``angle`` after too many rejected angles in a row."""
-        p_ht = self.P[:, :2]
-        gain = p_ht @ np.linalg.inv(s)
-        self.x = self.x + gain @ y
-        p = self.P - gain @ p_ht.T
-        self.P = 0.5 * (p + p.T)
+        self._apply_update(y, np.linalg.inv(s), POSITION)
         self._angle_rejections += 1
         if self._angle_rejections >= self.settings.max_consecutive_rejections:
             self._angle_rejections = 0
-            self.x[4], self.x[5] = angle, 0.0
+            self.x[4], self.x[5] = wrap_angle(angle), 0.0
             self.P[4:6, :] = 0.0
             self.P[:, 4:6] = 0.0
             self.P[4, 4], self.P[5, 5] = self.settings.r[2, 2], self.settings.p0[5, 5]
-        self.x[4] = wrap_angle(self.x[4])
 
     def _collect_for_initialisation(self, t: float, z: np.ndarray | None) -> int:
         if z is None:

@@ -104,13 +104,13 @@ def _finish(model: PuckModel, rec: _Recorder, s: np.ndarray, p: np.ndarray | Non
         rec.step(t, remainder, s, res.state, res.impacts)
         s = res.state
         if p is not None:
-            p = _with_impact_noise(res.jacobian @ p @ res.jacobian.T + q * (remainder / dt), s, res.impacts,
+            p = with_impact_noise(res.jacobian @ p @ res.jacobian.T + q * (remainder / dt), s, res.impacts,
                                    impact_noise)
     rec.result.state, rec.result.covariance = s, p
     return rec.result
 
 
-def _with_impact_noise(p: np.ndarray, state: np.ndarray, impacts, ratio: float) -> np.ndarray:
+def with_impact_noise(p: np.ndarray, state: np.ndarray, impacts, ratio: float) -> np.ndarray:
     """``p`` plus the impact covariance when the step had a rim impact (and ``ratio`` > 0)."""
     return p + impact_covariance(state, ratio) if impacts and ratio else p
 
@@ -126,7 +126,7 @@ def predict_stepwise(model: PuckModel, state: np.ndarray, cov: np.ndarray, horiz
     for i in range(steps):
         res = model.step(s, dt)
         rec.step(i * dt, dt, s, res.state, res.impacts)
-        s, p = res.state, _with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, res.state, res.impacts,
+        s, p = res.state, with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, res.state, res.impacts,
                                              impact_noise)
         rec.sample(i + 1, (i + 1) * dt, s, p)
     return _finish(model, rec, s, p, steps * dt, remainder, dt, q, impact_noise)
@@ -300,7 +300,7 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, ho
             rec.step(done * dt, dt, s, res.state, res.impacts)
             s = res.state
             if with_cov:
-                p = _with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, s, res.impacts, impact_noise)
+                p = with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, s, res.impacts, impact_noise)
             done += 1
             rec.sample(done, done * dt, s, p)
     return _finish(model, rec, s, p, steps * dt, remainder, dt, q, impact_noise)
