@@ -10,7 +10,7 @@ RATE = 120.0
 
 def stream(noise, n=60000, seed=0):
     sampler = MocapSampler(noise, np.random.default_rng(seed))
-    frames = [sampler.sample(k / RATE, lambda t: (0.1, -0.2, 0.3)) for k in range(n)]
+    frames = [sampler.sample(k / RATE, lambda t: (0.1, -0.2, 0.3, 0.0)) for k in range(n)]
     return [f for f in frames if f is not None]
 
 

@@ -63,7 +63,8 @@ class SimRunner:
         if self._mocap.due(t) is not None:  # the frame is taken now; its stamp carries the jitter
             truth = self.world.puck_state()
             out.true_state = truth
-            frame = self.sampler.sample(t, lambda _stamp: (truth[0], truth[1], truth[4], math.hypot(truth[2], truth[3])))
+            pose = (truth[0], truth[1], truth[4], math.hypot(truth[2], truth[3]))
+            frame = self.sampler.sample(t, lambda _stamp: pose)
             if frame is not None and frame[1] is not None:
                 stamp, (x, y, yaw) = frame
                 mx, my, myaw = table_to_mocap(x, y, yaw, self.table_pose)

@@ -83,7 +83,7 @@ class MocapSampler:
     def sample(self, t: float, pose_at: Callable[[float], Sequence[float]],
                t_max: float = math.inf) -> tuple[float, np.ndarray | None] | None:
         """Frame due at nominal time ``t`` [s]: None inside a dropout, else (stamp, (x, y, theta) or None).
-        ``pose_at(stamp)`` gives the true (x, y, theta) and optionally the speed [m/s] after them."""
+        ``pose_at(stamp)`` gives the true (x, y, theta) and speed [m/s]."""
         noise, rng = self.noise, self.rng
         if t < self.gap_until:
             return None
@@ -94,10 +94,8 @@ class MocapSampler:
         stamp = float(np.clip(stamp, 0.0, t_max))
         if rng.random() < noise.lost_rate:
             return stamp, None
-        pose = pose_at(stamp)
-        x, y, theta = pose[:3]
-        std = math.hypot(noise.position_std, noise.position_std_per_speed * pose[3]) if len(pose) > 3 \
-            else noise.position_std
+        x, y, theta, speed = pose_at(stamp)
+        std = math.hypot(noise.position_std, noise.position_std_per_speed * speed)
         z = np.array([x + rng.normal(0.0, std), y + rng.normal(0.0, std),
                       wrap_angle(theta + rng.normal(0.0, noise.angle_std))])
         if self.previous is not None and rng.random() < noise.repeat_rate:
