@@ -91,11 +91,11 @@ def _format(result: dict, out: Path | None) -> str:
         lines.append(f"  iteration {i}: R {fmt(h['measurement_noise'])}{fixed('R')}  "
                      f"Q {fmt(h['process_noise'])}{fixed('Q')}")
     lines.append(f"R (x, y, theta) = {fmt(result['measurement_noise'])}")
-    if result["measurement_noise_per_speed"] is not None:
-        lines.append(f"  position noise at rest above, growing by {result['measurement_noise_per_speed']:.3e} s "
-                     f"per m/s (in quadrature): {np.sqrt(result['measurement_noise'][0]) * 1e3:.3f} mm at rest, "
-                     f"{np.hypot(np.sqrt(result['measurement_noise'][0]), 3.0 * result['measurement_noise_per_speed']) * 1e3:.3f}"
-                     f" mm at 3 m/s")
+    per_speed = result["measurement_noise_per_speed"]
+    if per_speed is not None:
+        at_rest = np.sqrt(result["measurement_noise"][0])
+        lines.append(f"  position noise at rest above, growing by {per_speed:.3e} s per m/s (in quadrature): "
+                     f"{at_rest * 1e3:.3f} mm at rest, {np.hypot(at_rest, 3.0 * per_speed) * 1e3:.3f} mm at 3 m/s")
     lines.append(f"Q (x, y, vx, vy, theta, omega) = {fmt(result['process_noise'])}")
     h = result["prediction_error"]["horizon"]
     lines.append(f"prediction error at {h} s: mean / median per trajectory [mm]")

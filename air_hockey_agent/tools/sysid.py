@@ -21,8 +21,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from air_hockey_agent.bags.trajectories import split_train_validation
-from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PHYSICAL, combine, identify, loss_report, nis_median,
-                                                      on_bounds, partial_loss)
+from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PHYSICAL, combine, identify,
+                                                      loss_report, nis_median, on_bounds, partial_loss)
 from air_hockey_agent.params import yaml_float
 from air_hockey_agent.sysid_params import bounds
 from air_hockey_agent.tools.files import write_text_atomic

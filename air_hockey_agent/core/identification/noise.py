@@ -7,9 +7,9 @@ With the filter's own estimates standing in for the true states:
 
 both without correlation terms (diagonal, thesis sec. 4.4). With ``by_speed`` the position part of R is
 the noise at rest plus a growth with speed (issue #13: the lab's marker noise grows from 0.15 mm at rest
-to 1.5 mm at 2-5 m/s), fitted to the same residuals against the filter's speed estimate. The estimates change the filter, which
-changes the estimates, so the procedure is iterated (5 times in the thesis). Either matrix can be kept
-fixed while the other is estimated.
+to 1.5 mm at 2-5 m/s), fitted to the same residuals against the filter's speed estimate. The estimates
+change the filter, which changes the estimates, so the procedure is iterated (5 times in the thesis).
+Either matrix can be kept fixed while the other is estimated.
 """
 from __future__ import annotations
 

@@ -68,7 +68,8 @@ class TableEffects:
         return self.restitution_slow + share * (self.restitution_fast - self.restitution_slow)
 
 
-def real_rim_impact(vb: float, vn: float, omega: float, radius: float, effects: TableEffects) -> tuple[float, float, float]:
+def real_rim_impact(vb: float, vn: float, omega: float, radius: float,
+                    effects: TableEffects) -> tuple[float, float, float]:
     """Post-impact (vb, vn, omega) in the impact frame of :mod:`.impact` (``vn < 0`` approaching): the
     normal velocity reverses with the speed-dependent restitution, the tangential impulse is the Routh
     one scaled by ``tangential_scale``."""
