@@ -305,3 +305,28 @@ def test_must_settle_stops_only_approaches_that_would_end_away_from_the_posture(
             stopped += 1
             assert early.limit == "posture" and gap > s.posture_tolerance and len(early.q) < len(targets)
     assert stopped >= 3 and settled >= 3
+
+
+def test_step_bounds_far_from_the_limits_equal_the_general_formula(front):
+    """The step bounds' shortcut away from the position limits gives what the full formula gives (cap =
+    min(velocity, room, sqrt(braking room)) per side), for joints near, at and far from their limits."""
+    from air_hockey_agent.core.motion.tracking import _StepLimits
+    limits, dt = front.limits, front.s.dt
+    steps = _StepLimits(limits, dt)
+    rng = np.random.default_rng(14)
+    shortcut = 0
+    for _ in range(400):
+        span = limits.q_max - limits.q_min
+        fraction = rng.uniform(0.1, 0.9, 7)  # far from both limits, or some joints within 1 % of one
+        near = rng.random(7) < rng.choice([0.0, 0.3])
+        fraction[near] = rng.choice([0.0, 0.99], near.sum()) + rng.uniform(0, 0.01, near.sum())
+        q = limits.q_min + span * fraction
+        previous = rng.uniform(-1, 1, 7) * steps.velocity
+        room_up, room_down = np.maximum(limits.q_max - q, 0), np.maximum(q - limits.q_min, 0)
+        cap_up = np.minimum(np.minimum(steps.velocity, room_up), np.sqrt(steps.braking * room_up))
+        cap_down = np.minimum(np.minimum(steps.velocity, room_down), np.sqrt(steps.braking * room_down))
+        lo, hi = steps.bounds(q, previous, 1.0)
+        shortcut += bool(np.all(cap_up == steps.velocity) and np.all(cap_down == steps.velocity))
+        assert np.allclose(lo, np.maximum(-cap_down, previous - steps.acceleration), rtol=0, atol=1e-15)
+        assert np.allclose(hi, np.minimum(cap_up, previous + steps.acceleration), rtol=0, atol=1e-15)
+    assert 50 <= shortcut <= 350  # both branches taken

@@ -267,9 +267,6 @@ class MotionPlanner:
         strike_q = self._strike(hit, direction, speed, n_strike, config.q, dq_hit)
         if isinstance(strike_q, Plan):
             return strike_q
-        stop_q = self._follow_through(hit, direction, speed, config.q, dq_hit, n_stop)
-        if isinstance(stop_q, Plan):
-            return stop_q
         n_move = tm.steps_for(reach, dt)
         pos, _ = tm.hermite(p0, v0, run_start, np.zeros(2), n_move, dt)
         targets = np.vstack([pos, np.repeat(run_start[None], n_approach - n_move, axis=0)])
@@ -282,6 +279,10 @@ class MotionPlanner:
         gap = float(np.max(np.abs(approach.q[-1] - strike_q[0])))
         if gap > s.posture_tolerance:
             return refused(TOO_LATE, f"the arm cannot take the hit posture in time ({gap:.3f} rad away)")
+        # the follow-through last: most staged hits that fail, fail in the approach (posture)
+        stop_q = self._follow_through(hit, direction, speed, config.q, dq_hit, n_stop)
+        if isinstance(stop_q, Plan):
+            return stop_q
         q = np.vstack([approach.q[:-1], strike_q, [config.q], stop_q])
         times = origin + np.arange(1, len(q) + 1) * dt
         return self._finish(start, times, q, origin + steps * dt, speed, "staged", steps - 1, dq_hit)
