@@ -70,6 +70,7 @@ class MalletKinematics:
         self.model = pin.buildReducedModel(full, striker, pin.neutral(full))
         self.data = self.model.createData()
         self.frame = self.model.getFrameId(joint_frame)
+        self._placements = self.data.oMf  # pinocchio's frame placements in self.data (updated in place)
         full_data = full.createData()
         pin.framesForwardKinematics(full, full_data, pin.neutral(full))
         offset = full_data.oMf[full.getFrameId(tip_frame)].translation - \
@@ -95,6 +96,6 @@ class MalletKinematics:
         """Mallet position [m] and its 3x7 Jacobian d(position)/dq [m/rad], both in the own table frame."""
         jac = pin.computeFrameJacobian(self.model, self.data, q, self.frame, pin.LOCAL_WORLD_ALIGNED)[:3]
         if not self._turned:
-            return self.data.oMf[self.frame].translation + self._offset, jac
-        p = self._rotation @ self.data.oMf[self.frame].translation + self._offset
+            return self._placements[self.frame].translation + self._offset, jac
+        p = self._rotation @ self._placements[self.frame].translation + self._offset
         return p, self._rotation @ jac

@@ -90,6 +90,7 @@ def track(kin: MalletKinematics, limits: JointLimits, qp: StepQP, q0: np.ndarray
     steps = _StepLimits(limits, dt)
     pull = min(1.0, gain * dt)
     pull_cap = 0.5 * steps.velocity
+    no_pull = np.zeros(JOINTS)
     out = np.empty((len(targets), JOINTS))
     hold_from = _hold_start(targets)
     for k, target in enumerate(targets):
@@ -101,15 +102,18 @@ def track(kin: MalletKinematics, limits: JointLimits, qp: StepQP, q0: np.ndarray
                 return Tracked(out[:k], False, f"{late:.3f} rad away in the redundancy {(len(targets) - k) * dt:.2f} s "
                                                f"before the end, more than the posture pull closes", limit="posture")
         dx = target - p
-        ref = np.minimum(np.maximum(pull * (anchor - q), -pull_cap), pull_cap)
-        step = ref + jac.T @ solve_sym3(jjt, dx - jac @ ref, DAMPING)
+        if pull > 0.0:
+            ref = np.minimum(np.maximum(pull * (anchor - q), -pull_cap), pull_cap)
+            step = ref + jac.T @ solve_sym3(jjt, dx - jac @ ref, DAMPING)
+        else:
+            ref, step = no_pull, jac.T @ solve_sym3(jjt, dx, DAMPING)
         # the first step gets half the acceleration room: knot velocities are central differences,
         # and the one at the first knot spans this step and the next
         lo, hi = steps.bounds(q, previous, 1.0 if k else 0.5)
-        if (lo > hi).any():
-            j = int(np.argmax(lo - hi))
-            return Tracked(out[:k], False, f"cannot brake joint {j + 1} before its position limit")
-        if ((step < lo) | (step > hi)).any():
+        if ((step < lo) | (step > hi)).any():  # always so when lo > hi somewhere
+            if (lo > hi).any():
+                j = int(np.argmax(lo - hi))
+                return Tracked(out[:k], False, f"cannot brake joint {j + 1} before its position limit")
             solved = qp.solve(jac, dx, ref, lo, hi)
             if solved is None:
                 return _failed(out[:k], step, previous, q, limits, dt)
