@@ -330,3 +330,40 @@ def test_step_bounds_far_from_the_limits_equal_the_general_formula(front):
         assert np.allclose(lo, np.maximum(-cap_down, previous - steps.acceleration), rtol=0, atol=1e-15)
         assert np.allclose(hi, np.minimum(cap_up, previous + steps.acceleration), rtol=0, atol=1e-15)
     assert 50 <= shortcut <= 350  # both branches taken
+
+
+def test_compiled_kernels_match_their_numpy_formulas(front):
+    """kernels.py against the formulas it compiles, at random postures of the real arm."""
+    from air_hockey_agent.core.motion.kernels import (inside_simple_bounds, min_norm_step, surrogate,
+                                                      unconstrained_step)
+    from air_hockey_agent.core.motion.tracking import _StepLimits
+    rng = np.random.default_rng(15)
+    steps = _StepLimits(front.limits, front.s.dt)
+    cap = 0.5 * steps.velocity
+    outcomes = set()
+    for _ in range(50):
+        q = front.s.reference + rng.uniform(-0.5, 0.5, 7)
+        anchor, dx = q + rng.uniform(-0.3, 0.3, 7), rng.uniform(-0.01, 0.01, 3)
+        _, jac = front.kin.position_and_jacobian(q)
+        ref, step = np.empty(7), np.empty(7)
+        unconstrained_step(jac, dx, q, anchor, 0.2, cap, 1e-8, ref, step)
+        want_ref = np.clip(0.2 * (anchor - q), -cap, cap)
+        want = want_ref + jac.T @ np.linalg.solve(jac @ jac.T + 1e-8 * np.eye(3), dx - jac @ want_ref)
+        assert np.allclose(ref, want_ref, atol=1e-15) and np.allclose(step, want, rtol=1e-9, atol=1e-13)
+        assert np.allclose(jac @ step, dx, atol=1e-9)
+        min_norm_step(jac, dx, 0.0, step)
+        assert np.allclose(step, np.linalg.pinv(jac) @ dx, rtol=1e-8, atol=1e-13)
+        task, scale = np.array([*rng.normal(size=2), 0.0]), front.limits.dq_max
+        js = jac * scale
+        assert surrogate(jac, task, scale) == pytest.approx(1 / (task @ np.linalg.solve(js @ js.T, task)), rel=1e-9)
+        previous = rng.uniform(-1, 1, 7) * steps.velocity
+        trial = previous + rng.uniform(-1.2, 1.2, 7) * steps.acceleration
+        lo, hi = steps.bounds(q, previous, 1.0)
+        inside = inside_simple_bounds(q, trial, previous, steps.velocity, steps.acceleration, steps.clear_min,
+                                      steps.clear_max)
+        clear = bool(np.all((q >= steps.clear_min) & (q <= steps.clear_max)))
+        simple = bool(np.all((np.abs(trial) <= steps.velocity) & (np.abs(trial - previous) <= steps.acceleration)))
+        assert inside == (clear and simple)
+        assert not inside or bool(np.all((trial >= lo) & (trial <= hi)))  # True only for a step inside the bounds
+        outcomes.add(inside)
+    assert outcomes == {True, False}

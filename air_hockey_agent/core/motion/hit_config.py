@@ -23,8 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.optimize import linprog
 
-from air_hockey_agent.core.linalg3 import solve_sym3
-from air_hockey_agent.core.motion.ik import weighted_pinv
+from air_hockey_agent.core.motion.kernels import min_norm_step, surrogate
 from air_hockey_agent.core.motion.kinematics import MalletKinematics
 from air_hockey_agent.core.motion.limits import JointLimits
 
@@ -152,11 +151,6 @@ def max_speed_along_highs(jac: np.ndarray, direction: np.ndarray, dq_max: np.nda
     return float(result.x[-1]), dq
 
 
-def _surrogate(jac: np.ndarray, task: np.ndarray, scale: np.ndarray) -> float:
-    js = jac * scale
-    return 1.0 / float(task @ solve_sym3(js @ js.T, task))
-
-
 def best_hit_configuration(kin: MalletKinematics, limits: JointLimits, q_start: np.ndarray,
                            direction: np.ndarray, tolerance: float = 1e-4,
                            range_scale: float = 1.0) -> HitConfiguration:
@@ -168,10 +162,10 @@ def best_hit_configuration(kin: MalletKinematics, limits: JointLimits, q_start: 
     task = np.array([direction[0], direction[1], 0.0])
     best = q = np.asarray(q_start, float).copy()
     target, jac = kin.position_and_jacobian(q)
-    best_value = _surrogate(jac, task, limits.dq_max)
+    best_value = surrogate(jac, task, limits.dq_max)
     for _ in range(ASCENT_ITERATIONS):
         basis = _null_basis(jac)
-        grad = np.array([(_surrogate(kin.position_and_jacobian(q + FD_STEP * b)[1], task, limits.dq_max)
+        grad = np.array([(surrogate(kin.position_and_jacobian(q + FD_STEP * b)[1], task, limits.dq_max)
                           - best_value) / FD_STEP for b in basis])
         step = grad @ basis
         norm = float(np.linalg.norm(step))
@@ -179,7 +173,7 @@ def best_hit_configuration(kin: MalletKinematics, limits: JointLimits, q_start: 
             break
         candidate = _back_on_point(kin, lo, hi, q + step * (ASCENT_STEP / norm), target)
         p, jac = kin.position_and_jacobian(candidate)
-        value = _surrogate(jac, task, limits.dq_max)
+        value = surrogate(jac, task, limits.dq_max)
         if np.linalg.norm(p - target) > tolerance or value <= best_value:
             break
         best, best_value, q = candidate, value, candidate
@@ -206,10 +200,12 @@ def _scaled_range(limits: JointLimits, scale: float) -> tuple[np.ndarray, np.nda
 def _back_on_point(kin: MalletKinematics, lo: np.ndarray, hi: np.ndarray, q: np.ndarray,
                    target: np.ndarray) -> np.ndarray:
     """Newton steps that put the mallet back on ``target`` after a null-space move, inside [lo, hi]."""
+    step = np.empty(len(q))
     for _ in range(3):
         p, jac = kin.position_and_jacobian(q)
         error = target - p
         if float(error @ error) < ON_POINT ** 2:
             break
-        q = np.clip(q + weighted_pinv(jac) @ error, lo, hi)
+        min_norm_step(jac, error, 0.0, step)
+        q = np.clip(q + step, lo, hi)
     return q

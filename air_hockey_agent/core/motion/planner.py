@@ -10,7 +10,7 @@ follow-through (stop along the same line) forward, so the hit posture and veloci
 The arm first reaches the run-up's start at rest in the strike's posture and waits there (*staged*);
 when there is no time for that, a cubic from the current state straight into the hit velocity is
 tracked instead (*direct*). Reach and stop: the shortest cubic within the task acceleration bound
-and the joint limits. Joint trajectories come from :mod:`tracking` (null-space QP, OSQP).
+and the joint limits. Joint trajectories come from :mod:`tracking` (null-space QP, DAQP).
 A command the arm cannot do is refused with a reason, never clipped.
 """
 from __future__ import annotations
@@ -28,6 +28,7 @@ from air_hockey_agent.core.motion.kinematics import MalletKinematics
 from air_hockey_agent.core.motion.limits import JointLimits
 from air_hockey_agent.core.motion.region import Region
 from air_hockey_agent.core.motion.tracking import StepQP, track
+from air_hockey_agent.core.motion.kernels import warm_up
 
 # Outcome codes (same values as air_hockey_msgs/TrajectoryStatus)
 ACCEPTED, INVALID, OUTSIDE_REGION, TOO_LATE, UNREACHABLE, TOO_FAST, LIMITS = range(7)
@@ -130,6 +131,8 @@ class MotionPlanner:
     def __init__(self, kin: MalletKinematics, limits: JointLimits, region: Region, settings: MotionSettings) -> None:
         self.kin, self.limits, self.region, self.s = kin, limits, region, settings
         self.qp = StepQP()
+        # compile (or load) the tracking's numba code now, not in the first command's planning time
+        warm_up(kin.position_and_jacobian(settings.reference)[1])
 
     # --- entry point ---------------------------------------------------------------------------
     def plan(self, command: Command, start: ArmState) -> Plan:

@@ -23,6 +23,7 @@ import daqp
 from air_hockey_agent.core.linalg3 import solve_sym3
 from air_hockey_agent.core.motion.kinematics import MalletKinematics
 from air_hockey_agent.core.motion.limits import JointLimits
+from air_hockey_agent.core.motion.kernels import inside_simple_bounds, unconstrained_step
 
 JOINTS = 7
 DAMPING = 1e-8  # [m^2] regularises J J^T at the (excluded) singular configurations
@@ -90,44 +91,42 @@ def track(kin: MalletKinematics, limits: JointLimits, qp: StepQP, q0: np.ndarray
     steps = _StepLimits(limits, dt)
     pull = min(1.0, gain * dt)
     pull_cap = 0.5 * steps.velocity
-    no_pull = np.zeros(JOINTS)
+    ref, step = np.empty(JOINTS), np.empty(JOINTS)
     out = np.empty((len(targets), JOINTS))
     hold_from = _hold_start(targets)
     for k, target in enumerate(targets):
         p, jac = kin.position_and_jacobian(q)
-        jjt = jac @ jac.T
         if must_settle:
-            late = _posture_too_far(q - anchor, jac, jjt, (1.0 - pull) ** (len(targets) - k), POSTURE_MARGIN * settle)
+            late = _posture_too_far(q - anchor, jac, (1.0 - pull) ** (len(targets) - k), POSTURE_MARGIN * settle)
             if late:
                 return Tracked(out[:k], False, f"{late:.3f} rad away in the redundancy {(len(targets) - k) * dt:.2f} s "
                                                f"before the end, more than the posture pull closes", limit="posture")
         dx = target - p
-        if pull > 0.0:
-            ref = np.minimum(np.maximum(pull * (anchor - q), -pull_cap), pull_cap)
-            step = ref + jac.T @ solve_sym3(jjt, dx - jac @ ref, DAMPING)
-        else:
-            ref, step = no_pull, jac.T @ solve_sym3(jjt, dx, DAMPING)
+        unconstrained_step(jac, dx, q, anchor, pull, pull_cap, DAMPING, ref, step)
         # the first step gets half the acceleration room: knot velocities are central differences,
         # and the one at the first knot spans this step and the next
-        lo, hi = steps.bounds(q, previous, 1.0 if k else 0.5)
-        if ((step < lo) | (step > hi)).any():  # always so when lo > hi somewhere
-            if (lo > hi).any():
-                j = int(np.argmax(lo - hi))
-                return Tracked(out[:k], False, f"cannot brake joint {j + 1} before its position limit")
-            solved = qp.solve(jac, dx, ref, lo, hi)
-            if solved is None:
-                return _failed(out[:k], step, previous, q, limits, dt)
-            step = solved
+        share = 1.0 if k else 0.5
+        if not inside_simple_bounds(q, step, previous, steps.velocity, steps.acceleration * share,
+                                    steps.clear_min, steps.clear_max):
+            lo, hi = steps.bounds(q, previous, share)
+            if ((step < lo) | (step > hi)).any():  # always so when lo > hi somewhere
+                if (lo > hi).any():
+                    j = int(np.argmax(lo - hi))
+                    return Tracked(out[:k], False, f"cannot brake joint {j + 1} before its position limit")
+                solved = qp.solve(jac, dx, ref, lo, hi)
+                if solved is None:
+                    return _failed(out[:k], step, previous, q, limits, dt)
+                step = solved
         q = q + step
         out[k] = q
-        previous = step
         if settle > 0.0 and k >= hold_from and _settled(k, len(targets), step, q, anchor, settle):
             out[k + 1:] = q
             break
+        previous, step = step, previous  # the next sample writes its step over the old previous one
     return Tracked(out, True)
 
 
-def _posture_too_far(error: np.ndarray, jac: np.ndarray, jjt: np.ndarray, decay: float, allowed: float) -> float:
+def _posture_too_far(error: np.ndarray, jac: np.ndarray, decay: float, allowed: float) -> float:
     """The posture error's null-space part [rad, max norm] when even its fastest decay (``decay`` over
     the samples left) leaves more than ``allowed`` at the end, else 0. The null-space pull shrinks that
     part by at most (1 - gain dt) per sample while the task part vanishes as the mallet reaches its
@@ -135,7 +134,7 @@ def _posture_too_far(error: np.ndarray, jac: np.ndarray, jjt: np.ndarray, decay:
     POSTURE_MARGIN covers that."""
     if math.sqrt(float(error @ error)) * decay <= allowed:  # the max norm of a projection is at most this
         return 0.0
-    null = error - jac.T @ solve_sym3(jjt, jac @ error, DAMPING)
+    null = error - jac.T @ solve_sym3(jac @ jac.T, jac @ error, DAMPING)
     gap = float(np.max(np.abs(null)))
     return gap if gap * decay > allowed else 0.0
 
