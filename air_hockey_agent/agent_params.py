@@ -16,6 +16,8 @@ PARAM_FILES = ("table.yaml", "agent.yaml")
 AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("mallet.radius", float, "[m] mallet radius", 0.005, 0.2),
     ParamSpec("robot", str, "which robot this node plays (iiwa_front or iiwa_back)"),
+    ParamSpec("puck_params_file", str, "tracker parameter YAML whose puck physics the shots are predicted with "
+                                       "('': config/tracker.yaml's; give the tracker's own --params-file)"),
     ParamSpec("rate", float, "[Hz] decisions per simulated second", 1.0, 1000.0),
     ParamSpec("status_period", float, "[s] re-publication period of the current tactic", 0.01, 3600.0),
     ParamSpec("defend_line", float, "[m] depth of the defend line from the own goal line", 0.0, 1.0),
@@ -75,14 +77,22 @@ def load_agent_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     return load_node_params(PARAM_FILES, NODE_NAME, AGENT_PARAMS, extra_files)
 
 
-def puck_model_for_tactics():
-    """The tracker's puck model (``config/table.yaml``, ``config/tracker.yaml``): shots are predicted
-    with the physics the filter uses."""
+def puck_model_for_tactics(puck_params_file: str = ""):
+    """The tracker's puck model (``config/table.yaml``, ``config/tracker.yaml``, then ``puck_params_file``
+    when given): shots are predicted with the physics the filter uses."""
     from air_hockey_agent.core.puck.model import PuckModel, PuckParams
     from air_hockey_agent.core.table import TableGeometry
-    from air_hockey_agent.tracker_params import load_tracker_params
-    p = load_tracker_params()
+    p = _tracker_params(puck_params_file)
     return PuckModel(TableGeometry.from_params(p), PuckParams.from_params(p))
+
+
+def _tracker_params(puck_params_file: str) -> dict[str, Any]:
+    from air_hockey_agent.params import ParameterFileError
+    from air_hockey_agent.tracker_params import load_tracker_params
+    try:
+        return load_tracker_params([Path(puck_params_file)] if puck_params_file else [])
+    except ParameterFileError as exc:
+        raise ParameterFileError(f"parameter 'puck_params_file': {exc}") from None
 
 
 def build_selector(params: dict[str, Any], robot: str, log=None):
@@ -94,7 +104,6 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
     from air_hockey_agent.core.game.tactics.selector import TacticsSelector
     from air_hockey_agent.core.game.tactics.settings import TacticsSettings
     from air_hockey_agent.motion_params import build_planner, load_motion_params
-    from air_hockey_agent.tracker_params import load_tracker_params
     motion = load_motion_params()
     planner = build_planner(motion, robot)
     speeds = load_or_build(planner, motion, params["speed_map_grid"], log=log)
@@ -103,6 +112,6 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
                      s.follow_through[1], s.reach_acceleration,
                      s.planning_delay + s.height_transition, params["reach_time_margin"], speeds)
     settings = TacticsSettings.from_params(params)
-    dt = 1.0 / load_tracker_params()["frequency"]
-    shots = ShotPredictor(puck_model_for_tactics(), settings, dt, reach.max_speed)
+    dt = 1.0 / _tracker_params(params["puck_params_file"])["frequency"]
+    shots = ShotPredictor(puck_model_for_tactics(params["puck_params_file"]), settings, dt, reach.max_speed)
     return TacticsSelector(settings, reach, shots), planner.kin

@@ -12,6 +12,9 @@ from air_hockey_agent.params import ParamSpec, load_node_params
 
 NODE_NAME = "/puck_tracker"
 PARAM_FILES = ("table.yaml", "tracker.yaml")
+# The puck physics of the simulated table (config/sim.yaml) for the tracker and the tactics on it; the
+# defaults in tracker.yaml are a real table's (issue #13).
+SIM_TABLE_FILE = "tracker_sim_table.yaml"
 
 TABLE_PARAMS = (
     ParamSpec("table.length", float, "[m] playing surface length", 0.5, 5.0),
@@ -56,3 +59,9 @@ def load_tracker_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     one-line message naming the file or parameter.
     """
     return load_node_params(PARAM_FILES, NODE_NAME, TRACKER_NODE_PARAMS, extra_files)
+
+
+def load_sim_table_tracker_params() -> dict[str, Any]:
+    """Tracker parameters for the simulated table: the defaults with ``config/tracker_sim_table.yaml``."""
+    from air_hockey_agent.paths import config_file
+    return load_tracker_params([config_file(SIM_TABLE_FILE)])

@@ -91,3 +91,16 @@ def test_every_shipped_parameter_file_passes_the_misspelling_check():
     assert len(files) >= 10
     for path in files:
         check_parameter_file(path, "puck_tracker", nodes["puck_tracker"], nodes)
+
+
+def test_the_sim_table_tracker_file_has_the_simulated_tables_physics():
+    """config/tracker_sim_table.yaml (the tracker and tactics on the simulated table) carries
+    config/sim.yaml's air film and rim values; the tracker's defaults are a real table's."""
+    from air_hockey_agent.sim.params import load_sim_params
+    from air_hockey_agent.tracker_params import load_sim_table_tracker_params, load_tracker_params
+    sim, tracker = load_sim_params(), load_sim_table_tracker_params()
+    for tracker_name, sim_name in (("friction_surface", "surface_friction"), ("damping", "surface_damping"),
+                                   ("restitution", "rim_restitution"), ("friction_rim", "rim_friction")):
+        assert tracker[tracker_name] == sim[sim_name], tracker_name
+    assert tracker["restitution_slope"] == 0.0
+    assert load_tracker_params()["damping"] != sim["surface_damping"]

@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 
 from air_hockey_agent.agent_params import load_agent_params, puck_model_for_tactics
+from air_hockey_agent.paths import config_file
+from air_hockey_agent.tracker_params import SIM_TABLE_FILE
 from air_hockey_agent.core.game.arm_reach import ArmReach
 from air_hockey_agent.core.game.shots import ShotPredictor, puck_after_hit
 from air_hockey_agent.core.game.situation import build_situation, to_own_frame
@@ -30,7 +32,9 @@ def settings():
 
 @pytest.fixture(scope="module")
 def model():
-    return puck_model_for_tactics()
+    """The simulated table's puck model, as `air-hockey game` gives the tactics (the thresholds and speed
+    ranges of config/agent.yaml were chosen on it; the tracker's defaults are a real, slower-damped table's)."""
+    return puck_model_for_tactics(str(config_file(SIM_TABLE_FILE)))
 
 
 def flat_reach(settings) -> ArmReach:
@@ -142,7 +146,8 @@ def test_bank_shot_corrects_the_reflection_law(settings, model):
 
 
 def test_shot_in_the_pybullet_table_enters_the_goal(settings, model):
-    """Against another implementation of the physics: the simulated table (pybullet, its own rim contacts)."""
+    """Against another implementation of the physics: the simulated table (pybullet, its own rim contacts),
+    aimed with that table's parameters (config/tracker_sim_table.yaml, as `air-hockey game` does)."""
     from dataclasses import replace
 
     from air_hockey_agent.sim.params import load_sim_params

@@ -66,12 +66,12 @@ def test_a_misspelled_or_bad_node_parameter_is_a_one_line_error(ros_env, tmp_pat
 
 
 def test_a_whole_number_is_accepted_for_a_float_parameter_and_logged(ros_env, tmp_path):
-    """`-p real_time_factor:=0` (the README's own command) and `restitution: 1` in a parameter file."""
+    """`-p real_time_factor:=0` (the README's own command) and `damping: 1` in a parameter file."""
     code, out = run_until([BIN / "table_sim", "--ros-args", "-p", "real_time_factor:=0"], "node ready", ros_env)
     assert code == 0 and "real_time_factor=0.0" in out and "Traceback" not in out, out[-2000:]
-    params = write(tmp_path / "p.yaml", "/**/puck_tracker:\n  ros__parameters:\n    restitution: 1\n")
+    params = write(tmp_path / "p.yaml", "/**/puck_tracker:\n  ros__parameters:\n    damping: 1\n")
     code, out = run_until([BIN / "puck_tracker", "--ros-args", "--params-file", params], "node ready", ros_env)
-    assert code == 0 and "restitution=1.0" in out and "Traceback" not in out, out[-2000:]
+    assert code == 0 and "damping=1.0" in out and "Traceback" not in out, out[-2000:]
 
 
 # --- air-hockey tools ------------------------------------------------------------------------------

@@ -74,7 +74,11 @@ def run(args: argparse.Namespace) -> int:
     from air_hockey_agent.strategy_params import load_strategy_params
     from air_hockey_agent.tools.bench_planner import ready_state
     planner = build_planner(load_motion_params(), ROBOT)
-    selector, kin = build_selector(load_agent_params(), ROBOT)
+    from air_hockey_agent.paths import config_file
+    from air_hockey_agent.tracker_params import SIM_TABLE_FILE
+    agent = load_agent_params()
+    agent["puck_params_file"] = str(config_file(SIM_TABLE_FILE))  # the shots fly in the simulated world
+    selector, kin = build_selector(agent, ROBOT)
     trials = TrialSettings.from_params(load_strategy_params())
     start = ready_state(planner, selector.s.point(selector.s.ready_point))  # iiwa_front: own frame = table frame
     sim = SimSettings.from_params(load_sim_params())

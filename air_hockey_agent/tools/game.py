@@ -56,9 +56,13 @@ class GameError(Exception):
 
 def robot_node(node: str, robot: str, label: str | None = None) -> ProcessSpec:
     """A per-robot node in the robot's namespace, on sim time (told which robot it is when it asks:
-    the tracker serves whoever is in its namespace)."""
+    the tracker serves whoever is in its namespace). The tracker and the tactics get the simulated
+    table's puck physics (``config/tracker_sim_table.yaml``; the tracker's defaults are a real table's)."""
     from air_hockey_agent.param_registry import node_parameters
+    from air_hockey_agent.tracker_params import SIM_TABLE_FILE
     which = ["-p", f"robot:={robot}"] if "robot" in node_parameters()[node] else []
+    physics = str(config_file(SIM_TABLE_FILE))
+    which += {"puck_tracker": ["--params-file", physics], "tactics": ["-p", f"puck_params_file:={physics}"]}.get(node, [])
     return ProcessSpec(label or f"{robot}/{node}", [*node_executable(node), "--ros-args", "-r", f"__ns:=/{robot}",
                                                     "-p", "use_sim_time:=true", *which])
 
