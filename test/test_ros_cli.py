@@ -23,7 +23,7 @@ EXPECTED = {
     "service list": ["/set_puck_state", "/iiwa_front/puck_tracker/list_parameters"],
     "service call": ["requester: making request", "response:", "success: true"],
     "param list": ["/iiwa_front/puck_tracker:", "  damping"],
-    "param get": ["Double value is: 0.5"],
+    "param get": ["Double value is: 0.125"],
     "param set": ["Set parameter successful"],
     "shoot": ["shot at 3 m/s, 150 deg"],
 }
