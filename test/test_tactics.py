@@ -342,3 +342,19 @@ def test_a_speed_cap_never_asks_for_more_than_the_fastest_allowed_hit(selector, 
     puck = np.array([-0.5, 0.1, 0, 0, 0, 0])
     capped = selector.shots.aim(puck, "straight", speed=10.0)
     assert capped is not None and capped.mallet_speed <= settings.max_hit_speed + 1e-9
+
+
+def test_the_puck_physics_file_is_read_and_a_bad_one_is_a_one_line_error(tmp_path):
+    """puck_params_file: the tactics' shots use that file's physics; a missing or malformed one names the
+    parameter and the file."""
+    from air_hockey_agent.params import ParameterFileError
+    from air_hockey_agent.sim.params import load_sim_params
+    from air_hockey_agent.tracker_params import load_tracker_params
+    assert puck_model_for_tactics(str(config_file(SIM_TABLE_FILE))).params.damping == load_sim_params()["surface_damping"]
+    assert puck_model_for_tactics("").params.damping == load_tracker_params()["damping"]
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("/**/puck_tracker:\n  ros__parameters:\n    damping: [\n")
+    for path in (tmp_path / "missing.yaml", bad):
+        with pytest.raises(ParameterFileError, match=rf"^parameter 'puck_params_file': .*{path.name}") as info:
+            puck_model_for_tactics(str(path))
+        assert "\n" not in str(info.value)
