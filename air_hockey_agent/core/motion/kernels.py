@@ -22,6 +22,18 @@ from numba import njit
 
 
 @njit(cache=True)
+def _solve_sym3(a00: float, a01: float, a02: float, a11: float, a12: float, a22: float, b0: float, b1: float,
+                b2: float) -> tuple[float, float, float]:
+    """x with A x = b for the symmetric 3x3 A given by its upper triangle, by cofactors (the compiled
+    twin of core/linalg3.py's solve_sym3, which numba code cannot call)."""
+    c00, c01, c02 = a11 * a22 - a12 * a12, a02 * a12 - a01 * a22, a01 * a12 - a02 * a11
+    c11, c12, c22 = a00 * a22 - a02 * a02, a01 * a02 - a00 * a12, a00 * a11 - a01 * a01
+    det = a00 * c00 + a01 * c01 + a02 * c02
+    return ((c00 * b0 + c01 * b1 + c02 * b2) / det, (c01 * b0 + c11 * b1 + c12 * b2) / det,
+            (c02 * b0 + c12 * b1 + c22 * b2) / det)
+
+
+@njit(cache=True)
 def unconstrained_step(jac: np.ndarray, dx: np.ndarray, q: np.ndarray, anchor: np.ndarray, pull: float,
                        pull_cap: np.ndarray, damping: float, ref: np.ndarray, step: np.ndarray) -> None:
     """Write the posture pull ``ref`` and the step ``step`` [rad] (module docstring) into the given arrays.
@@ -43,13 +55,7 @@ def unconstrained_step(jac: np.ndarray, dx: np.ndarray, q: np.ndarray, anchor: n
         a11 += j1 * j1
         a12 += j1 * j2
         a22 += j2 * j2
-    # (J J^T + damping I)^-1 by cofactors (symmetric 3x3, as core/linalg3.py)
-    c00, c01, c02 = a11 * a22 - a12 * a12, a02 * a12 - a01 * a22, a01 * a12 - a02 * a11
-    c11, c12, c22 = a00 * a22 - a02 * a02, a01 * a02 - a00 * a12, a00 * a11 - a01 * a01
-    det = a00 * c00 + a01 * c01 + a02 * c02
-    y0 = (c00 * e0 + c01 * e1 + c02 * e2) / det
-    y1 = (c01 * e0 + c11 * e1 + c12 * e2) / det
-    y2 = (c02 * e0 + c12 * e1 + c22 * e2) / det
+    y0, y1, y2 = _solve_sym3(a00, a01, a02, a11, a12, a22, e0, e1, e2)
     for j in range(n):
         step[j] = ref[j] + jac[0, j] * y0 + jac[1, j] * y1 + jac[2, j] * y2
 
@@ -90,13 +96,9 @@ def surrogate(jac: np.ndarray, task: np.ndarray, scale: np.ndarray) -> float:
         a11 += w * j1 * j1
         a12 += w * j1 * j2
         a22 += w * j2 * j2
-    c00, c01, c02 = a11 * a22 - a12 * a12, a02 * a12 - a01 * a22, a01 * a12 - a02 * a11
-    c11, c12, c22 = a00 * a22 - a02 * a02, a01 * a02 - a00 * a12, a00 * a11 - a01 * a01
-    det = a00 * c00 + a01 * c01 + a02 * c02
     t0, t1, t2 = task[0], task[1], task[2]
-    quadratic = (t0 * (c00 * t0 + c01 * t1 + c02 * t2) + t1 * (c01 * t0 + c11 * t1 + c12 * t2)
-                 + t2 * (c02 * t0 + c12 * t1 + c22 * t2)) / det
-    return 1.0 / quadratic
+    x0, x1, x2 = _solve_sym3(a00, a01, a02, a11, a12, a22, t0, t1, t2)
+    return 1.0 / (t0 * x0 + t1 * x1 + t2 * x2)
 
 
 def warm_up(jac: np.ndarray) -> None:
