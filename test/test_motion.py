@@ -308,13 +308,15 @@ def test_must_settle_stops_only_approaches_that_would_end_away_from_the_posture(
 
 
 def test_step_bounds_far_from_the_limits_equal_the_general_formula(front):
-    """The step bounds' shortcut away from the position limits gives what the full formula gives (cap =
-    min(velocity, room, sqrt(braking room)) per side), for joints near, at and far from their limits."""
+    """The step bounds are the full formula (cap = min(velocity, room, sqrt(braking room)) per side) for
+    joints near, at and far from their limits, and the compiled shortcut (kernels.inside_simple_bounds,
+    velocity and acceleration alone where every joint is clear of its limits) accepts only steps inside them."""
+    from air_hockey_agent.core.motion.kernels import inside_simple_bounds
     from air_hockey_agent.core.motion.tracking import _StepLimits
     limits, dt = front.limits, front.s.dt
     steps = _StepLimits(limits, dt)
     rng = np.random.default_rng(14)
-    shortcut = 0
+    shortcut = accepted = 0
     for _ in range(400):
         span = limits.q_max - limits.q_min
         fraction = rng.uniform(0.1, 0.9, 7)  # far from both limits, or some joints within 1 % of one
@@ -329,7 +331,13 @@ def test_step_bounds_far_from_the_limits_equal_the_general_formula(front):
         shortcut += bool(np.all(cap_up == steps.velocity) and np.all(cap_down == steps.velocity))
         assert np.allclose(lo, np.maximum(-cap_down, previous - steps.acceleration), rtol=0, atol=1e-15)
         assert np.allclose(hi, np.minimum(cap_up, previous + steps.acceleration), rtol=0, atol=1e-15)
+        trial = previous + rng.uniform(-1.2, 1.2, 7) * steps.acceleration
+        if inside_simple_bounds(q, trial, previous, steps.velocity, steps.acceleration, steps.clear_min,
+                                steps.clear_max):
+            accepted += 1
+            assert np.all((trial >= lo) & (trial <= hi))
     assert 50 <= shortcut <= 350  # both branches taken
+    assert accepted >= 20
 
 
 def test_compiled_kernels_match_their_numpy_formulas(front):

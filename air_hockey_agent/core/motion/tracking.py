@@ -165,16 +165,14 @@ class _StepLimits:
         self.acceleration = limits.ddq_max * dt * dt
         self.braking = 2.0 * limits.ddq_max * dt * dt  # (step to stop in room d)^2 = braking * d
         self.velocity2, self.braking2 = np.tile(self.velocity, 2), np.tile(self.braking, 2)  # up, then down
-        # farther than this from both limits, only the velocity caps a step (room >= v and braking room >= v^2)
+        # farther than this from both limits, only the velocity caps a step (room >= v and braking room >= v^2):
+        # there the compiled kernels.inside_simple_bounds decides without computing the bounds
         clear = np.maximum(self.velocity, self.velocity ** 2 / self.braking)
         self.clear_max, self.clear_min = self.q_max - clear, self.q_min + clear
-        self.slowest = -self.velocity
 
     def bounds(self, q: np.ndarray, previous: np.ndarray, acceleration_share: float) -> tuple[np.ndarray, np.ndarray]:
         """(lo, hi) of the step after ``previous`` from ``q``, with ``acceleration_share`` of the acceleration room."""
         accel = self.acceleration if acceleration_share == 1.0 else self.acceleration * acceleration_share
-        if not ((q > self.clear_max) | (q < self.clear_min)).any():  # the common case, in fewer operations
-            return np.maximum(self.slowest, previous - accel), np.minimum(self.velocity, previous + accel)
         room = np.maximum(np.concatenate([self.q_max - q, q - self.q_min]), 0.0)
         cap = np.minimum(np.minimum(self.velocity2, room), np.sqrt(self.braking2 * room))
         return np.maximum(-cap[JOINTS:], previous - accel), np.minimum(cap[:JOINTS], previous + accel)
