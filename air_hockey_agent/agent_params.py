@@ -80,9 +80,12 @@ def load_agent_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
 def puck_model_for_tactics(puck_params_file: str = ""):
     """The tracker's puck model (``config/table.yaml``, ``config/tracker.yaml``, then ``puck_params_file``
     when given): shots are predicted with the physics the filter uses."""
+    return _puck_model(_tracker_params(puck_params_file))
+
+
+def _puck_model(p: dict[str, Any]):
     from air_hockey_agent.core.puck.model import PuckModel, PuckParams
     from air_hockey_agent.core.table import TableGeometry
-    p = _tracker_params(puck_params_file)
     return PuckModel(TableGeometry.from_params(p), PuckParams.from_params(p))
 
 
@@ -112,6 +115,6 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
                      s.follow_through[1], s.reach_acceleration,
                      s.planning_delay + s.height_transition, params["reach_time_margin"], speeds)
     settings = TacticsSettings.from_params(params)
-    dt = 1.0 / _tracker_params(params["puck_params_file"])["frequency"]
-    shots = ShotPredictor(puck_model_for_tactics(params["puck_params_file"]), settings, dt, reach.max_speed)
+    tracker = _tracker_params(params["puck_params_file"])
+    shots = ShotPredictor(_puck_model(tracker), settings, 1.0 / tracker["frequency"], reach.max_speed)
     return TacticsSelector(settings, reach, shots), planner.kin
