@@ -59,9 +59,3 @@ def load_tracker_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     one-line message naming the file or parameter.
     """
     return load_node_params(PARAM_FILES, NODE_NAME, TRACKER_NODE_PARAMS, extra_files)
-
-
-def load_sim_table_tracker_params() -> dict[str, Any]:
-    """Tracker parameters for the simulated table: the defaults with ``config/tracker_sim_table.yaml``."""
-    from air_hockey_agent.paths import config_file
-    return load_tracker_params([config_file(SIM_TABLE_FILE)])

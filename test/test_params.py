@@ -97,8 +97,9 @@ def test_the_sim_table_tracker_file_has_the_simulated_tables_physics():
     """config/tracker_sim_table.yaml (the tracker and tactics on the simulated table) carries
     config/sim.yaml's air film and rim values; the tracker's defaults are a real table's."""
     from air_hockey_agent.sim.params import load_sim_params
-    from air_hockey_agent.tracker_params import load_sim_table_tracker_params, load_tracker_params
-    sim, tracker = load_sim_params(), load_sim_table_tracker_params()
+    from air_hockey_agent.paths import config_file
+    from air_hockey_agent.tracker_params import SIM_TABLE_FILE, load_tracker_params
+    sim, tracker = load_sim_params(), load_tracker_params([config_file(SIM_TABLE_FILE)])
     for tracker_name, sim_name in (("friction_surface", "surface_friction"), ("damping", "surface_damping"),
                                    ("restitution", "rim_restitution"), ("friction_rim", "rim_friction")):
         assert tracker[tracker_name] == sim[sim_name], tracker_name
