@@ -31,7 +31,7 @@ from air_hockey_agent.bags.types import typestore
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.frames import quaternion_from_yaw, table_to_mocap
-from air_hockey_agent.core.puck.real_table import RealTablePuck, TableEffects
+from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
 from air_hockey_agent.core.estimation.synthetic import MOCAP_FIELDS, MocapImperfections, ShotRanges, synthetic_session
 from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import load_tracker_params
@@ -129,7 +129,8 @@ def _truth_source(source: str, params_files, session, table, seed: int):
         yield None
         return
     if source == "testbed":
-        yield _testbed_shots(session, table, np.random.default_rng([seed, 1]))
+        yield testbed_shots(TableEffects.from_params(session), table, session["testbed.hit_delay"],
+                            session["fine_dt"], np.random.default_rng([seed, 1]))
         return
     from air_hockey_agent.sim.params import load_sim_params
     from air_hockey_agent.sim.world import SimSettings, TableWorld, simulate_shot
@@ -138,24 +139,6 @@ def _truth_source(source: str, params_files, session, table, seed: int):
         yield lambda state, duration: simulate_shot(world, state, duration)
     finally:
         world.close()
-
-
-def _testbed_shots(session, table, rng: np.random.Generator):
-    """Shots on the test bed's real table (core/puck/real_table.py): the puck rests where the shot starts
-    (at least 10 cm inside the rims), held for a random delay, then a human hit gives it the shot's
-    velocity (speed and direction as drawn by the session)."""
-    effects = TableEffects.from_params(session)
-    margin = 0.1
-
-    def simulate(state: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
-        puck = RealTablePuck(table, effects, rng)
-        rest = state.copy()
-        rest[0] = np.clip(rest[0], -table.x_limit + margin, table.x_limit - margin)
-        rest[1] = np.clip(rest[1], -table.y_limit + margin, table.y_limit - margin)
-        rest[2:4], rest[5] = 0.0, 0.0
-        delay = rng.uniform(*session["testbed.hit_delay"])
-        return puck.simulate(rest, duration, session["fine_dt"], delay, state[2:4])
-    return simulate
 
 
 def _messages(frames, start_time: float, table_pose):

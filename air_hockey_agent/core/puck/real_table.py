@@ -180,3 +180,23 @@ def hit_from_rest(table: TableGeometry, speed: tuple[float, float], rng: np.rand
     v = rng.uniform(*speed)
     return np.array([x, y, 0.0, 0.0, rng.uniform(-math.pi, math.pi), 0.0]), \
         v * np.array([math.cos(heading), math.sin(heading)])
+
+
+def testbed_shots(effects: TableEffects, table: TableGeometry, hit_delay: tuple[float, float], fine_dt: float,
+                  rng: np.random.Generator):
+    """Shots on the test bed's table (``simulate(state, duration) -> (times, states)`` for
+    :func:`~air_hockey_agent.core.estimation.synthetic.synthetic_session`): the puck rests where the shot
+    starts (at least 10 cm inside the rims), held for a random delay in ``hit_delay`` [s], then a human hit
+    gives it the shot's velocity (speed and direction as drawn by the session); ``fine_dt`` [s] is the
+    integration step."""
+    margin = 0.1
+
+    def simulate(state: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
+        puck = RealTablePuck(table, effects, rng)
+        rest = state.copy()
+        rest[0] = np.clip(rest[0], -table.x_limit + margin, table.x_limit - margin)
+        rest[1] = np.clip(rest[1], -table.y_limit + margin, table.y_limit - margin)
+        rest[2:4], rest[5] = 0.0, 0.0
+        delay = rng.uniform(*hit_delay)
+        return puck.simulate(rest, duration, fine_dt, delay, state[2:4])
+    return simulate
