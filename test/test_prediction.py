@@ -66,3 +66,14 @@ def test_impact_noise_adds_its_covariance_after_a_rim_impact_only():
         assert extra[2, 2] == pytest.approx(0.04 * speed2, rel=0.1)
         assert extra[3, 3] == pytest.approx(0.04 * speed2, rel=0.1)
         assert extra[5, 5] > 0.0
+
+
+def test_a_tilted_table_is_predicted_step_by_step_with_or_without_covariance():
+    m = model(table_acceleration=(0.02, -0.01))
+    for state, horizon in random_states(10, seed=7):
+        with_cov = predict_fast(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, impact_noise=0.15)
+        mean_only = predict_fast(m, state, None, horizon, DT, Q, lines=LINES, sample_every=6)
+        flat = predict_stepwise(model(), state, P0, horizon, DT, Q)
+        assert mean_only.covariance is None and np.array_equal(with_cov.state, mean_only.state)
+        assert with_cov.crossings.keys() == mean_only.crossings.keys()
+        assert np.linalg.norm(with_cov.state[:2] - flat.state[:2]) > 1e-4  # the acceleration acted

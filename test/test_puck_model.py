@@ -46,6 +46,44 @@ def test_surface_friction_decelerates_along_the_velocity_and_stops_the_puck():
     assert s1[2] == 0.0 and s1[3] == 0.0
 
 
+def test_table_acceleration_follows_its_closed_form_and_friction_holds_a_resting_puck():
+    # the discrete model's v_{n+1} = a (v_n + dt g), a = 1 - dt d: v_n = c + (v0 - c) a^n with c = a g / d
+    g = np.array([0.02, -0.03])
+    m = model(friction_surface=0.0, table_acceleration=tuple(g))
+    s = np.array([0.0, 0.0, 0.4, 0.0, 0.0, 0.0])
+    n = 120
+    for _ in range(n):
+        s = m.step(s, DT).state
+    a = 1 - DT * 0.5
+    c = a * g / 0.5
+    v = c + (np.array([0.4, 0.0]) - c) * a ** n
+    travelled = DT * (c * n + (np.array([0.4, 0.0]) - c) * (1 - a ** n) / (1 - a))
+    assert s[2:4] == pytest.approx(v, abs=1e-12) and s[0:2] == pytest.approx(travelled, abs=1e-12)
+    held = model(friction_surface=0.05, table_acceleration=(0.03, 0.0))  # |g| < mu_s: static friction
+    rest = np.zeros(6)
+    for _ in range(50):
+        rest = held.step(rest, DT).state
+    assert np.all(rest == 0.0)
+
+
+def test_table_acceleration_matches_the_test_beds_tilted_surface():
+    # an independent integrator (core/puck/real_table.py, semi-implicit Euler at 1 kHz) on a tilted table
+    from air_hockey_agent.core.puck.real_table import GRAVITY, RealTablePuck, TableEffects
+    tilt, heading = 0.003, 2.0
+    effects = TableEffects(damping=0.1, tilt=tilt, tilt_heading=heading)
+    start = np.array([-0.4, -0.2, 0.6, 0.1, 0.0, 0.0])
+    _, truth = RealTablePuck(TABLE, effects, np.random.default_rng(0)).simulate(start, 1.0, 1e-3)
+    g = GRAVITY * math.sin(tilt) * np.array([math.cos(heading), math.sin(heading)])
+    m, s = model(friction_surface=0.0, damping=0.1, table_acceleration=tuple(g)), start
+    for _ in range(120):
+        s = m.step(s, DT).state
+    assert np.linalg.norm(s[:2] - truth[-1, :2]) < 5e-4  # the two integrators' step difference
+    flat = start
+    for _ in range(120):
+        flat = model(friction_surface=0.0, damping=0.1).step(flat, DT).state
+    assert np.linalg.norm(flat[:2] - truth[-1, :2]) > 0.01  # what the term is worth over 1 s
+
+
 @pytest.mark.parametrize("name", list(IMPACT_CASES))
 def test_impact_on_each_rim_with_each_branch(name):
     state, wall, sliding = IMPACT_CASES[name]
@@ -55,14 +93,15 @@ def test_impact_on_each_rim_with_each_branch(name):
     assert nx * res.state[2] + ny * res.state[3] > 0  # moving away from the rim afterwards
 
 
-@pytest.mark.parametrize("slope", [0.0, 0.15], ids=["constant e", "e falls with speed"])
+@pytest.mark.parametrize("slope,accel", [(0.0, (0.0, 0.0)), (0.15, (0.0, 0.0)), (0.0, (0.03, -0.02))],
+                         ids=["constant e", "e falls with speed", "tilted table"])
 @pytest.mark.parametrize("name", list(IMPACT_CASES) + ["free", "corner", "goal"])
-def test_step_jacobian_matches_central_finite_differences(name, slope):
+def test_step_jacobian_matches_central_finite_differences(name, slope, accel):
     states = {"free": np.array([0.1, 0.2, 1.0, 0.5, 0.3, 2.0]),
               "corner": np.array([X - 0.004, Y - 0.007, 1.0, 1.3, 0.1, 5.0]),
               "goal": np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0])}
     state = states.get(name, IMPACT_CASES.get(name, (None,))[0])
-    m = model(restitution_slope=slope)
+    m = model(restitution_slope=slope, table_acceleration=accel)
     assert np.allclose(m.step(state, DT).jacobian, finite_difference_jacobian(m, state, DT), atol=2e-6)
 
 
@@ -86,3 +125,5 @@ def test_invalid_parameters_are_refused_with_the_name():
         PuckParams(0.0, 0.5, 1.2, 0.1).validate()
     with pytest.raises(ValueError, match="friction_rim must be >= 0"):
         model(friction_rim=-0.1)
+    with pytest.raises(ValueError, match="table_acceleration must be two finite numbers"):
+        model(table_acceleration=(0.0, math.nan))

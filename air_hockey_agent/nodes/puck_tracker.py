@@ -16,7 +16,6 @@ from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, Set
 from geometry_msgs.msg import PoseStamped
 
 from air_hockey_agent.core.estimation.ekf import PuckEKF, check_covariance
-from air_hockey_agent.core.puck.model import PuckParams
 from air_hockey_agent.nodes.messages import pose_measurement, state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.tracker_params import PARAM_FILES, TRACKER_NODE_PARAMS
@@ -87,7 +86,10 @@ class PuckTrackerNode(AirHockeyNode):
 
     # --- services (thesis 4.1.1) -------------------------------------------------------------------
     def on_set_physical_params(self, request, response):
-        params = PuckParams(request.friction_surface, request.damping, request.restitution, request.friction_rim)
+        # the service carries the thesis's four; the restitution slope and table acceleration stay as set
+        params = self.ekf.model.params.with_values(
+            friction_surface=request.friction_surface, damping=request.damping, restitution=request.restitution,
+            friction_rim=request.friction_rim)
         try:
             self.ekf.model = self.ekf.model.with_params(params)
         except ValueError as exc:

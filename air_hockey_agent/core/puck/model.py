@@ -10,6 +10,9 @@ One step of length ``dt`` (thesis eq. 3.1, with the surface friction acting alon
   e.g. in a corner). Crossing a short rim inside the goal opening is no impact.
 * decay: ``v <- v - dt (d v + mu_s v/|v|)``, i.e. speed ``|v| <- max(a |v| - dt mu_s, 0)`` with
   ``a = 1 - dt d``; the direction is kept. Spin has no decay (eq. 3.1).
+* table acceleration (issue #13 item 3; zero unless identified): before the decay, ``v <- v + dt g``
+  with a constant ``g`` [m/s^2] in the table frame (a tilted surface gives g sin(tilt) downhill). The
+  surface friction then holds a resting puck when ``|g| <= mu_s``.
 
 The Jacobian ``F = ds'/ds`` is exact for the whole step, including how the impact time moves with
 the state; on an impact it contains the thesis's ``A_i^-1 S_j A_i`` (sec. 4.2) as its velocity block.
@@ -51,11 +54,17 @@ class PuckParams:
     restitution: float       # e [-] in [0, 1]
     friction_rim: float      # mu_rim [-]
     restitution_slope: float = 0.0  # [s/m] e falls by this per m/s of normal impact speed (0: the thesis's e)
+    table_acceleration: tuple[float, float] = (0.0, 0.0)  # g [m/s^2], table frame: tilt / air film (issue #13)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "PuckParams":
         return cls(params["friction_surface"], params["damping"], params["restitution"], params["friction_rim"],
-                   params["restitution_slope"])
+                   params["restitution_slope"], tuple(float(g) for g in params["table_acceleration"]))
+
+    @property
+    def accelerated(self) -> bool:
+        """True when the table acceleration is not zero."""
+        return self.table_acceleration[0] != 0.0 or self.table_acceleration[1] != 0.0
 
     def validate(self) -> None:
         """Raise ValueError naming the first physically invalid parameter."""
@@ -68,6 +77,8 @@ class PuckParams:
             value = getattr(self, name)
             if not ok or not math.isfinite(value):
                 raise ValueError(f"{name} must be {rule}, got {value}")
+        if len(self.table_acceleration) != 2 or not all(map(math.isfinite, self.table_acceleration)):
+            raise ValueError(f"table_acceleration must be two finite numbers, got {self.table_acceleration}")
 
     def with_values(self, **values: float) -> "PuckParams":
         return replace(self, **values)
@@ -163,7 +174,11 @@ class PuckModel:
 
     # --- decay --------------------------------------------------------------------------------
     def decay(self, vx: float, vy: float, dt: float) -> tuple[float, float, tuple]:
-        """Velocity after the friction/damping part of a step, and its 2x2 Jacobian as row tuples (eq. 3.1)."""
+        """Velocity after the table-acceleration and friction/damping part of a step, and its 2x2 Jacobian
+        as row tuples (eq. 3.1)."""
+        gx, gy = self.params.table_acceleration
+        if gx != 0.0 or gy != 0.0:
+            vx, vy = vx + dt * gx, vy + dt * gy
         a = 1.0 - dt * self.params.damping
         mu_dt = dt * self.params.friction_surface
         speed = math.hypot(vx, vy)

@@ -13,7 +13,9 @@ Two predictors with one result type:
   with the model's exact step. The process noise added over ``k`` free steps is taken from a cached
   table ``G_k = sum_i F_d^i Q F_d^iT`` of the damping-only transition ``F_d``: exact when
   ``friction_surface = 0``, otherwise it slightly overstates the cross-track velocity noise at low
-  speed (conservative). Mean and transition Jacobian are exact in both cases.
+  speed (conservative). Mean and transition Jacobian are exact in both cases. With a table
+  acceleration (``PuckParams.table_acceleration`` not zero) the direction of motion is no longer
+  constant between impacts and the fast predictor is the stepwise one (``bench tracker`` shows the cost).
 
 Line crossings (e.g. the robots' defend lines) are interpolated linearly inside the step that
 crosses, identically in both predictors.
@@ -115,19 +117,21 @@ def with_impact_noise(p: np.ndarray, state: np.ndarray, impacts, ratio: float) -
     return p + impact_covariance(state, ratio) if impacts and ratio else p
 
 
-def predict_stepwise(model: PuckModel, state: np.ndarray, cov: np.ndarray, horizon: float, dt: float,
+def predict_stepwise(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horizon: float, dt: float,
                      q: np.ndarray, lines: Sequence[float] = (), sample_every: int = 0,
                      impact_noise: float = 0.0) -> Prediction:
     """Reference prediction: ``horizon`` [s] in model steps of ``dt`` [s] with per-step noise ``q`` (and
-    :func:`impact_covariance` of ``impact_noise`` after each step with a rim impact)."""
+    :func:`impact_covariance` of ``impact_noise`` after each step with a rim impact); ``cov=None``
+    propagates the mean only."""
     steps, remainder = _split_horizon(horizon, dt)
     rec = _Recorder(lines, sample_every)
-    s, p = np.asarray(state, float), np.asarray(cov, float)
+    s, p = np.asarray(state, float), (None if cov is None else np.asarray(cov, float))
     for i in range(steps):
-        res = model.step(s, dt)
+        res = model.step(s, dt, with_jacobian=p is not None)
         rec.step(i * dt, dt, s, res.state, res.impacts)
-        s, p = res.state, with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, res.state, res.impacts,
-                                             impact_noise)
+        s = res.state
+        if p is not None:
+            p = with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, s, res.impacts, impact_noise)
         rec.sample(i + 1, (i + 1) * dt, s, p)
     return _finish(model, rec, s, p, steps * dt, remainder, dt, q, impact_noise)
 
@@ -274,6 +278,8 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, ho
     With ``cov=None`` only the mean is propagated (``Prediction.covariance`` is None): the offline
     evaluation and system identification need no covariance.
     """
+    if model.params.accelerated:  # a table acceleration bends the free flight: no closed form here
+        return predict_stepwise(model, state, cov, horizon, dt, q, lines, sample_every, impact_noise)
     with_cov = cov is not None
     table = noise_table(dt, model.params.damping, q) if with_cov else None
     steps, remainder = _split_horizon(horizon, dt)
