@@ -10,8 +10,7 @@ import numpy as np
 from air_hockey_agent.bags.reader import BagError, read_poses
 from air_hockey_agent.core.frames import TABLE_FRAME, pose_to_measurement
 from air_hockey_agent.core.estimation.ekf import PuckEKF
-from air_hockey_agent.core.identification.preprocess import (cut_rest, interpolate_frozen, split_trajectories,
-                                              to_model_grid)
+from air_hockey_agent.core.identification.preprocess import preprocess
 
 
 @dataclass
@@ -68,17 +67,12 @@ def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, A
                      off_table_warning(measurements, tracker)):
             if note:
                 result.warnings.append(f"{bag}: {note}")
-        grid = to_model_grid([r.stamp for r in records], measurements, dt)
-        result.frozen += interpolate_frozen(grid, prep["frozen_threshold"])
-        for piece in split_trajectories(grid, prep["max_gap"]):
-            traj = cut_rest(piece, prep["rest_speed"], prep["rest_window"])
-            if traj is None:
-                result.at_rest += 1
-            elif traj.duration < prep["min_duration"]:
-                result.too_short += 1
-            else:
-                result.trajectories.append(traj)
-                result.sources.append(str(bag))
+        done = preprocess([r.stamp for r in records], measurements, dt, prep)
+        result.frozen += done.frozen
+        result.at_rest += done.at_rest
+        result.too_short += done.too_short
+        result.trajectories.extend(done.trajectories)
+        result.sources.extend([str(bag)] * len(done.trajectories))
     return result
 
 

@@ -16,7 +16,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
-from typing import Sequence
+from typing import Any, Mapping, Sequence
 
 import numpy as np
 
@@ -104,3 +104,31 @@ def cut_rest(traj: GridTrajectory, rest_speed: float, window: float) -> GridTraj
         return None
     first, last = idx[0], min(idx[-1] + steps, len(z) - 1)
     return GridTrajectory(traj.t0 + first * traj.dt, traj.dt, z[first:last + 1].copy())
+
+
+@dataclass
+class Preprocessed:
+    """The trajectories of one recording, and what preprocessing did to get them."""
+
+    trajectories: list      # GridTrajectory
+    frozen: int = 0         # frozen frames interpolated
+    at_rest: int = 0        # pieces dropped because the puck never moved in them
+    too_short: int = 0      # pieces dropped because their motion was shorter than min_duration
+
+
+def preprocess(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt: float,
+               prep: Mapping[str, Any]) -> Preprocessed:
+    """Algorithm 2 and the cleaning after it on one recording (table-frame (x, y, theta) per stamp, None
+    for a lost frame): grid, interpolate frozen frames, split at gaps, cut rest, drop short pieces
+    (``prep``: the sysid parameters ``frozen_threshold``, ``max_gap``, ``rest_*``, ``min_duration``)."""
+    grid = to_model_grid(stamps, z, dt)
+    result = Preprocessed([], interpolate_frozen(grid, prep["frozen_threshold"]))
+    for piece in split_trajectories(grid, prep["max_gap"]):
+        traj = cut_rest(piece, prep["rest_speed"], prep["rest_window"])
+        if traj is None:
+            result.at_rest += 1
+        elif traj.duration < prep["min_duration"]:
+            result.too_short += 1
+        else:
+            result.trajectories.append(traj)
+    return result
