@@ -31,6 +31,7 @@ TRACKER_PARAMS = (
     ParamSpec("restitution", float, "[-] rim restitution e", 0.0, 1.0),
     ParamSpec("friction_rim", float, "[-] rim friction mu_rim", 0.0, 2.0),
     ParamSpec("restitution_slope", float, "[s/m] fall of the rim restitution per m/s of normal speed", 0.0, 10.0),
+    ParamSpec("restitution_min", float, "[-] the rim restitution does not fall below this", 0.0, 1.0),
     ParamSpec("table_acceleration", list, "[m/s^2] constant acceleration of a free puck (x, y), table frame: "
               "a tilted surface", -10.0, 10.0, 2),
     ParamSpec("measurement_noise", list, "R diagonal (x, y, theta) [m^2, m^2, rad^2]", 1e-15, 1.0, 3),

@@ -49,18 +49,19 @@ def test_energy_never_increases():
         assert after <= before * (1 + 1e-12)
 
 
-@pytest.mark.parametrize("slope", [0.0, 0.2])
+@pytest.mark.parametrize("slope,floor", [(0.0, 0.0), (0.2, 0.0), (0.2, 0.6)],
+                         ids=["constant", "falling", "falling to its floor"])
 @pytest.mark.parametrize("state", [(0.3, -2.0, 1.0), (2.0, -1.0, 5.0), (-2.0, -1.0, -5.0)],
                          ids=["sticking", "sliding+", "sliding-"])
-def test_branch_jacobian_matches_finite_differences(state, slope):
+def test_branch_jacobian_matches_finite_differences(state, slope, floor):
     h = 1e-7
-    res = rim_impact(*state, R, E, MU, slope)
+    res = rim_impact(*state, R, E, MU, slope, floor)
     fd = np.zeros((3, 3))
     for i in range(3):
         d = np.zeros(3)
         d[i] = h
-        plus = rim_impact(*(np.add(state, d)), R, E, MU, slope)
-        minus = rim_impact(*(np.subtract(state, d)), R, E, MU, slope)
+        plus = rim_impact(*(np.add(state, d)), R, E, MU, slope, floor)
+        minus = rim_impact(*(np.subtract(state, d)), R, E, MU, slope, floor)
         fd[:, i] = (np.array(plus[:3]) - np.array(minus[:3])) / (2 * h)
     assert np.allclose(res.jacobian, fd, atol=1e-6)
 
@@ -76,3 +77,9 @@ def test_restitution_falls_with_the_normal_speed_and_never_below_zero():
     assert slow.vn == pytest.approx((0.95 - 0.2 * 0.5) * 0.5) and fast.vn == pytest.approx((0.95 - 0.2 * 2.0) * 2.0)
     assert speed_restitution(0.95, 0.2, -10.0) == (0.0, 0.0)
     assert speed_restitution(0.95, 0.0, -3.0) == (0.95, 0.0)
+
+
+def test_restitution_levels_off_at_its_floor():
+    assert speed_restitution(1.0, 0.15, -1.0, 0.67) == pytest.approx((0.85, 0.15))
+    assert speed_restitution(1.0, 0.15, -3.0, 0.67) == (0.67, 0.0)  # 1 - 0.45 is below the floor
+    assert rim_impact(0.0, -4.0, 0.0, R, 1.0, MU, 0.15, 0.67).vn == pytest.approx(0.67 * 4.0)

@@ -14,8 +14,8 @@ The mass cancels. The two branches agree on the switching boundary (tested).
 
 Real rims lose more at faster impacts (issue #13: another engine's restitution falls from 0.96 below
 0.5 m/s normal speed to 0.67 above 2 m/s). With ``slope`` > 0 the restitution is
-``e(vn) = max(e0 - slope |vn|, 0)``: the thesis's constant e is ``slope = 0``; the Jacobians include
-how e changes with vn.
+``e(vn) = max(e0 - slope |vn|, e_min)``: the thesis's constant e is ``slope = 0``; the floor ``e_min``
+is where the other engine's restitution levels off; the Jacobians include how e changes with vn.
 """
 from __future__ import annotations
 
@@ -38,22 +38,23 @@ def is_sliding(vb: float, vn: float, omega: float, radius: float, restitution: f
     return abs(slip) > 3.0 * friction * (1.0 + restitution) * abs(vn)
 
 
-def speed_restitution(restitution: float, slope: float, vn: float) -> tuple[float, float]:
-    """Restitution of an impact at normal velocity ``vn`` [m/s] (< 0), and its derivative d e / d vn."""
+def speed_restitution(restitution: float, slope: float, vn: float, floor: float = 0.0) -> tuple[float, float]:
+    """Restitution of an impact at normal velocity ``vn`` [m/s] (< 0), never below ``floor``, and its
+    derivative d e / d vn."""
     e = restitution - slope * abs(vn)
     if slope == 0.0 or e >= restitution:
         return restitution, 0.0
-    if e <= 0.0:
-        return 0.0, 0.0
+    if e <= floor:
+        return floor, 0.0
     return e, (slope if vn < 0.0 else -slope)
 
 
 def rim_impact(vb: float, vn: float, omega: float, radius: float, restitution: float,
-               friction: float, slope: float = 0.0) -> ImpactResult:
+               friction: float, slope: float = 0.0, floor: float = 0.0) -> ImpactResult:
     """Post-impact (vb, vn, omega) [m/s, m/s, rad/s] and the branch's Jacobian S_j (thesis sec. 4.2);
-    ``restitution`` falls by ``slope`` [s/m] per m/s of normal speed (module docstring)."""
+    ``restitution`` falls by ``slope`` [s/m] per m/s of normal speed down to ``floor`` (module docstring)."""
     mu, r = friction, radius
-    e, de = speed_restitution(restitution, slope, vn)
+    e, de = speed_restitution(restitution, slope, vn, floor)
     dvn = -e - vn * de  # d vn' / d vn
     if is_sliding(vb, vn, omega, r, e, mu):
         s = 1.0 if vb + r * omega > 0.0 else -1.0

@@ -54,12 +54,14 @@ class PuckParams:
     restitution: float       # e [-] in [0, 1]
     friction_rim: float      # mu_rim [-]
     restitution_slope: float = 0.0  # [s/m] e falls by this per m/s of normal impact speed (0: the thesis's e)
+    restitution_min: float = 0.0    # [-] ... but not below this
     table_acceleration: tuple[float, float] = (0.0, 0.0)  # g [m/s^2], table frame: tilt / air film (issue #13)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "PuckParams":
         return cls(params["friction_surface"], params["damping"], params["restitution"], params["friction_rim"],
-                   params["restitution_slope"], tuple(float(g) for g in params["table_acceleration"]))
+                   params["restitution_slope"], params["restitution_min"],
+                   tuple(float(g) for g in params["table_acceleration"]))
 
     @property
     def accelerated(self) -> bool:
@@ -72,7 +74,8 @@ class PuckParams:
                   ("damping", self.damping >= 0.0, ">= 0"),
                   ("restitution", 0.0 <= self.restitution <= 1.0, "in [0, 1]"),
                   ("friction_rim", self.friction_rim >= 0.0, ">= 0"),
-                  ("restitution_slope", self.restitution_slope >= 0.0, ">= 0"))
+                  ("restitution_slope", self.restitution_slope >= 0.0, ">= 0"),
+                  ("restitution_min", 0.0 <= self.restitution_min <= self.restitution, "in [0, restitution]"))
         for name, ok, rule in checks:
             value = getattr(self, name)
             if not ok or not math.isfinite(value):
@@ -138,7 +141,8 @@ class PuckModel:
         bx, by = ny, -nx
         vb, vn = bx * vx + by * vy, nx * vx + ny * vy
         p = self.params
-        res = rim_impact(vb, vn, om, self.table.puck_radius, p.restitution, p.friction_rim, p.restitution_slope)
+        res = rim_impact(vb, vn, om, self.table.puck_radius, p.restitution, p.friction_rim, p.restitution_slope,
+                         p.restitution_min)
         xc, yc = x + tau * vx, y + tau * vy
         new_z = [xc, yc, bx * res.vb + nx * res.vn, by * res.vb + ny * res.vn, th + tau * om, res.omega, h - tau]
         if jac is not None:
