@@ -8,6 +8,12 @@ after on both sets (thesis table 5.2/5.3 columns: loss, min, median); with ``--c
 identification is repeated at 0.5, 1.0 and 1.5 s and each result validated at every horizon (table
 5.4). ``--out`` writes the winning parameters as a parameter YAML that ``puck_tracker --ros-args
 --params-file`` and ``air-hockey eval-prediction --params-file`` accept.
+
+``--method split`` (issue #13) fits each part of the model where it alone acts, without the filter and
+in about a second: damping, surface friction and the table acceleration by least squares on local
+fits of the free flight, then restitution (and its fall with speed) and rim friction on the velocities
+before and after each rim impact (core/identification/split.py). The loss before and after is reported
+the same way; the objectives printed are the fits' own.
 """
 from __future__ import annotations
 
@@ -21,6 +27,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from air_hockey_agent.bags.trajectories import split_train_validation
+from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split
 from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PHYSICAL, combine, identify,
                                                       loss_report, nis_median, on_bounds, partial_loss)
 from air_hockey_agent.params import yaml_float
@@ -32,21 +39,26 @@ from air_hockey_agent.tools.argtypes import count, number
 
 PROG = "air-hockey sysid"
 HORIZONS = (0.5, 1.0, 1.5)
+METHODS = ("hebo", "split")
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("sysid", help="identify the puck model's physical parameters (HEBO)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_recording_arguments(parser)
-    parser.add_argument("--loss", choices=LOSSES, default="position", help="objective (thesis sec. 4.3.1)")
+    parser.add_argument("--method", choices=METHODS, default="hebo",
+                        help="hebo: the thesis's search on the filter's prediction loss (default); split: least "
+                             "squares on free flight and on rim impacts, no filter (seconds)")
+    parser.add_argument("--loss", choices=LOSSES, default="position", help="hebo's objective (thesis sec. 4.3.1)")
     parser.add_argument("--horizon", type=float, choices=HORIZONS, default=1.0, help="prediction horizon [s]")
     parser.add_argument("--iterations", type=count(1), default=50, help="HEBO iterations (default 50)")
     parser.add_argument("--batch", type=count(1), default=5, help="suggestions per iteration (default 5)")
     parser.add_argument("--split", type=number(0.0, 1.0, low_open=True, high_open=True), default=0.9, help="training fraction of the trajectories")
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
-    parser.add_argument("--identify", nargs="+", choices=IDENTIFIABLE, default=list(PHYSICAL), metavar="NAME",
-                        help="parameters to identify (default: the thesis's four; also restitution_slope, "
+    parser.add_argument("--identify", nargs="+", choices=SPLIT_IDENTIFIABLE, metavar="NAME",
+                        help="parameters to identify (default: hebo the thesis's four, split all seven; "
+                             "table_acceleration only with --method split; also restitution_slope, "
                              "the rims' loss with impact speed); choices: " + ", ".join(IDENTIFIABLE))
     parser.add_argument("--out", type=Path, help="write the identified parameters to this parameter YAML")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
@@ -79,7 +91,23 @@ class _Objective:
                 for i in range(len(candidates))]
 
 
+def _chosen_names(args: argparse.Namespace) -> tuple[list[str], str]:
+    """Parameters to identify (as given, without repeats) and a one-line error ('' when fine)."""
+    if args.identify is None:
+        return list(PHYSICAL if args.method == "hebo" else SPLIT_IDENTIFIABLE), ""
+    names = list(dict.fromkeys(args.identify))
+    if args.method == "hebo" and any(n not in IDENTIFIABLE for n in names):
+        return names, "--identify table_acceleration: only --method split identifies it"
+    return names, ""
+
+
 def run(args: argparse.Namespace) -> int:
+    names, problem = _chosen_names(args)
+    if not problem and args.method == "split" and args.cross_validate:
+        problem = "--cross-validate: only with --method hebo (split does not learn at a horizon)"
+    if problem:
+        return report_error(PROG, problem)
+    args.identify = names
     if args.out is not None and args.out.is_dir():
         return report_error(PROG, f"--out {args.out} is a directory")
     if args.out is not None and args.out.exists():
@@ -95,11 +123,18 @@ def run(args: argparse.Namespace) -> int:
     if not args.json:
         print(f"{len(loaded.trajectories)} trajectories from {loaded.bags} bag(s) ({loaded.frozen} frozen frames "
               f"interpolated): {len(train)} for training, {len(validation)} for validation", flush=True)
-        print("starting HEBO (loading torch takes several seconds) ...", flush=True)
-    calibration = _calibration_warning(args.loss, tracker, settings, train)
-    if calibration:
-        print(f"{PROG}: warning: {calibration}", file=sys.stderr)
-    result = _identify_all(args, tracker, settings, train, validation)
+        if args.method == "hebo":
+            print("starting HEBO (loading torch takes several seconds) ...", flush=True)
+    if args.method == "split":
+        try:
+            result = _identify_split(args, tracker, settings, train, validation)
+        except ValueError as exc:
+            return report_error(PROG, f"--method split: {exc} (in {len(train)} training trajectories)")
+    else:
+        calibration = _calibration_warning(args.loss, tracker, settings, train)
+        if calibration:
+            print(f"{PROG}: warning: {calibration}", file=sys.stderr)
+        result = _identify_all(args, tracker, settings, train, validation)
     result.update({"train_trajectories": len(train), "validation_trajectories": len(validation),
                    "bags": loaded.bags, "bad_bags": len(loaded.errors)})
     if args.out is not None:
@@ -127,8 +162,52 @@ def _calibration_warning(loss: str, tracker: dict, settings: dict, train: list) 
             f"does not depend on it")
 
 
+def _identify_split(args, tracker: dict, settings: dict, train: list, validation: list) -> dict:
+    """--method split: the fits, then the same before/after reports as HEBO's."""
+    names = args.identify
+    start = time.monotonic()
+    split = identify_split(train, tracker, settings, names, bounds(settings, names))
+    chosen = split.identified
+    objective = {"set": "train"}
+    if split.flight is not None:
+        f = split.flight
+        objective["flight"] = {"windows": f.windows, "dropped": f.dropped, "weighted_squared_residual": f.objective,
+                               "rms_acceleration_m_s2": f.rms_acceleration}
+    if split.impacts is not None:
+        i = split.impacts
+        objective["impacts"] = {"impacts": i.impacts, "dropped": i.dropped, "rms_normal_speed_m_s": i.rms_normal,
+                                "rms_tangential_m_s": i.rms_tangential}
+    result = {"method": "split", "horizon": args.horizon, "initial": {n: tracker[n] for n in names},
+              "identified": chosen, "std": split.std, "seconds": round(time.monotonic() - start, 1),
+              "objective": objective, "before": {}, "after": {},
+              "on_bounds": on_bounds(_flat(chosen), _flat_bounds(bounds(settings, names)), settings["bound_margin"])}
+    for name, trajs in (("train", train), ("validation", validation)):
+        result["before"][name] = loss_report(tracker, trajs, args.horizon).as_dict()
+        result["after"][name] = loss_report({**tracker, **chosen}, trajs, args.horizon).as_dict()
+    result["seconds_with_reports"] = round(time.monotonic() - start, 1)
+    result["summary_line"] = (f"identified by `air-hockey sysid --method split` ({len(train)} training "
+                              f"trajectories) on {datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}")
+    return result
+
+
+def _flat(values: dict) -> dict:
+    """Scalars per name, the table acceleration's axes as table_acceleration_x / _y."""
+    out = {}
+    for name, value in values.items():
+        if isinstance(value, list):
+            out.update({f"{name}_{axis}": v for axis, v in zip("xy", value)})
+        else:
+            out[name] = value
+    return out
+
+
+def _flat_bounds(box: dict) -> dict:
+    return {(f"{n}_{axis}" if n == "table_acceleration" else n): b for n, b in box.items()
+            for axis in ("xy" if n == "table_acceleration" else "x")}
+
+
 def _identify_all(args, tracker: dict, settings: dict, train: list, validation: list) -> dict:
-    names = list(dict.fromkeys(args.identify))  # as given, without repeats
+    names = args.identify
     _WORK.update(tracker=tracker, trajectories=train, loss=args.loss, stride=settings["stride"])
     learn_at = HORIZONS if args.cross_validate else (args.horizon,)
     workers = min(settings["workers"], os.cpu_count() or 1)
@@ -180,6 +259,8 @@ def _objective_text(loss: str, value: float) -> str:
 
 def format_report(result: dict, out: Path | None) -> str:
     """Thesis-style tables: parameters with loss/min/median before and after; table 5.4 if asked."""
+    if result.get("method") == "split":
+        return _format_split(result, out)
     names = list(result["identified"])
     width = max(17, *(len(n) + 2 for n in names))
     head = (f"{'':<22}" + "".join(f"{n:>{width}}" for n in names)
@@ -213,8 +294,43 @@ def format_report(result: dict, out: Path | None) -> str:
     return "\n".join(lines)
 
 
+def _format_split(result: dict, out: Path | None) -> str:
+    """The split identification's values with standard errors, its fits, and the losses before/after."""
+    lines = [f"split identification in {result['seconds']} s (reports {result['seconds_with_reports']} s)"]
+    for name, value in result["identified"].items():
+        std = result["std"].get(name)
+        shown = _value_text(value) + ("" if std is None else f" +- {_value_text(std)}")
+        lines.append(f"  {name:<20} {_value_text(result['initial'][name]):>22} -> {shown}")
+    o = result["objective"]
+    if "flight" in o:
+        f = o["flight"]
+        lines.append(f"flight fit: {f['windows']} windows ({f['dropped']} dropped), acceleration residual RMS "
+                     f"{f['rms_acceleration_m_s2']:.4f} m/s^2")
+    if "impacts" in o:
+        i = o["impacts"]
+        lines.append(f"impact fit: {i['impacts']} impacts ({i['dropped']} dropped), residual RMS normal "
+                     f"{i['rms_normal_speed_m_s']:.4f} m/s, tangential {i['rms_tangential_m_s']:.4f} m/s")
+    lines.append(f"prediction loss at {result['horizon']} s (every frame): loss / traj. min / traj. median [mm]")
+    for key, label in (("before", "initial"), ("after", "identified")):
+        for subset in ("train", "validation"):
+            r = result[key][subset]
+            lines.append(f"  {label + ' (' + subset + ')':<24}{r['loss_m'] * 1e3:>9.2f}{r['min_m'] * 1e3:>9.2f}"
+                         f"{r['median_m'] * 1e3:>9.2f}")
+    if out is not None:
+        lines.append(f"wrote {out}")
+    return "\n".join(lines)
+
+
+def _value_text(value) -> str:
+    return ("[" + ", ".join(f"{v:.4g}" for v in value) + "]") if isinstance(value, list) else f"{value:.6g}"
+
+
 def write_params_yaml(path: Path, values: dict, comment: str) -> None:
     """Parameter YAML for the puck_tracker, written atomically (temporary file, then rename)."""
-    body = "".join(f"    {name}: {yaml_float(value)}\n" for name, value in values.items())
+    body = "".join(f"    {name}: {_yaml_value(value)}\n" for name, value in values.items())
     text = f"# Physical parameters of the puck model, {comment}.\n/**/puck_tracker:\n  ros__parameters:\n{body}"
     write_text_atomic(path, text)
+
+
+def _yaml_value(value) -> str:
+    return ("[" + ", ".join(yaml_float(v) for v in value) + "]") if isinstance(value, list) else yaml_float(value)

@@ -1,0 +1,173 @@
+"""Flight parameters from free-flight stretches (split identification, issue #13 item 5).
+
+Every recorded trajectory is cut into short overlapping windows; a window away from the rims, with
+enough frames and a moving puck, gets a local quadratic fit (:mod:`.local_fit`): velocity ``v`` and
+acceleration ``a`` at its centre. The flight law (thesis eq. 3.1 in the README's reading, plus a
+constant table acceleration ``g``: a tilt, issue #13 item 3)
+
+    a = -d v - mu_s v/|v| + g
+
+is linear in ``(d, mu_s, g_x, g_y)``, so one weighted linear least-squares problem over all windows
+gives them, each window weighted by the inverse variance of its fitted acceleration (the marker noise
+grows with the speed: the tracker's ``measurement_noise`` and ``measurement_noise_per_speed``).
+Windows whose positions a quadratic does not fit (an impact, a hit or a glitch inside) and windows
+whose acceleration is an outlier of the fit are dropped. Bounds keep d and mu_s in the sysid box.
+
+The objective minimised is ``sum_i w_i |a_i - a_model(v_i)|^2`` (reported per window as ``objective``);
+the parameters' standard errors come from the weighted normal equations scaled by the fit's residual.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from air_hockey_agent.core.identification.local_fit import LocalFit, fit_positions, rows_in
+from air_hockey_agent.core.identification.preprocess import GridTrajectory
+from air_hockey_agent.core.table import TableGeometry
+
+FLIGHT_NAMES = ("damping", "friction_surface", "table_acceleration_x", "table_acceleration_y")
+
+
+@dataclass(frozen=True)
+class NoiseModel:
+    """Position noise of a marker [m^2] at a speed [m/s]: the tracker's R growing with speed."""
+
+    at_rest: float        # [m^2] per axis
+    per_speed: float      # [s] std added in quadrature per m/s
+
+    def variance(self, speed: float) -> float:
+        return self.at_rest + (self.per_speed * speed) ** 2
+
+
+@dataclass(frozen=True)
+class FlightSettings:
+    """``split.*`` in ``config/sysid.yaml``."""
+
+    window: float          # [s] length of one window
+    min_coverage: float    # [-] share of a window's rows that must hold a measurement
+    min_speed: float       # [m/s] slower windows are left out (rest, a hand)
+    rim_margin: float      # [m] every frame of a window this far inside the rim lines
+    outlier_factor: float  # [-] robust z beyond which a window is dropped
+
+
+@dataclass
+class FlightFit:
+    values: dict           # FLIGHT_NAMES -> value (fixed ones as given)
+    std: dict              # identified name -> standard error
+    windows: int           # windows in the final fit
+    dropped: int           # windows dropped as outliers (poor quadratic fit or outlying acceleration)
+    objective: float       # weighted squared residual per window (dimensionless)
+    rms_acceleration: float  # [m/s^2] unweighted residual RMS per axis
+
+
+def flight_windows(traj: GridTrajectory, table: TableGeometry, settings: FlightSettings) -> list[LocalFit]:
+    """Quadratic fits of the trajectory's windows that lie inside the rim margin and move fast enough."""
+    rows_per_window = max(5, int(round(settings.window / traj.dt)) + 1)
+    hop = max(1, rows_per_window // 2)
+    fits = []
+    for start in range(0, len(traj) - rows_per_window + 1, hop):
+        rows = rows_in(traj.z, start, start + rows_per_window)
+        if len(rows) < settings.min_coverage * rows_per_window:
+            continue
+        xy = traj.z[rows, :2]
+        if _closest_to_rims(table, xy) < settings.rim_margin:
+            continue
+        times = rows * traj.dt
+        fit = fit_positions(times, xy, float(np.mean(times)), 2)
+        if fit is not None and math.hypot(*fit.v) >= settings.min_speed:
+            fits.append(fit)
+    return fits
+
+
+def _closest_to_rims(table: TableGeometry, xy: np.ndarray) -> float:
+    """Smallest distance [m] of any of the centres ``xy`` (n, 2) from a rim line (negative beyond it)."""
+    return float(min(np.min(table.x_limit - np.abs(xy[:, 0])), np.min(table.y_limit - np.abs(xy[:, 1]))))
+
+
+def fit_flight(windows: Sequence[LocalFit], noise: NoiseModel, settings: FlightSettings,
+               fixed: Mapping[str, float], bounds: Mapping[str, Sequence[float]]) -> FlightFit:
+    """Weighted least squares of the flight law over ``windows``; names in ``fixed`` keep their value,
+    the others are identified within ``bounds`` (the table acceleration is unbounded if not given)."""
+    fit_quality = np.array([w.rms / math.sqrt(noise.variance(math.hypot(*w.v))) for w in windows])
+    smooth = fit_quality <= settings.outlier_factor * max(float(np.median(fit_quality)), 1e-12) \
+        if len(windows) else np.zeros(0, bool)
+    kept = [w for w, ok in zip(windows, smooth) if ok]
+    weights = np.array([1.0 / (w.a_gain * noise.variance(math.hypot(*w.v))) for w in kept])
+    free = [n for n in FLIGHT_NAMES if n not in fixed]
+    if len(kept) < len(free) + 1:
+        raise ValueError(f"{len(kept)} free-flight windows: too few to identify {', '.join(free)}")
+    mask = np.ones(len(kept), bool)
+    for _ in range(3):  # refit without outlying windows until none is left out anew
+        solution = _solve(kept, weights, mask, fixed, free, bounds)
+        z = _normalised_residuals(kept, weights, solution)
+        scale = 1.4826 * float(np.median(z[mask])) or 1e-12
+        new_mask = z <= settings.outlier_factor * scale
+        if np.array_equal(new_mask, mask) or new_mask.sum() < len(free) + 1:
+            break
+        mask = new_mask
+    solution = _solve(kept, weights, mask, fixed, free, bounds)
+    return _report(kept, weights, mask, solution, free, len(windows) - len(kept) + int((~mask).sum()))
+
+
+def _rows(window: LocalFit) -> tuple[np.ndarray, np.ndarray]:
+    """Design rows (2, 4) over FLIGHT_NAMES and the measured acceleration (2,) of one window."""
+    v = window.v
+    speed = math.hypot(*v)
+    u = v / speed
+    return np.array([[-v[0], -u[0], 1.0, 0.0], [-v[1], -u[1], 0.0, 1.0]]), window.a
+
+
+def _solve(windows, weights, mask, fixed, free, bounds) -> dict:
+    from scipy.optimize import lsq_linear
+
+    design, target = [], []
+    for w, weight, use in zip(windows, weights, mask):
+        if not use:
+            continue
+        rows, a = _rows(w)
+        rhs = a - sum(rows[:, FLIGHT_NAMES.index(n)] * fixed[n] for n in fixed)
+        keep = [FLIGHT_NAMES.index(n) for n in free]
+        design.append(math.sqrt(weight) * rows[:, keep])
+        target.append(math.sqrt(weight) * rhs)
+    a_mat, b_vec = np.vstack(design), np.concatenate(target)
+    low = [bounds.get(n, (-np.inf, np.inf))[0] for n in free]
+    high = [bounds.get(n, (-np.inf, np.inf))[1] for n in free]
+    result = lsq_linear(a_mat, b_vec, bounds=(low, high), method="bvls")
+    values = dict(fixed)
+    values.update(zip(free, (float(v) for v in result.x)))
+    return values
+
+
+def _model_acceleration(window: LocalFit, values: Mapping[str, float]) -> np.ndarray:
+    rows, _ = _rows(window)
+    return rows @ np.array([values[n] for n in FLIGHT_NAMES])
+
+
+def _normalised_residuals(windows, weights, values) -> np.ndarray:
+    """Per window: |a - a_model| in units of its standard deviation (per axis)."""
+    return np.array([math.sqrt(weight / 2.0) * float(np.linalg.norm(w.a - _model_acceleration(w, values)))
+                     for w, weight in zip(windows, weights)])
+
+
+def _report(windows, weights, mask, values, free, dropped) -> FlightFit:
+    used = [(w, weight) for w, weight, m in zip(windows, weights, mask) if m]
+    residuals = [w.a - _model_acceleration(w, values) for w, _ in used]
+    weighted = sum(weight * float(r @ r) for (_, weight), r in zip(used, residuals))
+    design = np.vstack([math.sqrt(weight) * _rows(w)[0][:, [FLIGHT_NAMES.index(n) for n in free]]
+                        for w, weight in used])
+    dof = max(1, 2 * len(used) - len(free))
+    covariance = np.linalg.pinv(design.T @ design) * weighted / dof
+    std = {n: float(math.sqrt(max(covariance[i, i], 0.0))) for i, n in enumerate(free)}
+    rms = math.sqrt(sum(float(r @ r) for r in residuals) / (2 * len(used)))
+    return FlightFit(values, std, len(used), dropped, weighted / len(used), rms)
+
+
+def identify_flight(trajectories: Sequence[GridTrajectory], table: TableGeometry, noise: NoiseModel,
+                    settings: FlightSettings, fixed: Mapping[str, float],
+                    bounds: Mapping[str, Sequence[float]]) -> FlightFit:
+    """:func:`fit_flight` over the windows of every trajectory."""
+    windows = [w for traj in trajectories for w in flight_windows(traj, table, settings)]
+    return fit_flight(windows, noise, settings, fixed, bounds)

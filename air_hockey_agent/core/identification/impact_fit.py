@@ -1,0 +1,281 @@
+"""Rim-impact parameters from pre/post-impact fits (split identification, issue #13 item 5).
+
+An impact is looked for where a recorded trajectory comes closest to a rim line (a local minimum of
+the centre's distance from it, outside the goal mouths and away from the other rims). The frames just
+before and just after it (one row either side of the closest one skipped) get a line fit each, with
+the flight law's acceleration (:mod:`.flight_fit`) removed first; the impact time is where the two
+lines' distances from the rim meet, so it does not depend on where the table's geometry puts the rim.
+Both velocities and spins (angle lines) are read there, in the rim's frame (:mod:`~air_hockey_agent.
+core.puck.impact`: ``b`` along the rim, ``n`` into the table).
+
+* Restitution (speed-dependent, eq. 3.2-3.3 with ``e(vn) = max(e0 - slope |vn|, e_min)``): least
+  squares of the outgoing normal speed ``e(vn) |vn|``, which is linear in ``(e0, slope)`` once the
+  speed where the line meets its floor is chosen (every measured speed is tried).
+* Rim friction: the Routh impact (:func:`~air_hockey_agent.core.puck.impact.rim_impact`) with the
+  fitted restitution predicts the outgoing ``vb`` and ``r omega`` from the incoming state; ``mu_rim``
+  minimises their squared error [m^2/s^2] over all impacts (a bounded scalar search).
+
+Impacts whose fits are poor (another impact or a hit inside a window) or whose residual is an outlier
+are dropped.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping, Sequence
+
+import numpy as np
+
+from air_hockey_agent.core.identification.flight_fit import NoiseModel
+from air_hockey_agent.core.identification.local_fit import fit_angle_rate, fit_positions, rows_in
+from air_hockey_agent.core.identification.preprocess import GridTrajectory
+from air_hockey_agent.core.puck.impact import rim_impact
+from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
+
+RESTITUTION_NAMES = ("restitution", "restitution_slope", "restitution_min")
+IMPACT_NAMES = RESTITUTION_NAMES + ("friction_rim",)
+FRICTION_GRID = 201  # scalar search: grid points over the bounds before the local refinement
+
+
+@dataclass(frozen=True)
+class ImpactSettings:
+    """``split.impact_*`` in ``config/sysid.yaml``."""
+
+    window: float             # [s] fitted before and after an impact
+    min_frames: int           # measured rows each window needs
+    approach_distance: float  # [m] a closest approach farther than this from the rim line is no impact
+    contact_tolerance: float  # [m] the two lines must meet this close to the rim line
+    min_normal_speed: float   # [m/s] slower impacts are left out (their restitution is noise)
+    rim_margin: float         # [m] the windows' frames stay this far from the other rims
+    outlier_factor: float     # [-] robust z / fit-quality factor beyond which an impact is dropped
+
+
+@dataclass(frozen=True)
+class ImpactObservation:
+    """One rim impact in its rim's frame: incoming and outgoing (vb, vn [m/s], omega [rad/s])."""
+
+    wall: int
+    time: float            # [s] trajectory time of the impact
+    before: tuple          # (vb, vn, omega), vn < 0
+    after: tuple           # (vb, vn, omega), vn > 0
+    fit_quality: float     # [-] worse window's residual RMS over the expected noise
+
+
+@dataclass
+class ImpactFit:
+    values: dict           # IMPACT_NAMES -> value (fixed ones as given)
+    impacts: int           # impacts in the final fits
+    dropped: int           # impacts dropped (poor fit or outlier)
+    rms_normal: float      # [m/s] residual RMS of the outgoing normal speed (the restitution fit's objective)
+    rms_tangential: float  # [m/s] residual RMS of vb and r omega (the friction fit's objective)
+
+
+def find_impacts(traj: GridTrajectory, table: TableGeometry, acceleration, noise: NoiseModel,
+                 settings: ImpactSettings) -> list[ImpactObservation]:
+    """Rim impacts of one trajectory. ``acceleration(v) -> a`` [m/s^2] is the identified flight law."""
+    z = traj.z
+    rows = np.flatnonzero(~np.isnan(z[:, 0]))
+    n_rows = max(3, int(round(settings.window / traj.dt)))
+    found = []
+    for wall, (nx, ny) in enumerate(WALL_NORMALS):
+        distance = nx * z[rows, 0] + ny * z[rows, 1] + table.wall_offset(wall)
+        for i in _closest_approaches(distance, settings.approach_distance):
+            k = int(rows[i])
+            if wall in SHORT_WALLS and abs(z[k, 1]) < table.goal_mouth + table.puck_radius:
+                continue  # at a goal mouth: the puck may have entered the goal
+            obs = _observe(traj, table, wall, k, n_rows, acceleration, noise, settings)
+            if obs is not None:
+                found.append(obs)
+    return found
+
+
+def _closest_approaches(distance: np.ndarray, limit: float) -> list[int]:
+    """Indices of local minima (over two neighbours each side) of ``distance`` below ``limit``."""
+    out = []
+    for i in np.flatnonzero(distance < limit):
+        lo, hi = max(0, i - 2), min(len(distance), i + 3)
+        if distance[i] == np.min(distance[lo:hi]):
+            out.append(int(i))
+    return out
+
+
+def _observe(traj, table, wall, k, n_rows, acceleration, noise, settings) -> ImpactObservation | None:
+    """Fits before and after row ``k`` (rows k-1..k+1 skipped) and the impact they meet at."""
+    z, dt = traj.z, traj.dt
+    pre, post = rows_in(z, k - 1 - n_rows, k - 1), rows_in(z, k + 2, k + 2 + n_rows)
+    if min(len(pre), len(post)) < settings.min_frames:
+        return None
+    if any(_near_other_rims(table, wall, z[r, :2], settings.rim_margin) for r in (pre, post)):
+        return None
+    t_ref = k * dt
+    fits = [_line_fit(rows * dt, z[rows, :2], t_ref, acceleration) for rows in (pre, post)]
+    if any(f is None for f in fits):
+        return None
+    (before, after) = fits
+    n = np.array(WALL_NORMALS[wall])
+    closing = float(n @ (before.v - after.v))
+    if closing >= 0.0:
+        return None
+    tau = -float(n @ (before.p - after.p)) / closing  # the two lines' distances from the rim meet here
+    if abs(tau) > 1.5 * dt:
+        return None
+    contact = float(n @ (before.p + tau * before.v)) + table.wall_offset(wall)
+    if abs(contact) > settings.contact_tolerance:
+        return None
+    b = np.array([n[1], -n[0]])
+    v_in, v_out = before.v + tau * before.a, after.v + tau * after.a
+    if float(n @ v_in) > -settings.min_normal_speed or float(n @ v_out) <= 0.0:
+        return None
+    spins = [fit_angle_rate(rows * dt, z[rows, 2]) for rows in (pre, post)]
+    quality = max(f.rms / math.sqrt(noise.variance(float(np.linalg.norm(f.v)))) for f in fits)
+    return ImpactObservation(wall, t_ref + tau, (float(b @ v_in), float(n @ v_in), spins[0]),
+                             (float(b @ v_out), float(n @ v_out), spins[1]), quality)
+
+
+def _near_other_rims(table: TableGeometry, wall: int, xy: np.ndarray, margin: float) -> bool:
+    for other, (nx, ny) in enumerate(WALL_NORMALS):
+        if other != wall and np.min(nx * xy[:, 0] + ny * xy[:, 1] + table.wall_offset(other)) < margin:
+            return True
+    return False
+
+
+def _line_fit(times, xy, t_ref, acceleration):
+    """Line fit with the flight law's acceleration (at the first fit's velocity) removed."""
+    first = fit_positions(times, xy, t_ref, 1)
+    if first is None:
+        return None
+    return fit_positions(times, xy, t_ref, 1, acceleration(first.v))
+
+
+def _robust_keep(residuals: np.ndarray, factor: float) -> np.ndarray:
+    scale = 1.4826 * float(np.median(np.abs(residuals))) or 1e-12
+    return np.abs(residuals) <= factor * scale
+
+
+def restitution_law(vn: np.ndarray, values: Mapping[str, float]) -> np.ndarray:
+    """e(|vn|) = max(e0 - slope |vn|, e_min) [-] (:func:`~air_hockey_agent.core.puck.impact.speed_restitution`)."""
+    line = values["restitution"] - values["restitution_slope"] * vn
+    return np.minimum(values["restitution"], np.maximum(line, values["restitution_min"]))
+
+
+def _fit_all_three(vn: np.ndarray, out: np.ndarray, bounds: Mapping[str, Sequence[float]]) -> dict:
+    """The three together. Where the line meets its floor (the kink speed k) the law is continuous, so
+    ``out = e0 vn - slope vn min(vn, k)`` is linear in (e0, slope) for each k, with ``e_min = e0 - slope k``:
+    bounded linear least squares for every measured speed as k (and no kink), the best kept."""
+    from scipy.optimize import lsq_linear
+
+    best, best_sse = None, math.inf
+    names = ("restitution", "restitution_slope")
+    low, high = [bounds[n][0] for n in names], [bounds[n][1] for n in names]
+    for kink in list(np.unique(vn)) + [math.inf]:
+        design = np.column_stack([vn, -vn * np.minimum(vn, kink)])
+        fit = lsq_linear(design, out, bounds=(low, high), method="bvls")
+        e0, slope = map(float, fit.x)
+        floor = e0 - slope * kink if math.isfinite(kink) else 0.0
+        if not bounds["restitution_min"][0] <= floor <= min(e0, bounds["restitution_min"][1]):
+            continue
+        values = {"restitution": e0, "restitution_slope": slope, "restitution_min": floor}
+        sse = float(np.sum((out - vn * restitution_law(vn, values)) ** 2))
+        if sse < best_sse:
+            best, best_sse = values, sse
+    if best is None:
+        raise ValueError("no restitution law within the sysid bounds fits the impacts")
+    return best
+
+
+def _fit_some(vn: np.ndarray, out: np.ndarray, fixed: Mapping[str, float],
+              bounds: Mapping[str, Sequence[float]], start: Mapping[str, float]) -> dict:
+    """Some of the three fixed: bounded nonlinear least squares of the others from ``start``."""
+    from scipy.optimize import least_squares
+
+    free = [n for n in RESTITUTION_NAMES if n not in fixed]
+    if not free:
+        return {n: fixed[n] for n in RESTITUTION_NAMES}
+    low = np.array([bounds[n][0] for n in free])
+    high = np.array([bounds[n][1] for n in free])
+
+    def values_of(x: np.ndarray) -> dict:
+        return {**{n: fixed[n] for n in RESTITUTION_NAMES if n in fixed}, **dict(zip(free, map(float, x)))}
+
+    def residual(x: np.ndarray) -> np.ndarray:
+        return out - vn * restitution_law(vn, values_of(x))
+
+    x0 = np.clip([start[n] for n in free], low, high)
+    return values_of(least_squares(residual, x0, bounds=(low, high)).x)
+
+
+def fit_restitution(impacts: Sequence[ImpactObservation], fixed: Mapping[str, float],
+                    bounds: Mapping[str, Sequence[float]], factor: float,
+                    start: Mapping[str, float]) -> tuple[dict, np.ndarray, float]:
+    """The restitution law's free parameters by least squares of the outgoing normal speed [m/s], refitted
+    without outlying impacts; returns values, the impacts kept and the residual RMS [m/s]."""
+    vn = np.array([-o.before[1] for o in impacts])
+    out = np.array([o.after[1] for o in impacts])
+    keep = np.ones(len(impacts), bool)
+    for _ in range(3):
+        if any(n in fixed for n in RESTITUTION_NAMES):
+            values = _fit_some(vn[keep], out[keep], fixed, bounds, start)
+        else:
+            values = _fit_all_three(vn[keep], out[keep], bounds)
+        residual = out - vn * restitution_law(vn, values)
+        new_keep = _robust_keep(residual, factor)
+        if np.array_equal(new_keep, keep) or new_keep.sum() < 3:
+            break
+        keep = new_keep
+    return values, keep, float(math.sqrt(np.mean(residual[keep] ** 2)))
+
+
+def tangential_residuals(impacts: Sequence[ImpactObservation], radius: float, law: Mapping[str, float],
+                         friction: float) -> np.ndarray:
+    """Per impact: the Routh impact's error in outgoing (vb, r omega) [m/s], as a norm, with the
+    restitution law ``law`` (RESTITUTION_NAMES)."""
+    out = np.empty(len(impacts))
+    for i, o in enumerate(impacts):
+        vb, vn, omega = o.before
+        res = rim_impact(vb, vn, omega, radius, law["restitution"], friction, law["restitution_slope"],
+                         law["restitution_min"])
+        out[i] = math.hypot(res.vb - o.after[0], radius * (res.omega - o.after[2]))
+    return out
+
+
+def fit_rim_friction(impacts: Sequence[ImpactObservation], radius: float, law: Mapping[str, float],
+                     bounds: Sequence[float]) -> float:
+    """mu_rim minimising the squared tangential residuals: a grid over ``bounds``, then a bounded search
+    between the best grid point's neighbours."""
+    from scipy.optimize import minimize_scalar
+
+    def cost(mu: float) -> float:
+        return float(np.sum(tangential_residuals(impacts, radius, law, mu) ** 2))
+
+    grid = np.linspace(bounds[0], bounds[1], FRICTION_GRID)
+    best = int(np.argmin([cost(mu) for mu in grid]))
+    lo, hi = grid[max(0, best - 1)], grid[min(len(grid) - 1, best + 1)]
+    refined = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
+    return float(refined.x) if refined.fun <= cost(grid[best]) else float(grid[best])
+
+
+def fit_impacts(impacts: Sequence[ImpactObservation], radius: float, fixed: Mapping[str, float],
+                bounds: Mapping[str, Sequence[float]], settings: ImpactSettings,
+                start: Mapping[str, float]) -> ImpactFit:
+    """Restitution law, then rim friction, over the impacts whose fits are good; ``fixed`` names keep
+    their values, ``start`` (all IMPACT_NAMES) seeds the nonlinear fits."""
+    quality = np.array([o.fit_quality for o in impacts])
+    smooth = quality <= settings.outlier_factor * max(float(np.median(quality)), 1e-12) if len(impacts) else quality
+    good = [o for o, ok in zip(impacts, smooth) if ok]
+    needed = sum(1 for n in IMPACT_NAMES if n not in fixed) + 1
+    if len(good) < needed:
+        raise ValueError(f"{len(good)} usable rim impacts: too few to identify "
+                         + ", ".join(n for n in IMPACT_NAMES if n not in fixed))
+    values, keep, rms_normal = fit_restitution(good, fixed, bounds, settings.outlier_factor, start)
+    kept = [o for o, k in zip(good, keep) if k]
+    if "friction_rim" in fixed:
+        values["friction_rim"] = fixed["friction_rim"]
+    else:
+        mu = fit_rim_friction(kept, radius, values, bounds["friction_rim"])
+        keep_t = _robust_keep(tangential_residuals(kept, radius, values, mu), settings.outlier_factor)
+        if not keep_t.all() and keep_t.sum() >= 2:
+            kept = [o for o, k in zip(kept, keep_t) if k]
+            mu = fit_rim_friction(kept, radius, values, bounds["friction_rim"])
+        values["friction_rim"] = mu
+    rms_t = float(math.sqrt(np.mean(tangential_residuals(kept, radius, values, values["friction_rim"]) ** 2)))
+    return ImpactFit(values, len(kept), len(impacts) - len(kept), rms_normal, rms_t)

@@ -1,0 +1,69 @@
+"""Local polynomial fits of a stretch of recorded positions (split identification, issue #13 item 5).
+
+A stretch is a set of grid rows of a :class:`~.preprocess.GridTrajectory` (blank rows skipped). Its
+table-frame positions ``p(t)`` [m] are fitted per axis by least squares with a polynomial in
+``tau = t - t_ref`` [s]: degree 2 gives position, velocity and acceleration at ``t_ref``; degree 1
+(velocity only) may first have a known acceleration removed. The angle is fitted the same way after
+unwrapping. Nothing here knows the puck model: these are the independent references the split
+identification regresses the model's parameters on.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass(frozen=True)
+class LocalFit:
+    """Polynomial fit of the positions of one stretch at ``t_ref``."""
+
+    t_ref: float           # [s] time the coefficients hold at (trajectory time)
+    p: np.ndarray          # (2,) [m] position at t_ref
+    v: np.ndarray          # (2,) [m/s] velocity at t_ref
+    a: np.ndarray          # (2,) [m/s^2] acceleration (zeros for degree 1, or the removed one)
+    a_gain: float          # [1/s^4] variance of a per unit position noise variance ((X^T X)^-1, a's entry)
+    v_gain: float          # [1/s^2] the same for v
+    rms: float             # [m] residual RMS over both axes
+    frames: int            # rows used
+
+
+def fit_positions(times: np.ndarray, xy: np.ndarray, t_ref: float, degree: int,
+                  known_acceleration: np.ndarray | None = None) -> LocalFit | None:
+    """Fit ``xy`` (n, 2) [m] at ``times`` (n,) [s] with a polynomial of ``degree`` (1 or 2) in ``t - t_ref``;
+    for degree 1, ``known_acceleration`` [m/s^2] is removed first. None if too few rows for the fit."""
+    tau = np.asarray(times, float) - t_ref
+    n = len(tau)
+    if n < degree + 2:
+        return None
+    columns = [np.ones(n), tau] + ([0.5 * tau ** 2] if degree == 2 else [])
+    x = np.column_stack(columns)
+    target = np.asarray(xy, float)
+    accel = np.zeros(2)
+    if degree == 1 and known_acceleration is not None:
+        accel = np.asarray(known_acceleration, float)
+        target = target - 0.5 * tau[:, None] ** 2 * accel[None, :]
+    gram_inv = np.linalg.inv(x.T @ x)
+    coef = gram_inv @ (x.T @ target)
+    residual = target - x @ coef
+    rms = math.sqrt(float(np.sum(residual ** 2)) / max(1, 2 * (n - len(columns))))
+    a = coef[2] if degree == 2 else accel
+    a_gain = float(gram_inv[2, 2]) if degree == 2 else 0.0
+    return LocalFit(t_ref, coef[0], coef[1], a, a_gain, float(gram_inv[1, 1]), rms, n)
+
+
+def fit_angle_rate(times: np.ndarray, theta: np.ndarray) -> float | None:
+    """Spin [rad/s]: slope of a line through the unwrapped angles ``theta`` [rad] at ``times`` [s]."""
+    if len(times) < 3:
+        return None
+    unwrapped = np.unwrap(np.asarray(theta, float))
+    tau = np.asarray(times, float) - float(np.mean(times))
+    return float(np.sum(tau * (unwrapped - np.mean(unwrapped))) / np.sum(tau ** 2))
+
+
+def rows_in(z: np.ndarray, start: int, stop: int) -> np.ndarray:
+    """Indices of the measured (non-blank) rows of ``z`` in [start, stop)."""
+    start, stop = max(0, start), min(len(z), stop)
+    rows = np.arange(start, stop)
+    return rows[~np.isnan(z[start:stop, 0])]

@@ -1,0 +1,104 @@
+"""Split identification: flight parameters from free flight, then impact parameters from the impacts
+(issue #13 item 5; ``air-hockey sysid --method split``).
+
+The thesis identifies all four parameters at once by the filter's prediction loss (HEBO, :mod:`.sysid`).
+Here each part of the model is fitted where it alone acts, by least squares on local fits of the
+recorded positions (:mod:`.flight_fit`, :mod:`.impact_fit`): no filter runs, so the result does not
+depend on the filter's tuning, and it takes a second instead of minutes. Parameters not identified keep
+the tracker's values and enter the fits as known.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from air_hockey_agent.core.identification.flight_fit import (FlightFit, FlightSettings, NoiseModel,
+                                                           identify_flight)
+from air_hockey_agent.core.identification.impact_fit import ImpactFit, ImpactSettings, find_impacts, fit_impacts
+from air_hockey_agent.core.identification.preprocess import GridTrajectory
+from air_hockey_agent.core.table import TableGeometry
+
+FLIGHT = ("damping", "friction_surface", "table_acceleration")
+IMPACT = ("restitution", "restitution_slope", "restitution_min", "friction_rim")
+SPLIT_IDENTIFIABLE = FLIGHT + IMPACT
+AXES = ("table_acceleration_x", "table_acceleration_y")
+
+
+@dataclass
+class SplitResult:
+    identified: dict      # tracker parameter name -> value (table_acceleration as [x, y])
+    std: dict             # tracker parameter name -> standard error (table_acceleration as [x, y])
+    flight: FlightFit | None
+    impacts: ImpactFit | None
+
+
+def flight_settings(settings: Mapping[str, Any]) -> FlightSettings:
+    return FlightSettings(settings["split.window"], settings["split.min_coverage"], settings["split.min_speed"],
+                          settings["split.rim_margin"], settings["split.outlier_factor"])
+
+
+def impact_settings(settings: Mapping[str, Any]) -> ImpactSettings:
+    return ImpactSettings(settings["split.impact_window"], settings["split.impact_min_frames"],
+                          settings["split.approach_distance"], settings["split.contact_tolerance"],
+                          settings["split.min_normal_speed"], settings["split.rim_margin"],
+                          settings["split.outlier_factor"])
+
+
+def noise_model(tracker: Mapping[str, Any]) -> NoiseModel:
+    """The tracker's position noise (x axis's R and its growth with speed) as the fits' weights."""
+    return NoiseModel(tracker["measurement_noise"][0], tracker["measurement_noise_per_speed"])
+
+
+def flight_law(values: Mapping[str, float]):
+    """``a(v)`` [m/s^2] of the flight law with ``values`` (FLIGHT_NAMES of :mod:`.flight_fit`)."""
+    g = np.array([values[AXES[0]], values[AXES[1]]])
+
+    def acceleration(v: np.ndarray) -> np.ndarray:
+        speed = float(np.linalg.norm(v))
+        friction = values["friction_surface"] * v / speed if speed > 0.0 else 0.0
+        return g - values["damping"] * v - friction
+    return acceleration
+
+
+def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str, Any], settings: Mapping[str, Any],
+                   names: Sequence[str], bounds: Mapping[str, Sequence[float]]) -> SplitResult:
+    """Identify ``names`` (of SPLIT_IDENTIFIABLE) within ``bounds`` (per name; the table acceleration's
+    per axis); raises ValueError when the recordings hold too little free flight or too few impacts."""
+    table = TableGeometry.from_params(tracker)
+    noise = noise_model(tracker)
+    flight_values = {"damping": tracker["damping"], "friction_surface": tracker["friction_surface"],
+                     AXES[0]: tracker["table_acceleration"][0], AXES[1]: tracker["table_acceleration"][1]}
+    identified, std = {}, {}
+    flight = None
+    if any(n in FLIGHT for n in names):
+        fixed = {k: v for k, v in flight_values.items()
+                 if (k in AXES and "table_acceleration" not in names) or (k not in AXES and k not in names)}
+        axis_bounds = {axis: bounds.get("table_acceleration", (-np.inf, np.inf)) for axis in AXES}
+        flight = identify_flight(trajectories, table, noise, flight_settings(settings), fixed,
+                                 {**bounds, **axis_bounds})
+        flight_values = flight.values
+        _collect(flight.values, flight.std, names, identified, std)
+    impacts = None
+    if any(n in IMPACT for n in names):
+        fixed = {n: tracker[n] for n in IMPACT if n not in names}
+        chosen = impact_settings(settings)
+        law = flight_law(flight_values)
+        found = [o for traj in trajectories for o in find_impacts(traj, table, law, noise, chosen)]
+        impacts = fit_impacts(found, table.puck_radius, fixed, bounds, chosen, {n: tracker[n] for n in IMPACT})
+        _collect(impacts.values, {}, names, identified, std)
+    return SplitResult(identified, std, flight, impacts)
+
+
+def _collect(values: Mapping[str, float], errors: Mapping[str, float], names: Sequence[str], identified: dict,
+             std: dict) -> None:
+    """Copy the identified ``names`` into tracker-parameter form (the two axes as one list)."""
+    for name in names:
+        if name == "table_acceleration" and AXES[0] in values:
+            identified[name] = [float(values[a]) for a in AXES]
+            std[name] = [float(errors.get(a, 0.0)) for a in AXES]
+        elif name in values and name != "table_acceleration":
+            identified[name] = float(values[name])
+            if name in errors:
+                std[name] = float(errors[name])
