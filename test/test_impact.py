@@ -83,3 +83,4 @@ def test_restitution_levels_off_at_its_floor():
     assert speed_restitution(1.0, 0.15, -1.0, 0.67) == pytest.approx((0.85, 0.15))
     assert speed_restitution(1.0, 0.15, -3.0, 0.67) == (0.67, 0.0)  # 1 - 0.45 is below the floor
     assert rim_impact(0.0, -4.0, 0.0, R, 1.0, MU, 0.15, 0.67).vn == pytest.approx(0.67 * 4.0)
+    assert speed_restitution(0.6, 0.15, -3.0, 0.67) == (0.6, 0.0)  # a floor above e: e stays constant

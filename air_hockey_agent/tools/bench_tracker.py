@@ -1,19 +1,24 @@
 """``air-hockey bench tracker``: EKF update time and prediction time (stepwise vs fast), in microseconds.
 
 Random puck states on the table (speeds up to 3 m/s, spins up to 20 rad/s), parameters and noise from
-``config/tracker.yaml``; the same states go through both predictors in one run. Thesis table 5.1: one
-180-step prediction took 75.7 us mean (C++, without covariance).
+``config/tracker.yaml`` (and ``--params-file``); the same states go through both predictors in one run.
+Thesis table 5.1: one 180-step prediction took 75.7 us mean (C++, without covariance). With a table
+acceleration (``table_acceleration`` not zero) the fast predictor is the stepwise one: ratio about 1.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import time
+from pathlib import Path
+from typing import Sequence
 
 import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise
+from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tracker_params import load_tracker_params
 from air_hockey_agent.tools.argtypes import count
 
@@ -31,8 +36,8 @@ def _timed(fn, *args) -> float:
     return time.perf_counter() - start
 
 
-def run_benchmark(n: int, seed: int) -> dict:
-    ekf = PuckEKF.from_params(load_tracker_params())
+def run_benchmark(n: int, seed: int, params_files: Sequence[Path] = ()) -> dict:
+    ekf = PuckEKF.from_params(load_tracker_params(params_files))
     model, settings, table = ekf.model, ekf.settings, ekf.model.table
     rng = np.random.default_rng(seed)
     states = [np.array([rng.uniform(-table.x_limit, table.x_limit), rng.uniform(-table.y_limit, table.y_limit),
@@ -60,12 +65,18 @@ def add_parser(bench_subparsers: argparse._SubParsersAction) -> None:
                                          formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--samples", type=count(1), default=2000, help="random states (default 2000)")
     parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--params-file", type=Path, action="append", default=[],
+                        help="tracker parameter YAML (e.g. sysid's output); may be repeated")
     parser.add_argument("--json", action="store_true", help="print one JSON object")
     parser.set_defaults(run=run)
 
 
 def run(args: argparse.Namespace) -> int:
-    result = run_benchmark(args.samples, args.seed)
+    try:
+        result = run_benchmark(args.samples, args.seed, args.params_file)
+    except (ParameterFileError, ParameterValueError) as exc:
+        print(f"air-hockey bench tracker: error: {exc}", file=sys.stderr)
+        return 2
     if args.json:
         print(json.dumps(result))
         return 0

@@ -10,7 +10,7 @@ core.puck.impact`: ``b`` along the rim, ``n`` into the table).
 
 * Restitution (speed-dependent, eq. 3.2-3.3 with ``e(vn) = max(e0 - slope |vn|, e_min)``): least
   squares of the outgoing normal speed ``e(vn) |vn|``, which is linear in ``(e0, slope)`` once the
-  speed where the line meets its floor is chosen (every measured speed is tried).
+  speed where the line meets its floor is chosen (a grid of speeds, then a scalar search).
 * Rim friction: the Routh impact (:func:`~air_hockey_agent.core.puck.impact.rim_impact`) with the
   fitted restitution predicts the outgoing ``vb`` and ``r omega`` from the incoming state; ``mu_rim``
   minimises their squared error [m^2/s^2] over all impacts (a bounded scalar search).
@@ -35,6 +35,7 @@ from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
 RESTITUTION_NAMES = ("restitution", "restitution_slope", "restitution_min")
 IMPACT_NAMES = RESTITUTION_NAMES + ("friction_rim",)
 FRICTION_GRID = 201  # scalar search: grid points over the bounds before the local refinement
+KINK_GRID = 201     # the same for the speed where the restitution meets its floor
 
 
 @dataclass(frozen=True)
@@ -148,7 +149,9 @@ def _line_fit(times, xy, t_ref, acceleration):
 
 
 def _robust_keep(residuals: np.ndarray, factor: float) -> np.ndarray:
-    scale = 1.4826 * float(np.median(np.abs(residuals))) or 1e-12
+    """Residuals [m/s] within ``factor`` robust standard deviations (1.4826 MAD; at least 1e-9 m/s, far
+    below any measurement, so exact data keep every point)."""
+    scale = max(1.4826 * float(np.median(np.abs(residuals))), 1e-9)
     return np.abs(residuals) <= factor * scale
 
 
@@ -161,26 +164,35 @@ def restitution_law(vn: np.ndarray, values: Mapping[str, float]) -> np.ndarray:
 def _fit_all_three(vn: np.ndarray, out: np.ndarray, bounds: Mapping[str, Sequence[float]]) -> dict:
     """The three together. Where the line meets its floor (the kink speed k) the law is continuous, so
     ``out = e0 vn - slope vn min(vn, k)`` is linear in (e0, slope) for each k, with ``e_min = e0 - slope k``:
-    bounded linear least squares for every measured speed as k (and no kink), the best kept."""
-    from scipy.optimize import lsq_linear
+    bounded linear least squares for k on a grid over the measured speeds (and no kink), then a bounded
+    scalar search for k between the best grid point's neighbours."""
+    from scipy.optimize import lsq_linear, minimize_scalar
 
-    best, best_sse = None, math.inf
     names = ("restitution", "restitution_slope")
     low, high = [bounds[n][0] for n in names], [bounds[n][1] for n in names]
-    for kink in list(np.unique(vn)) + [math.inf]:
+
+    def fit_at(kink: float) -> tuple[float, dict | None]:
         design = np.column_stack([vn, -vn * np.minimum(vn, kink)])
-        fit = lsq_linear(design, out, bounds=(low, high), method="bvls")
-        e0, slope = map(float, fit.x)
+        e0, slope = map(float, lsq_linear(design, out, bounds=(low, high), method="bvls").x)
         floor = e0 - slope * kink if math.isfinite(kink) else 0.0
         if not bounds["restitution_min"][0] <= floor <= min(e0, bounds["restitution_min"][1]):
-            continue
+            return math.inf, None
         values = {"restitution": e0, "restitution_slope": slope, "restitution_min": floor}
-        sse = float(np.sum((out - vn * restitution_law(vn, values)) ** 2))
-        if sse < best_sse:
-            best, best_sse = values, sse
-    if best is None:
+        return float(np.sum((out - vn * restitution_law(vn, values)) ** 2)), values
+
+    grid = np.unique(np.concatenate([vn, np.linspace(0.0, float(np.max(vn)), KINK_GRID)]))
+    costs = [fit_at(k)[0] for k in grid]
+    best = int(np.argmin(costs))
+    candidates = [fit_at(math.inf), fit_at(float(grid[best]))]
+    lo, hi = grid[max(0, best - 1)], grid[min(len(grid) - 1, best + 1)]
+    if hi > lo:
+        refined = minimize_scalar(lambda k: fit_at(k)[0], bounds=(lo, hi), method="bounded",
+                                  options={"xatol": 1e-6})
+        candidates.append(fit_at(float(refined.x)))
+    cost, values = min(candidates, key=lambda c: c[0])
+    if values is None:
         raise ValueError("no restitution law within the sysid bounds fits the impacts")
-    return best
+    return values
 
 
 def _fit_some(vn: np.ndarray, out: np.ndarray, fixed: Mapping[str, float],

@@ -64,6 +64,7 @@ def fit_angle_rate(times: np.ndarray, theta: np.ndarray) -> float | None:
 
 def rows_in(z: np.ndarray, start: int, stop: int) -> np.ndarray:
     """Indices of the measured (non-blank) rows of ``z`` in [start, stop)."""
-    start, stop = max(0, start), min(len(z), stop)
+    start = max(0, start)
+    stop = max(start, min(len(z), stop))
     rows = np.arange(start, stop)
     return rows[~np.isnan(z[start:stop, 0])]

@@ -39,13 +39,13 @@ def is_sliding(vb: float, vn: float, omega: float, radius: float, restitution: f
 
 
 def speed_restitution(restitution: float, slope: float, vn: float, floor: float = 0.0) -> tuple[float, float]:
-    """Restitution of an impact at normal velocity ``vn`` [m/s] (< 0), never below ``floor``, and its
-    derivative d e / d vn."""
+    """Restitution of an impact at normal velocity ``vn`` [m/s] (< 0), never below ``floor`` (nor above
+    ``restitution``: a floor above it makes e constant), and its derivative d e / d vn."""
     e = restitution - slope * abs(vn)
     if slope == 0.0 or e >= restitution:
         return restitution, 0.0
     if e <= floor:
-        return floor, 0.0
+        return min(floor, restitution), 0.0
     return e, (slope if vn < 0.0 else -slope)
 
 

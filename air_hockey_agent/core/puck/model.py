@@ -54,7 +54,7 @@ class PuckParams:
     restitution: float       # e [-] in [0, 1]
     friction_rim: float      # mu_rim [-]
     restitution_slope: float = 0.0  # [s/m] e falls by this per m/s of normal impact speed (0: the thesis's e)
-    restitution_min: float = 0.0    # [-] ... but not below this
+    restitution_min: float = 0.0    # [-] ... but not below this (nor above restitution)
     table_acceleration: tuple[float, float] = (0.0, 0.0)  # g [m/s^2], table frame: tilt / air film (issue #13)
 
     @classmethod
@@ -75,7 +75,7 @@ class PuckParams:
                   ("restitution", 0.0 <= self.restitution <= 1.0, "in [0, 1]"),
                   ("friction_rim", self.friction_rim >= 0.0, ">= 0"),
                   ("restitution_slope", self.restitution_slope >= 0.0, ">= 0"),
-                  ("restitution_min", 0.0 <= self.restitution_min <= self.restitution, "in [0, restitution]"))
+                  ("restitution_min", 0.0 <= self.restitution_min <= 1.0, "in [0, 1]"))
         for name, ok, rule in checks:
             value = getattr(self, name)
             if not ok or not math.isfinite(value):
