@@ -141,8 +141,8 @@ def run(args: argparse.Namespace) -> int:
         write_params_yaml(args.out, result["identified"], result["summary_line"])
     result.pop("summary_line")
     for phrase in result["on_bounds"]:
-        print(f"{PROG}: warning: {phrase}: the search ended on the edge of its box (config/sysid.yaml "
-              f"bounds); the model or the box may not fit these recordings", file=sys.stderr)
+        print(f"{PROG}: warning: {phrase}: the search ended on the edge of its box (config/sysid.yaml bounds): "
+              f"the effect may be absent, or the model or the box may not fit these recordings", file=sys.stderr)
     print(json.dumps(result) if args.json else format_report(result, args.out))
     return 2 if loaded.errors else 0
 
