@@ -34,10 +34,14 @@ class ParamSpec:
     low: float | None = None
     high: float | None = None
     length: int | None = None  # required length for list parameters
+    choices: tuple | None = None  # allowed values of a str parameter
 
     def check(self, value: Any) -> Any:
         """Return ``value`` coerced to the declared type, or raise :class:`ParameterValueError`."""
         value = self._coerce(value)
+        if self.choices is not None and value not in self.choices:
+            raise ParameterValueError(f"parameter '{self.name}' = {value!r} is not one of "
+                                      f"{', '.join(map(str, self.choices))} ({self.description})")
         items = value if isinstance(value, list) else [value]
         if self.length is not None and len(items) != self.length:
             raise ParameterValueError(f"parameter '{self.name}' needs {self.length} values, got {len(items)}")

@@ -19,7 +19,7 @@ import numpy as np
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
-from air_hockey_agent.tracker_params import load_tracker_params
+from air_hockey_agent.tracker_params import FILTER_KINDS, load_tracker_params
 from air_hockey_agent.tools.argtypes import count
 
 HORIZONS = (0.5, 1.0, 1.5)
@@ -49,7 +49,8 @@ def run_benchmark(n: int, seed: int, params_files: Sequence[Path] = ()) -> dict:
         ekf.reset(s, 0.0)
         z = s[[0, 1, 4]] + rng.normal(0.0, 1e-4, 3)
         update.append(_timed(ekf.update, z))
-    result = {"update_us": _stats(update), "predict_us": {"stepwise": {}, "fast": {}}, "ratio_stepwise_over_fast": {}}
+    result = {"update_us": _stats(update), "predict_us": {"stepwise": {}, "fast": {}}, "ratio_stepwise_over_fast": {},
+              "frame_us": _frame_costs(params_files, states, rng)}
     for h in HORIZONS:
         step = [_timed(predict_stepwise, model, s, p0, h, settings.dt, settings.q) for s in states[: max(50, n // 10)]]
         fast = [_timed(predict_fast, model, s, p0, h, settings.dt, settings.q) for s in states]
@@ -58,6 +59,31 @@ def run_benchmark(n: int, seed: int, params_files: Sequence[Path] = ()) -> dict:
         result["ratio_stepwise_over_fast"][str(h)] = round(
             result["predict_us"]["stepwise"][str(h)]["mean"] / result["predict_us"]["fast"][str(h)]["mean"], 1)
     return result
+
+
+def _frame_costs(params_files: Sequence[Path], states: list, rng: np.random.Generator) -> dict:
+    """One frame (predict one model step, then fuse) per filter kind on the same states, with its
+    ratio to the EKF's in this run (the filter option's own cost, issue #13)."""
+    params = load_tracker_params(params_files)
+    zs = [s[[0, 1, 4]] + rng.normal(0.0, 1e-4, 3) for s in states]
+    out = {}
+    for kind in FILTER_KINDS:
+        ekf = PuckEKF.from_params({**params, "filter": kind})
+        p0 = ekf.settings.p0 * 1e-2
+        times = []
+        for s, z in zip(states, zs):
+            ekf.reset(s, 0.0)
+            ekf.P = p0.copy()
+            times.append(_timed(_frame, ekf, z))
+        out[kind] = _stats(times)
+    for kind in FILTER_KINDS:
+        out[kind]["ratio_to_ekf"] = round(out[kind]["mean"] / out["ekf"]["mean"], 2)
+    return out
+
+
+def _frame(ekf: PuckEKF, z: np.ndarray) -> None:
+    ekf.predict_to(ekf.settings.dt)
+    ekf.update(z)
 
 
 def add_parser(bench_subparsers: argparse._SubParsersAction) -> None:
@@ -86,4 +112,7 @@ def run(args: argparse.Namespace) -> int:
         sw, fa = result["predict_us"]["stepwise"][str(h)], result["predict_us"]["fast"][str(h)]
         print(f"{h:>7.1f}s {sw['mean']:>12.1f} / {sw['p99']:<9.1f} {fa['mean']:>9.1f} / {fa['p99']:<8.1f} "
               f"{result['ratio_stepwise_over_fast'][str(h)]:>6.1f}")
+    frames = result["frame_us"]
+    print("one frame (predict + update) per filter: " + ", ".join(
+        f"{kind} {frames[kind]['mean']} us ({frames[kind]['ratio_to_ekf']}x)" for kind in FILTER_KINDS))
     return 0

@@ -60,6 +60,11 @@ class FilterSettings:
     r_per_speed: float = 0.0         # [s] position noise std added (in quadrature) per m/s of puck speed
     angle_gate_threshold: float = math.inf  # squared angle innovation / its variance; beyond: position only
     impact_noise: float = 0.0        # [-] velocity/spin std after a rim impact, as a fraction of their size
+    ukf_alpha: float = 1.0           # [-] sigma-point spread (filter: ukf, mee_ukf; :mod:`.ukf`)
+    ukf_beta: float = 2.0            # [-] prior-distribution term of the centre's covariance weight
+    mee_kernel: float = 3.0          # [std] Gaussian kernel bandwidth of the MEE update (filter: mee_ukf)
+    mee_fiducial: float = 0.5        # [-] weight of the fiducial (zero-error) point in the MEE cost
+    mee_max_iterations: int = 10     # fixed-point iterations of the MEE update at most
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "FilterSettings":
@@ -70,7 +75,9 @@ class FilterSettings:
                    outside_table_margin=params["outside_table_margin"],
                    max_prediction_gap=params["max_prediction_gap"], glitch_speed=params["glitch_speed"],
                    r_per_speed=params["measurement_noise_per_speed"],
-                   angle_gate_threshold=params["angle_gate_threshold"], impact_noise=params["impact_noise"])
+                   angle_gate_threshold=params["angle_gate_threshold"], impact_noise=params["impact_noise"],
+                   ukf_alpha=params["ukf.alpha"], ukf_beta=params["ukf.beta"], mee_kernel=params["mee.kernel"],
+                   mee_fiducial=params["mee.fiducial"], mee_max_iterations=params["mee.max_iterations"])
 
     def measurement_noise(self, speed: float) -> np.ndarray:
         """R [m^2, m^2, rad^2] for a puck moving at ``speed`` [m/s]: marker noise and timestamp jitter
@@ -133,9 +140,12 @@ class PuckEKF:
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "PuckEKF":
-        """Filter on the table, model and noise settings of a tracker parameter set (``tracker_params``)."""
+        """The filter a tracker parameter set (``tracker_params``) selects with ``filter`` (ekf, ukf,
+        mee_ukf: :mod:`.ukf`), on its table, model and noise settings."""
+        from air_hockey_agent.core.estimation.ukf import PuckMEEUKF, PuckUKF
+        kind = {"ekf": PuckEKF, "ukf": PuckUKF, "mee_ukf": PuckMEEUKF}[params.get("filter", "ekf")]
         model = PuckModel(TableGeometry.from_params(params), PuckParams.from_params(params))
-        return cls(model, FilterSettings.from_params(params))
+        return kind(model, FilterSettings.from_params(params))
 
     # --- state management -------------------------------------------------------------------------
     def reset(self, state: Sequence[float] | None = None, stamp: float | None = None) -> None:

@@ -1,0 +1,100 @@
+"""The unscented and minimum-error-entropy filters (core/estimation/ukf.py, issue #13 item 2) against
+independent references: the exact linear case, the Kalman update they must reduce to, a heavy-tailed
+error they must resist, and ground truth through rim impacts."""
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.estimation.ekf import FilterSettings, PuckEKF
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections, mocap_stream, simulate_truth, true_state_at
+from air_hockey_agent.core.estimation.ukf import PuckMEEUKF, PuckUKF
+from air_hockey_agent.params import ParameterValueError
+from air_hockey_agent.tracker_params import load_tracker_params
+from model_fixtures import DT, Q, model
+
+SETTINGS = FilterSettings(dt=DT, q=Q, r=np.diag([1e-8, 1e-8, 1e-4]), p0=np.diag([1e-6, 1e-6, 1.0, 1.0, 1e-4, 100.0]),
+                          gate_threshold=13.82, max_consecutive_rejections=3, outside_table_margin=0.05,
+                          max_prediction_gap=2.0)
+P = np.diag([1e-7, 2e-7, 1e-3, 2e-3, 1e-4, 1e-2])
+P[0, 2] = P[2, 0] = 1e-6
+
+
+def filters(kind, **settings):
+    f = kind(model(friction_surface=0.0), replace(SETTINGS, **settings))
+    f.reset([0.0, 0.1, 1.0, 0.5, 0.3, 2.0], 0.0)
+    f.P = P.copy()
+    return f
+
+
+def test_on_a_linear_step_the_unscented_prediction_is_the_kalman_one():
+    # without surface friction and away from the rims one model step is linear: sigma points are exact
+    ekf, ukf = filters(PuckEKF), filters(PuckUKF)
+    for f in (ekf, ukf):
+        f.predict_to(DT)
+    assert ukf.x == pytest.approx(ekf.x, abs=1e-12)
+    assert np.abs(ukf.P - ekf.P).max() < 1e-12 * np.abs(ekf.P).max()
+
+
+def test_sigma_points_straddling_a_rim_widen_the_velocity_spread():
+    # a puck 3 mm short of the right rim: the mean (2.5 mm this step) misses it, sigma points do not
+    state = [0.0, model().table.y_limit - 0.003, 0.0, 0.3, 0.0, 0.0]
+    ekf, ukf = filters(PuckEKF), filters(PuckUKF)
+    for f in (ekf, ukf):
+        f.reset(state, 0.0)
+        f.P = P.copy()
+        f.predict_to(DT)
+    assert ukf.P[3, 3] > 1.5 * ekf.P[3, 3]
+
+
+def test_mee_update_with_a_wide_kernel_and_only_the_fiducial_point_is_the_kalman_update():
+    ekf, mee = filters(PuckEKF), filters(PuckMEEUKF, mee_kernel=1e6, mee_fiducial=1.0)
+    z = np.array([0.0003, 0.1002, 0.31])
+    for f in (ekf, mee):
+        f.update(z)
+    assert mee.x == pytest.approx(ekf.x, abs=1e-9)
+    assert np.abs(mee.P - ekf.P).max() < 1e-9 * np.abs(ekf.P).max()
+
+
+def test_mee_update_resists_an_impulsive_error_the_kalman_update_follows():
+    # a converged track (position prior tighter than the marker noise) and a marker error of 3.5 std,
+    # inside the 2-dof gate (13.82) but far in the Gaussian's tail
+    ekf, mee = filters(PuckEKF), filters(PuckMEEUKF)
+    tight = P.copy()
+    tight[0, 0] = tight[1, 1] = 1e-9
+    tight[0, 2] = tight[2, 0] = 0.0
+    sigma = np.sqrt(tight[0, 0] + SETTINGS.r[0, 0])
+    z = np.array([3.5 * sigma, 0.1, 0.3])
+    for f in (ekf, mee):
+        f.P = tight.copy()
+        f.update(z)
+    assert abs(mee.x[0]) < 0.8 * abs(ekf.x[0])
+
+
+@pytest.mark.parametrize("kind", [PuckUKF, PuckMEEUKF])
+def test_tracks_ground_truth_through_rim_impacts(kind):
+    m = model()
+    start = np.array([-0.5, 0.1, 2.5, 1.7, 0.0, 8.0])
+    times, states = simulate_truth(m, start, 4.0, DT / 10)
+    frames = mocap_stream(m, times, states, 120.0, MocapImperfections(), np.random.default_rng(0))
+    f = kind(m, SETTINGS)
+    errors = []
+    for stamp, z in frames:
+        f.process(stamp, z)
+        if f.initialised:
+            errors.append(f.x - true_state_at(m, times, states, stamp))
+    err = np.array(errors)
+    assert f.stats.reinitialisations == 1 and f.stats.outliers_rejected <= 2
+    assert np.median(np.hypot(err[:, 0], err[:, 1])) < 2e-4            # [m], noise is 1e-4 per axis
+    assert np.percentile(np.hypot(err[20:, 2], err[20:, 3]), 95) < 0.02  # [m/s] after convergence
+
+
+def test_the_filter_parameter_selects_the_estimator_and_refuses_unknown_ones():
+    tracker = load_tracker_params()
+    assert type(PuckEKF.from_params(tracker)) is PuckEKF  # config/tracker.yaml: the EKF
+    assert type(PuckEKF.from_params({**tracker, "filter": "ukf"})) is PuckUKF
+    assert type(PuckEKF.from_params({**tracker, "filter": "mee_ukf"})) is PuckMEEUKF
+    from air_hockey_agent.tracker_params import TRACKER_PARAMS
+    spec = next(s for s in TRACKER_PARAMS if s.name == "filter")
+    with pytest.raises(ParameterValueError, match="'kalman' is not one of ekf, ukf, mee_ukf"):
+        spec.check("kalman")
