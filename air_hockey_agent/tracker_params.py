@@ -15,7 +15,7 @@ PARAM_FILES = ("table.yaml", "tracker.yaml")
 # The puck physics of the simulated table (config/sim.yaml) for the tracker and the tactics on it; the
 # defaults in tracker.yaml are a real table's (issue #13).
 SIM_TABLE_FILE = "tracker_sim_table.yaml"
-FILTER_KINDS = ("ekf", "ukf", "mee_ukf")  # core/estimation/ekf.py, ukf.py
+FILTER_KINDS = ("ekf", "ukf", "mee_ukf", "imm")  # core/estimation/ekf.py, ukf.py, imm.py
 
 TABLE_PARAMS = (
     ParamSpec("table.length", float, "[m] playing surface length", 0.5, 5.0),
@@ -36,12 +36,16 @@ TRACKER_PARAMS = (
     ParamSpec("table_acceleration", list, "[m/s^2] constant acceleration of a free puck (x, y), table frame: "
               "a tilted surface", -10.0, 10.0, 2),
     ParamSpec("filter", str, "estimator: ekf (thesis), ukf (unscented prediction), mee_ukf (and a minimum-"
-              "error-entropy update, seed 001)", choices=FILTER_KINDS),
+              "error-entropy update, seed 001), imm (free / rim / contact modes, seed 004)", choices=FILTER_KINDS),
     ParamSpec("ukf.alpha", float, "[-] sigma-point spread of the ukf and mee_ukf filters", 1e-3, 10.0),
     ParamSpec("ukf.beta", float, "[-] prior-distribution term of the sigma points (2: Gaussian)", 0.0, 10.0),
     ParamSpec("mee.kernel", float, "[std] kernel bandwidth of the mee_ukf update", 0.1, 1000.0),
     ParamSpec("mee.fiducial", float, "[-] weight of the zero-error fiducial point in the MEE cost", 1e-3, 1.0),
     ParamSpec("mee.max_iterations", int, "fixed-point iterations of the MEE update at most", 1, 100),
+    ParamSpec("imm.switch_probability", float, "[-] per frame, of leaving a motion mode (filter: imm)", 1e-6, 0.5),
+    ParamSpec("imm.rim_impact_noise", float, "[-] the rim mode's impact noise (filter: imm)", 0.0, 10.0),
+    ParamSpec("imm.contact_speed", float, "[m/s] std of the contact mode's velocity change per frame", 0.0, 100.0),
+    ParamSpec("imm.contact_spin", float, "[rad/s] std of the contact mode's spin change per frame", 0.0, 1000.0),
     ParamSpec("measurement_noise", list, "R diagonal (x, y, theta) [m^2, m^2, rad^2]", 1e-15, 1.0, 3),
     ParamSpec("process_noise", list, "Q diagonal per step (x, y, vx, vy, theta, omega)", 1e-18, 1e3, 6),
     ParamSpec("initial_covariance", list, "P0 diagonal after (re)initialisation", 1e-15, 1e4, 6),

@@ -65,6 +65,10 @@ class FilterSettings:
     mee_kernel: float = 3.0          # [std] Gaussian kernel bandwidth of the MEE update (filter: mee_ukf)
     mee_fiducial: float = 0.5        # [-] weight of the fiducial (zero-error) point in the MEE cost
     mee_max_iterations: int = 10     # fixed-point iterations of the MEE update at most
+    imm_switch_probability: float = 0.002  # [-] per frame, of leaving a motion mode (filter: imm; :mod:`.imm`)
+    imm_rim_impact_noise: float = 0.5     # [-] the rim mode's impact noise (the free mode's: impact_noise)
+    imm_contact_speed: float = 2.0        # [m/s] std of the contact mode's velocity change in one frame
+    imm_contact_spin: float = 10.0        # [rad/s] ... and of its spin change
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "FilterSettings":
@@ -77,7 +81,10 @@ class FilterSettings:
                    r_per_speed=params["measurement_noise_per_speed"],
                    angle_gate_threshold=params["angle_gate_threshold"], impact_noise=params["impact_noise"],
                    ukf_alpha=params["ukf.alpha"], ukf_beta=params["ukf.beta"], mee_kernel=params["mee.kernel"],
-                   mee_fiducial=params["mee.fiducial"], mee_max_iterations=params["mee.max_iterations"])
+                   mee_fiducial=params["mee.fiducial"], mee_max_iterations=params["mee.max_iterations"],
+                   imm_switch_probability=params["imm.switch_probability"],
+                   imm_rim_impact_noise=params["imm.rim_impact_noise"], imm_contact_speed=params["imm.contact_speed"],
+                   imm_contact_spin=params["imm.contact_spin"])
 
     def measurement_noise(self, speed: float) -> np.ndarray:
         """R [m^2, m^2, rad^2] for a puck moving at ``speed`` [m/s]: marker noise and timestamp jitter
@@ -138,12 +145,16 @@ class PuckEKF:
     # None when the last frame did not (lost, frozen, initialising): the filter's consistency check
     last_nis: float | None = None
 
+    def __post_init__(self) -> None:
+        """Nothing here; a subclass with state of its own sets it up (the generated ``__init__`` calls this)."""
+
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "PuckEKF":
-        """The filter a tracker parameter set (``tracker_params``) selects with ``filter`` (ekf, ukf,
-        mee_ukf: :mod:`.ukf`), on its table, model and noise settings."""
+        """The filter a tracker parameter set (``tracker_params``) selects with ``filter`` (ekf; ukf,
+        mee_ukf: :mod:`.ukf`; imm: :mod:`.imm`), on its table, model and noise settings."""
+        from air_hockey_agent.core.estimation.imm import PuckIMM
         from air_hockey_agent.core.estimation.ukf import PuckMEEUKF, PuckUKF
-        kind = {"ekf": PuckEKF, "ukf": PuckUKF, "mee_ukf": PuckMEEUKF}[params.get("filter", "ekf")]
+        kind = {"ekf": PuckEKF, "ukf": PuckUKF, "mee_ukf": PuckMEEUKF, "imm": PuckIMM}[params.get("filter", "ekf")]
         model = PuckModel(TableGeometry.from_params(params), PuckParams.from_params(params))
         return kind(model, FilterSettings.from_params(params))
 

@@ -1,6 +1,6 @@
-"""The unscented and minimum-error-entropy filters (core/estimation/ukf.py, issue #13 item 2) against
-independent references: the exact linear case, the Kalman update they must reduce to, a heavy-tailed
-error they must resist, and ground truth through rim impacts."""
+"""The unscented, minimum-error-entropy and multiple-model filters (core/estimation/ukf.py, imm.py, issue
+#13 item 2) against independent references: the exact linear case, the Kalman update and the EKF they
+must reduce to, a heavy-tailed error and a hit they must handle, and ground truth through rim impacts."""
 from dataclasses import replace
 
 import numpy as np
@@ -8,6 +8,7 @@ import pytest
 
 from air_hockey_agent.core.estimation.ekf import FilterSettings, PuckEKF
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections, mocap_stream, simulate_truth, true_state_at
+from air_hockey_agent.core.estimation.imm import MODES, PuckIMM
 from air_hockey_agent.core.estimation.ukf import PuckMEEUKF, PuckUKF
 from air_hockey_agent.params import ParameterValueError
 from air_hockey_agent.tracker_params import load_tracker_params
@@ -71,7 +72,7 @@ def test_mee_update_resists_an_impulsive_error_the_kalman_update_follows():
     assert abs(mee.x[0]) < 0.8 * abs(ekf.x[0])
 
 
-@pytest.mark.parametrize("kind", [PuckUKF, PuckMEEUKF])
+@pytest.mark.parametrize("kind", [PuckUKF, PuckMEEUKF, PuckIMM])
 def test_tracks_ground_truth_through_rim_impacts(kind):
     m = model()
     start = np.array([-0.5, 0.1, 2.5, 1.7, 0.0, 8.0])
@@ -94,7 +95,46 @@ def test_the_filter_parameter_selects_the_estimator_and_refuses_unknown_ones():
     assert type(PuckEKF.from_params(tracker)) is PuckEKF  # config/tracker.yaml: the EKF
     assert type(PuckEKF.from_params({**tracker, "filter": "ukf"})) is PuckUKF
     assert type(PuckEKF.from_params({**tracker, "filter": "mee_ukf"})) is PuckMEEUKF
+    assert type(PuckEKF.from_params({**tracker, "filter": "imm"})) is PuckIMM
     from air_hockey_agent.tracker_params import TRACKER_PARAMS
     spec = next(s for s in TRACKER_PARAMS if s.name == "filter")
     with pytest.raises(ParameterValueError, match="'kalman' is not one of ekf, ukf, mee_ukf"):
         spec.check("kalman")
+
+
+# --- the multiple-model filter (core/estimation/imm.py) ----------------------------------------------
+def test_imm_with_identical_modes_is_the_ekf():
+    m = model()
+    settings = replace(SETTINGS, impact_noise=0.15, imm_rim_impact_noise=0.15, imm_contact_speed=0.0,
+                       imm_contact_spin=0.0)
+    times, states = simulate_truth(m, np.array([-0.5, 0.1, 2.5, 1.7, 0.0, 8.0]), 2.0, DT / 10)
+    frames = mocap_stream(m, times, states, 120.0, MocapImperfections(), np.random.default_rng(1))
+    ekf, imm = PuckEKF(m, settings), PuckIMM(m, settings)
+    for stamp, z in frames:
+        assert ekf.process(stamp, z) == imm.process(stamp, z)
+        if ekf.initialised:
+            assert imm.x == pytest.approx(ekf.x, abs=1e-9)
+            assert np.abs(imm.P - ekf.P).max() <= 1e-9 * np.abs(ekf.P).max()
+
+
+def test_imm_fuses_a_hit_its_contact_mode_expects_where_the_ekf_rejects_and_restarts():
+    m = model(friction_surface=0.0, damping=0.0)
+    settings = replace(SETTINGS, imm_switch_probability=0.002, imm_rim_impact_noise=0.5, imm_contact_speed=2.0,
+                       imm_contact_spin=10.0)
+    rng = np.random.default_rng(2)
+    hit, v0, v1 = 0.5, np.array([0.5, 0.0]), np.array([-1.0, 0.6])  # a hand turns the puck at t = 0.5 s
+
+    def position(t):
+        return np.array([-0.5, -0.2]) + v0 * min(t, hit) + v1 * max(t - hit, 0.0)
+    ekf, imm = PuckEKF(m, settings), PuckIMM(m, settings)
+    contact = []
+    for k in range(120):
+        t = k / 120.0
+        z = np.append(position(t) + rng.normal(0.0, 1e-4, 2), 0.0)
+        ekf.process(t, z)
+        imm.process(t, z)
+        contact.append(imm.mode_probabilities[MODES.index("contact")])
+    assert ekf.stats.reinitialisations >= 2 and imm.stats.reinitialisations == 1  # the first is the track's start
+    assert imm.stats.outliers_rejected < ekf.stats.outliers_rejected
+    assert max(contact[60:63]) > 0.5 > max(contact[20:59] + contact[66:])  # the hit's frames are the contact mode's
+    assert imm.x[2:4] == pytest.approx(v1, abs=0.02)
