@@ -148,8 +148,12 @@ def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     only = cli("sysid", bag, "--method", "split", "--identify", "damping", "restitution_min", "--json")
     assert only.returncode == 0, only.stderr[-2000:]
     assert set(json.loads(only.stdout)["identified"]) == {"damping", "restitution_min"}
-    text_run = cli("sysid", bag, "--method", "split")
-    assert text_run.returncode == 0 and "flight fit:" in text_run.stdout and "impact fit:" in text_run.stdout
+    text_run = cli("sysid", bag, "--method", "split", "--polish", 4)
+    assert text_run.returncode == 0, text_run.stderr[-2000:]
+    assert "flight fit:" in text_run.stdout and "impact fit:" in text_run.stdout and "polish: " in text_run.stdout
+    polished = json.loads(cli("sysid", bag, "--method", "split", "--polish", 4, "--json").stdout)["objective"]["polish"]
+    assert polished["evaluations"] >= 4 and polished["final_m"] <= polished["initial_m"]
+    assert "table_acceleration" not in polished["values"]  # stays as fitted
 
 
 def test_cli_split_errors_are_one_line(tmp_path):
@@ -157,7 +161,8 @@ def test_cli_split_errors_are_one_line(tmp_path):
     assert cli("synth-bag", bag, "--source", "testbed", "--shots", 3, "--seed", 1).returncode == 0
     for args, message in (
             (("--identify", "table_acceleration"), "--identify table_acceleration: only --method split identifies it"),
-            (("--method", "split", "--cross-validate"), "--cross-validate: only with --method hebo")):
+            (("--method", "split", "--cross-validate"), "--cross-validate: only with --method hebo"),
+            (("--polish", "5"), "--polish: only with --method split")):
         run = cli("sysid", bag, *args)
         assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
         assert len(run.stderr.strip().splitlines()) == 1

@@ -29,7 +29,7 @@ from pathlib import Path
 from air_hockey_agent.bags.trajectories import split_train_validation
 from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split
 from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PHYSICAL, combine, identify,
-                                                      loss_report, nis_median, on_bounds, partial_loss)
+                                                      loss_report, nis_median, on_bounds, partial_loss, polish)
 from air_hockey_agent.params import yaml_float
 from air_hockey_agent.sysid_params import bounds
 from air_hockey_agent.tools.files import write_text_atomic
@@ -60,6 +60,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="parameters to identify (default: hebo the thesis's four, split all seven; "
                              "table_acceleration only with --method split; also restitution_slope, "
                              "the rims' loss with impact speed); choices: " + ", ".join(IDENTIFIABLE))
+    parser.add_argument("--polish", type=count(0), default=0, metavar="EVALUATIONS",
+                        help="--method split: then a Nelder-Mead polish of the scalar parameters on the "
+                             "prediction loss at --horizon, this many evaluations (default 0: none)")
     parser.add_argument("--out", type=Path, help="write the identified parameters to this parameter YAML")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)
@@ -105,6 +108,8 @@ def run(args: argparse.Namespace) -> int:
     names, problem = _chosen_names(args)
     if not problem and args.method == "split" and args.cross_validate:
         problem = "--cross-validate: only with --method hebo (split does not learn at a horizon)"
+    if not problem and args.method == "hebo" and args.polish:
+        problem = "--polish: only with --method split (hebo polishes by itself: polish_evaluations in config/sysid.yaml)"
     if problem:
         return report_error(PROG, problem)
     args.identify = names
@@ -167,7 +172,8 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
     names = args.identify
     start = time.monotonic()
     split = identify_split(train, tracker, settings, names, bounds(settings, names))
-    chosen = split.identified
+    chosen = dict(split.identified)
+    polished = _polish_split(args, tracker, settings, train, chosen) if args.polish else None
     objective = {"set": "train"}
     if split.flight is not None:
         f = split.flight
@@ -177,8 +183,14 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
         i = split.impacts
         objective["impacts"] = {"impacts": i.impacts, "dropped": i.dropped, "rms_normal_speed_m_s": i.rms_normal,
                                 "rms_tangential_m_s": i.rms_tangential}
+    std = dict(split.std)
+    if polished is not None:
+        objective["polish"] = polished
+        chosen.update(polished["values"])
+        for name in polished["values"]:  # the fits' errors are not the polished values'
+            std.pop(name, None)
     result = {"method": "split", "horizon": args.horizon, "initial": {n: tracker[n] for n in names},
-              "identified": chosen, "std": split.std, "seconds": round(time.monotonic() - start, 1),
+              "identified": chosen, "std": std, "seconds": round(time.monotonic() - start, 1),
               "objective": objective, "before": {}, "after": {},
               "on_bounds": on_bounds(_flat(chosen), _flat_bounds(bounds(settings, names)), settings["bound_margin"])}
     for name, trajs in (("train", train), ("validation", validation)):
@@ -188,6 +200,31 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
     result["summary_line"] = (f"identified by `air-hockey sysid --method split` ({len(train)} training "
                               f"trajectories) on {datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}")
     return result
+
+
+def _polish_split(args, tracker: dict, settings: dict, train: list, split_values: dict) -> dict:
+    """Nelder-Mead on the training set's position loss at --horizon from the split result, over its
+    scalar parameters (the table acceleration stays as fitted)."""
+    names = [n for n in split_values if n != "table_acceleration"]
+    box = bounds(settings, names)
+    start = {n: float(min(max(split_values[n], box[n][0]), box[n][1])) for n in names}
+    _WORK.update(tracker={**tracker, **split_values}, trajectories=train, loss="position", stride=settings["stride"])
+    workers = min(settings["workers"], os.cpu_count() or 1)
+    pool = multiprocessing.get_context("fork").Pool(workers) if workers > 1 else None
+    bar = Progress(f"sysid split polish @ {args.horizon} s", args.json)
+    try:
+        objective = _Objective(pool, workers, args.horizon, "position")
+        first = objective([start])[0]
+        history = [(start, first)]
+        best, value = polish(objective, box, start, first, args.polish, history,
+                             lambda done, total, best: bar(done, total, f"evaluations, best {best * 1e3:.2f} mm"),
+                             args.polish)
+    finally:
+        if pool is not None:
+            pool.close()
+            pool.join()
+    return {"evaluations": len(history), "horizon": args.horizon, "stride": settings["stride"],
+            "initial_m": first, "final_m": value, "values": best}
 
 
 def _flat(values: dict) -> dict:
@@ -310,6 +347,10 @@ def _format_split(result: dict, out: Path | None) -> str:
         i = o["impacts"]
         lines.append(f"impact fit: {i['impacts']} impacts ({i['dropped']} dropped), residual RMS normal "
                      f"{i['rms_normal_speed_m_s']:.4f} m/s, tangential {i['rms_tangential_m_s']:.4f} m/s")
+    if "polish" in o:
+        p = o["polish"]
+        lines.append(f"polish: {p['evaluations']} evaluations of the position loss at {p['horizon']} s (training set, "
+                     f"every {p['stride']}. frame): {p['initial_m'] * 1e3:.2f} -> {p['final_m'] * 1e3:.2f} mm")
     lines.append(f"prediction loss at {result['horizon']} s (every frame): loss / traj. min / traj. median [mm]")
     for key, label in (("before", "initial"), ("after", "identified")):
         for subset in ("train", "validation"):

@@ -153,12 +153,12 @@ def identify(objective: Objective, bounds: Mapping[str, Sequence[float]], initia
         progress(len(history) - 1, total, min(v for _, v in history))
     best, best_value = min(history, key=lambda item: item[1])
     if polish_evaluations > 0:
-        best, best_value = _polish(objective, bounds, best, best_value, polish_evaluations, history, progress, total)
+        best, best_value = polish(objective, bounds, best, best_value, polish_evaluations, history, progress, total)
     return Identification(best, best_value, history[0][1], len(history), history)
 
 
-def _polish(objective: Objective, bounds, best: dict, best_value: float, budget: int, history: list,
-            progress, total: int) -> tuple[dict, float]:
+def polish(objective: Objective, bounds, best: dict, best_value: float, budget: int, history: list,
+           progress=lambda done, total, best: None, total: int = 0) -> tuple[dict, float]:
     """Bounded Nelder-Mead from ``best`` in coordinates scaled to [0, 1] per parameter."""
     from scipy.optimize import minimize
 
