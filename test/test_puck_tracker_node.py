@@ -20,6 +20,30 @@ def tracker(launcher):
     return launcher.start(ProcessSpec("puck_tracker", [str(exe), "--ros-args", "-p", "prediction_horizon:=0.5"]))
 
 
+@pytest.mark.parametrize("kind", ["ukf", "mee_ukf", "imm"])
+def test_each_filter_tracks_in_the_node(launcher, rclpy_node, kind):
+    """`-p filter:=...` selects the estimator in the live node (issue #13: each selectable by parameter)."""
+    from air_hockey_msgs.msg import PuckState
+    from geometry_msgs.msg import PoseStamped
+    exe = Path(sys.executable).parent / "puck_tracker"
+    node = launcher.start(ProcessSpec(f"puck_tracker_{kind}", [str(exe), "--ros-args", "-p", f"filter:={kind}"]))
+    states = []
+    pub = rclpy_node.create_publisher(PoseStamped, "/optitrack/puck", 10)
+    rclpy_node.create_subscription(PuckState, "/puck/state", states.append, 50)
+    assert spin_until(rclpy_node, lambda: pub.get_subscription_count() > 0, 30.0), "tracker not discovered"
+    frame = [0]
+
+    def feed() -> bool:
+        k = frame[0]
+        frame[0] += 1
+        pub.publish(pose(1.0 + k * DT, -0.5 + 1.0 * k * DT, 0.1))
+        return len(states) > 30
+
+    assert spin_until(rclpy_node, feed, 30.0), f"got {len(states)} states"
+    assert states[-1].vx == pytest.approx(1.0, abs=0.1) and states[-1].y == pytest.approx(0.1, abs=1e-3)
+    assert node.returncode is None
+
+
 def pose(t, x, y, yaw=0.0):
     from geometry_msgs.msg import PoseStamped
     msg = PoseStamped()
