@@ -29,6 +29,8 @@ class MocapImperfections:
     glitch_size: float = 0.1         # [m] glitch displacement
     gap_rate: float = 0.0            # probability per frame that a longer dropout starts
     gap_max: float = 0.0             # [s] dropout length, uniform in (0, gap_max]
+    heavy_tail_rate: float = 0.0     # probability that a frame's position noise is heavy_tail_scale times larger
+    heavy_tail_scale: float = 1.0    # [-] (a contaminated Gaussian: seed 001's mixed-Gaussian noise)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "mocap.") -> "MocapImperfections":
@@ -96,6 +98,8 @@ class MocapSampler:
             return stamp, None
         x, y, theta, speed = pose_at(stamp)
         std = math.hypot(noise.position_std, noise.position_std_per_speed * speed)
+        if noise.heavy_tail_rate and rng.random() < noise.heavy_tail_rate:  # drawn only when on: same bags
+            std *= noise.heavy_tail_scale
         z = np.array([x + rng.normal(0.0, std), y + rng.normal(0.0, std),
                       wrap_angle(theta + rng.normal(0.0, noise.angle_std))])
         if self.previous is not None and rng.random() < noise.repeat_rate:
