@@ -138,3 +138,13 @@ def test_imm_fuses_a_hit_its_contact_mode_expects_where_the_ekf_rejects_and_rest
     assert imm.stats.outliers_rejected < ekf.stats.outliers_rejected
     assert max(contact[60:63]) > 0.5 > max(contact[20:59] + contact[66:])  # the hit's frames are the contact mode's
     assert imm.x[2:4] == pytest.approx(v1, abs=0.02)
+
+
+@pytest.mark.parametrize("kind", [PuckUKF, PuckMEEUKF])
+def test_a_covariance_that_lost_definiteness_falls_back_to_the_linearised_step(kind):
+    f = filters(kind)
+    f.P[5, 5] = -1e-12  # rounding made P indefinite: no Cholesky factor
+    f.predict_to(DT)
+    f.P[0, 0] = -1e-12
+    f.update(np.array([0.008, 0.104, 0.32]))
+    assert np.all(np.isfinite(f.x)) and np.all(np.isfinite(f.P))

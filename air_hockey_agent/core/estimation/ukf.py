@@ -43,7 +43,11 @@ class PuckUKF(PuckEKF):
         if dt > SINGLE_STEP_LIMIT * self.settings.dt:
             super().predict_to(t)  # a long gap: the linearised fast prediction
             return
-        points, wm, wc = self._sigma_points()
+        try:
+            points, wm, wc = self._sigma_points()
+        except np.linalg.LinAlgError:  # P lost definiteness to rounding: this step linearised
+            super().predict_to(t)
+            return
         stepped = [self.model.step(p, dt, with_jacobian=False) for p in points]
         centre = stepped[0].state
         deviations = np.array([s.state - centre for s in stepped])
@@ -82,8 +86,12 @@ class PuckMEEUKF(PuckUKF):
         z = prior[rows] + y  # the measurement, its angle unwrapped next to the prior's
         h = np.zeros((m, len(prior)))
         h[np.arange(m), rows] = 1.0
-        bp_inv = np.linalg.inv(np.linalg.cholesky(self.P))
-        br_inv = np.linalg.inv(np.linalg.cholesky(r))
+        try:
+            bp_inv = np.linalg.inv(np.linalg.cholesky(self.P))
+            br_inv = np.linalg.inv(np.linalg.cholesky(r))
+        except np.linalg.LinAlgError:  # P lost definiteness to rounding: this update the Kalman one
+            super()._apply_update(y, s_inv, rows)
+            return
         w = np.vstack([bp_inv, br_inv @ h])
         d = np.concatenate([bp_inv @ prior, br_inv @ z])
         x = prior + self.P[:, rows] @ s_inv @ y  # start from the Kalman update
