@@ -162,7 +162,8 @@ def test_cli_split_errors_are_one_line(tmp_path):
     for args, message in (
             (("--identify", "table_acceleration"), "--identify table_acceleration: only --method split identifies it"),
             (("--method", "split", "--cross-validate"), "--cross-validate: only with --method hebo"),
-            (("--polish", "5"), "--polish: only with --method split")):
+            (("--polish", "5"), "--polish: only with --method split"),
+            (("--method", "split", "--identify", "table_acceleration", "--polish", "3"), "--polish: nothing to polish")):
         run = cli("sysid", bag, *args)
         assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
         assert len(run.stderr.strip().splitlines()) == 1

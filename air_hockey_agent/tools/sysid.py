@@ -110,6 +110,8 @@ def run(args: argparse.Namespace) -> int:
         problem = "--cross-validate: only with --method hebo (split does not learn at a horizon)"
     if not problem and args.method == "hebo" and args.polish:
         problem = "--polish: only with --method split (hebo polishes by itself: polish_evaluations in config/sysid.yaml)"
+    if not problem and args.polish and names == ["table_acceleration"]:
+        problem = "--polish: nothing to polish (--identify table_acceleration alone: it stays as fitted)"
     if problem:
         return report_error(PROG, problem)
     args.identify = names
