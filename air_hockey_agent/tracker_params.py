@@ -59,6 +59,8 @@ TRACKER_PARAMS = (
     ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),
     ParamSpec("glitch_speed", float, "[m/s] evaluation: a pose that jumps faster than this from both "
               "neighbours is a marker glitch, not ground truth", 0.1, 1000.0),
+    ParamSpec("regime_rest_speed", float, "[m/s] evaluation: a frame's NIS counts as at rest below this speed",
+              0.0, 10.0),
     ParamSpec("prediction_horizon", float, "[s] horizon of puck/prediction", 0.0, 10.0),
     ParamSpec("prediction_sample_period", float, "[s] spacing of predicted states", 0.001, 1.0),
     ParamSpec("defend_line_offset", float, "[m] defend line distance from each short rim", 0.0, 1.0),

@@ -28,8 +28,10 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)  # the whole of stdout is one JSON document
     assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "rejected_fraction",
-                           "reinit_per_s", "nis"}
+                           "reinit_per_s", "nis", "nis_by_regime"}
     assert set(report["nis"]) == {"median", "mean"}
+    assert set(report["nis_by_regime"]) == {"rest", "flight", "impact"}
+    assert all(set(v) == {"median", "mean", "n"} for v in report["nis_by_regime"].values())
     assert 0.0 <= report["rejected_fraction"] < 0.1 and report["reinit_per_s"] >= 0.0
     assert set(report["horizons"]) == {"0.5", "1.0", "1.5"}
     assert set(report["horizons"]["1.0"]) == {"mean_m", "median_m", "p95_m", "n"}

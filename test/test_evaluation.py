@@ -156,3 +156,21 @@ def test_off_table_warning_and_poses_in_the_table_frame(params):
     mocap = [PoseRecord(r.stamp, r.position, r.orientation, r.log_time, "optitrack") for r in records]
     warning = off_table_warning(measurements_of(mocap, away["mocap_table_pose"]), away)
     assert warning.startswith("100% of the poses lie off the table") and "frame_id is 'table'" in warning
+
+
+def test_nis_by_regime_separates_rest_flight_and_rim_impacts(params):
+    """Frames are classed by the estimate before them: a puck left at rest (here a shot that dies out on
+    a table with strong friction), free flight, and frames across a rim impact; each regime's NIS comes
+    from its own frames (issue #13 item 2: noise by regime, checked by NIS)."""
+    std = np.sqrt(np.asarray(params["measurement_noise"]))
+    noise = MocapImperfections(position_std=float(std[0]), angle_std=float(std[2]),
+                               position_std_per_speed=params["measurement_noise_per_speed"])
+    slow = {**params, "friction_surface": 2.0, "damping": 0.5, "restitution_slope": 0.0}
+    ekf = PuckEKF.from_params(slow)
+    totals = EvaluationTotals((0.5,), rest_speed=params["regime_rest_speed"])
+    evaluate_stream(ekf, frames_of(session(ekf, seed=5, n_shots=3, noise=noise)), totals)
+    regimes = totals.summary()["nis_by_regime"]
+    assert set(regimes) == {"rest", "flight", "impact"}
+    assert all(regimes[r]["n"] > 0 for r in regimes)
+    assert sum(regimes[r]["n"] for r in regimes) == len(totals.nis)
+    assert 1.5 < regimes["flight"]["median"] < 3.5

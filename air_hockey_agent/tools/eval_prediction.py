@@ -50,7 +50,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
     ekf = PuckEKF.from_params(params)
-    totals = EvaluationTotals(tuple(args.horizons))
+    totals = EvaluationTotals(tuple(args.horizons), rest_speed=params["regime_rest_speed"])
     failed = 0
     for bag in args.bags:
         try:
@@ -81,6 +81,9 @@ def format_table(summary: dict) -> str:
              + ("-" if reinit is None else f"{reinit:.2f}") + " re-initialisations per second, NIS median "
              + ("-" if nis["median"] is None else f"{nis['median']:.2f}") + " mean "
              + ("-" if nis["mean"] is None else f"{nis['mean']:.2f}") + " (consistent: 2.37, 3)",
+             "NIS median by regime: " + ", ".join(
+                 f"{r} " + ("-" if v["median"] is None else f"{v['median']:.2f}") + f" (n {v['n']})"
+                 for r, v in summary["nis_by_regime"].items()),
              f"{'horizon [s]':>11} {'mean [mm]':>10} {'median [mm]':>12} {'p95 [mm]':>9} {'n':>8}"]
     for key, s in summary["horizons"].items():
         if s["n"]:

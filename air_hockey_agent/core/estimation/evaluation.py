@@ -10,8 +10,10 @@ planar distance [m]. A pose that jumps from both neighbouring poses faster than 
 (config/tracker.yaml) is a marker glitch and no ground truth. Alongside: the fraction of poses the filter
 rejected, its re-initialisations per second of recording (beyond the first of each recording) and the
 normalised innovation squared (NIS) of every frame that reached the gate (3 degrees of freedom: median
-2.37 and mean 3 when consistent). eval-prediction, sysid, prediction_optimizer and plot all use this
-definition.
+2.37 and mean 3 when consistent), also by regime (issue #13: is the noise right at rest, in flight and at
+the rims?): *impact* when the model puts a rim impact between the previous estimate and the frame,
+*rest* when the previous estimate is slower than ``rest_speed``, *flight* otherwise. eval-prediction,
+sysid, prediction_optimizer and plot all use this definition.
 """
 from __future__ import annotations
 
@@ -52,6 +54,8 @@ class EvaluationTotals:
     errors: dict = field(default_factory=dict)  # horizon key -> list of errors [m]
     nll: dict = field(default_factory=dict)     # horizon key -> list of -ln N(z_xy; x_xy, P_xy + R_xy)
     nis: list = field(default_factory=list)     # NIS of every gated frame
+    rest_speed: float = 0.0     # [m/s] below it a frame's NIS counts as at rest (tracker's regime_rest_speed)
+    nis_regimes: list = field(default_factory=list)  # the regime of each entry of nis (REGIMES)
     frames: int = 0
     poses: int = 0              # frames that carried a pose
     lost_frames: int = 0
@@ -74,12 +78,31 @@ class EvaluationTotals:
             stats = (float(v.mean()), float(np.median(v)), float(np.percentile(v, 95))) if v.size else (None,) * 3
             table[key] = {"mean_m": stats[0], "median_m": stats[1], "p95_m": stats[2], "n": int(v.size)}
         nis = np.asarray(self.nis, float)
+        regimes = np.asarray(self.nis_regimes)
         return {"horizons": table, "bags": self.recordings, "frames": self.frames,
                 "lost_frames": self.lost_frames, "outliers_rejected": self.outliers_rejected,
                 "rejected_fraction": self.outliers_rejected / self.poses if self.poses else None,
                 "reinit_per_s": self.reinitialisations / self.seconds if self.seconds > 0 else None,
-                "nis": {"median": float(np.median(nis)) if nis.size else None,
-                        "mean": float(nis.mean()) if nis.size else None}}
+                "nis": {k: v for k, v in _nis_stats(nis).items() if k != "n"},  # issue #13's keys
+                "nis_by_regime": {r: _nis_stats(nis[regimes == r]) for r in REGIMES}}
+
+
+REGIMES = ("rest", "flight", "impact")
+
+
+def _nis_stats(nis: np.ndarray) -> dict:
+    return {"median": float(np.median(nis)) if nis.size else None, "mean": float(nis.mean()) if nis.size else None,
+            "n": int(nis.size)}
+
+
+def _regime(ekf: PuckEKF, before: "_FrameRecord | None", t: float, rest_speed: float) -> str:
+    """The regime of a gated frame at ``t`` [s] from the estimate of the frame ``before`` it."""
+    if before is None or before.x is None:
+        return "flight"
+    x, y, vx, vy = before.x[:4]
+    if ekf.model.first_impact(x, y, vx, vy, t - before.t) is not None:
+        return "impact"
+    return "rest" if np.hypot(vx, vy) < rest_speed else "flight"
 
 
 @dataclass
@@ -153,7 +176,10 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
             errors.append(float(np.hypot(*residual)))
             if totals.loglik:
                 nll.append(_neg_log_likelihood(residual, pred.covariance[:2, :2] + ekf.settings.r[:2, :2]))
-    totals.nis.extend(r.nis for r in records if r.nis is not None)
+    for before, record in zip([None] + records[:-1], records):
+        if record.nis is not None:
+            totals.nis.append(record.nis)
+            totals.nis_regimes.append(_regime(ekf, before, record.t, totals.rest_speed))
     totals.frames += ekf.stats.frames  # lost = missing from the stream + arrived without a usable pose
     totals.poses += len(records) - invalid
     totals.lost_frames += count_lost_frames(sorted(stamps), ekf.settings.dt, ekf.settings.max_prediction_gap) + invalid
