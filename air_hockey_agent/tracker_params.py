@@ -48,6 +48,8 @@ TRACKER_PARAMS = (
     ParamSpec("imm.contact_spin", float, "[rad/s] std of the contact mode's spin change per frame", 0.0, 1000.0),
     ParamSpec("measurement_noise", list, "R diagonal (x, y, theta) [m^2, m^2, rad^2]", 1e-15, 1.0, 3),
     ParamSpec("process_noise", list, "Q diagonal per step (x, y, vx, vy, theta, omega)", 1e-18, 1e3, 6),
+    ParamSpec("process_noise_rest", list, "Q diagonal per step of a puck slower than regime_rest_speed",
+              1e-18, 1e3, 6),
     ParamSpec("initial_covariance", list, "P0 diagonal after (re)initialisation", 1e-15, 1e4, 6),
     ParamSpec("gate_threshold", float, "squared Mahalanobis gate on the position innovation (2 dof)", 0.1, 1e6),
     ParamSpec("angle_gate_threshold", float, "squared angle innovation over its variance beyond which the "
@@ -59,8 +61,8 @@ TRACKER_PARAMS = (
     ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),
     ParamSpec("glitch_speed", float, "[m/s] evaluation: a pose that jumps faster than this from both "
               "neighbours is a marker glitch, not ground truth", 0.1, 1000.0),
-    ParamSpec("regime_rest_speed", float, "[m/s] evaluation: a frame's NIS counts as at rest below this speed",
-              0.0, 10.0),
+    ParamSpec("regime_rest_speed", float, "[m/s] below this speed the puck is at rest: process_noise_rest, and "
+              "the evaluation's NIS by regime", 0.0, 10.0),
     ParamSpec("prediction_horizon", float, "[s] horizon of puck/prediction", 0.0, 10.0),
     ParamSpec("prediction_sample_period", float, "[s] spacing of predicted states", 0.001, 1.0),
     ParamSpec("defend_line_offset", float, "[m] defend line distance from each short rim", 0.0, 1.0),

@@ -107,7 +107,8 @@ class PuckTrackerNode(AirHockeyNode):
         except ValueError as exc:
             response.success, response.message = False, f"refused, filter unchanged: {exc}"
             return response
-        self.ekf.settings.q, self.ekf.settings.r = q, r
+        # the service's Q is the process noise of every regime (the thesis has one)
+        self.ekf.settings.q, self.ekf.settings.q_rest, self.ekf.settings.r = q, q, r
         response.success, response.message = True, "noise covariances set"
         return response
 

@@ -65,6 +65,8 @@ class FilterSettings:
     mee_kernel: float = 3.0          # [std] Gaussian kernel bandwidth of the MEE update (filter: mee_ukf)
     mee_fiducial: float = 0.5        # [-] weight of the fiducial (zero-error) point in the MEE cost
     mee_max_iterations: int = 10     # fixed-point iterations of the MEE update at most
+    q_rest: np.ndarray | None = None  # 6x6 process noise per step of a puck slower than rest_speed (None: q)
+    rest_speed: float = 0.0          # [m/s] regime boundary of q_rest (and of the evaluation's NIS by regime)
     imm_switch_probability: float = 0.002  # [-] per frame, of leaving a motion mode (filter: imm; :mod:`.imm`)
     imm_rim_impact_noise: float = 0.5     # [-] the rim mode's impact noise (the free mode's: impact_noise)
     imm_contact_speed: float = 2.0        # [m/s] std of the contact mode's velocity change in one frame
@@ -84,7 +86,15 @@ class FilterSettings:
                    mee_fiducial=params["mee.fiducial"], mee_max_iterations=params["mee.max_iterations"],
                    imm_switch_probability=params["imm.switch_probability"],
                    imm_rim_impact_noise=params["imm.rim_impact_noise"], imm_contact_speed=params["imm.contact_speed"],
-                   imm_contact_spin=params["imm.contact_spin"])
+                   imm_contact_spin=params["imm.contact_spin"], q_rest=np.diag(params["process_noise_rest"]),
+                   rest_speed=params["regime_rest_speed"])
+
+    def process_noise(self, state: Sequence[float]) -> np.ndarray:
+        """Q per model step for a step from ``state``: ``q_rest`` for a puck slower than ``rest_speed``
+        (noise by regime, issue #13; the rim-impact regime adds ``impact_noise``), else ``q``."""
+        if self.q_rest is not None and math.hypot(state[2], state[3]) < self.rest_speed:
+            return self.q_rest
+        return self.q
 
     def measurement_noise(self, speed: float) -> np.ndarray:
         """R [m^2, m^2, rad^2] for a puck moving at ``speed`` [m/s]: marker noise and timestamp jitter
@@ -204,9 +214,10 @@ class PuckEKF:
         if dt <= 0.0:
             return
         if dt <= SINGLE_STEP_LIMIT * self.settings.dt:
+            q = self.settings.process_noise(self.x) * (dt / self.settings.dt)  # the regime the step starts in
             res = self.model.step(self.x, dt)
             self.x = res.state
-            p = res.jacobian @ self.P @ res.jacobian.T + self.settings.q * (dt / self.settings.dt)
+            p = res.jacobian @ self.P @ res.jacobian.T + q
             self.P = with_impact_noise(p, self.x, res.impacts, self.settings.impact_noise)
         else:
             pred = predict_fast(self.model, self.x, self.P, dt, self.settings.dt, self.settings.q,

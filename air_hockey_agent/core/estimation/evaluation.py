@@ -11,7 +11,7 @@ planar distance [m]. A pose that jumps from both neighbouring poses faster than 
 rejected, its re-initialisations per second of recording (beyond the first of each recording) and the
 normalised innovation squared (NIS) of every frame that reached the gate (3 degrees of freedom: median
 2.37 and mean 3 when consistent), also by regime (issue #13: is the noise right at rest, in flight and at
-the rims?): *impact* when the model puts a rim impact between the previous estimate and the frame,
+the rims?): *impact* when the model puts a rim impact in the step to the frame or the one before it,
 *rest* when the previous estimate is slower than ``rest_speed``, *flight* otherwise. eval-prediction,
 sysid, prediction_optimizer and plot all use this definition.
 """
@@ -95,14 +95,19 @@ def _nis_stats(nis: np.ndarray) -> dict:
             "n": int(nis.size)}
 
 
-def _regime(ekf: PuckEKF, before: "_FrameRecord | None", t: float, rest_speed: float) -> str:
-    """The regime of a gated frame at ``t`` [s] from the estimate of the frame ``before`` it."""
+def _regime(ekf: PuckEKF, earlier: "_FrameRecord | None", before: "_FrameRecord | None", t: float,
+            rest_speed: float) -> str:
+    """The regime of a gated frame at ``t`` [s] from the estimates of the two frames before it: *impact*
+    when the model puts a rim impact in either of the two steps (the frame after an impact is where the
+    velocity's impact noise first moves the position), else by the speed of the frame ``before``."""
     if before is None or before.x is None:
         return "flight"
-    x, y, vx, vy = before.x[:4]
-    if ekf.model.first_impact(x, y, vx, vy, t - before.t) is not None:
-        return "impact"
-    return "rest" if np.hypot(vx, vy) < rest_speed else "flight"
+    for start, end in ((earlier, before.t), (before, t)):
+        if start is not None and start.x is not None and start.t < end:
+            x, y, vx, vy = start.x[:4]
+            if ekf.model.first_impact(x, y, vx, vy, end - start.t) is not None:
+                return "impact"
+    return "rest" if np.hypot(before.x[2], before.x[3]) < rest_speed else "flight"
 
 
 @dataclass
@@ -176,10 +181,10 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
             errors.append(float(np.hypot(*residual)))
             if totals.loglik:
                 nll.append(_neg_log_likelihood(residual, pred.covariance[:2, :2] + ekf.settings.r[:2, :2]))
-    for before, record in zip([None] + records[:-1], records):
+    for earlier, before, record in zip([None, None] + records[:-2], [None] + records[:-1], records):
         if record.nis is not None:
             totals.nis.append(record.nis)
-            totals.nis_regimes.append(_regime(ekf, before, record.t, totals.rest_speed))
+            totals.nis_regimes.append(_regime(ekf, earlier, before, record.t, totals.rest_speed))
     totals.frames += ekf.stats.frames  # lost = missing from the stream + arrived without a usable pose
     totals.poses += len(records) - invalid
     totals.lost_frames += count_lost_frames(sorted(stamps), ekf.settings.dt, ekf.settings.max_prediction_gap) + invalid

@@ -113,8 +113,8 @@ class PuckIMM(PuckEKF):
             self.mode_probabilities = probabilities
             return
         prior, xs, ps = self._mixed()
-        q = self.settings.q * (dt / self.settings.dt)
         for j in range(len(MODES)):
+            q = self.settings.process_noise(xs[j]) * (dt / self.settings.dt)
             res = self.model.step(xs[j], dt)
             self._xs[j] = res.state
             self._ps[j] = res.jacobian @ ps[j] @ res.jacobian.T + q + self._mode_noise(j, res, dt)

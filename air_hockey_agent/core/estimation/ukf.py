@@ -56,7 +56,7 @@ class PuckUKF(PuckEKF):
         x = centre + mean_offset
         x[ANGLE] = wrap_angle(x[ANGLE])
         spread = deviations - mean_offset
-        p = (spread.T * wc) @ spread + self.settings.q * (dt / self.settings.dt)
+        p = (spread.T * wc) @ spread + self.settings.process_noise(points[0]) * (dt / self.settings.dt)
         self.x = x
         self.P = with_impact_noise(0.5 * (p + p.T), x, stepped[0].impacts, self.settings.impact_noise)
         self.stamp = t
