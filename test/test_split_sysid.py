@@ -134,9 +134,13 @@ def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     made = cli("synth-bag", bag, "--source", "testbed", "--shots", 12, "--seed", 3)
     assert made.returncode == 0, made.stderr
     out = tmp_path / "split.yaml"
-    run = cli("sysid", bag, "--method", "split", "--out", out, "--json")
+    plots = tmp_path / "plots"
+    run = cli("sysid", bag, "--method", "split", "--out", out, "--plot", plots, "--json")
     assert run.returncode == 0, run.stderr[-3000:]
     report = json.loads(run.stdout)
+    assert sorted(Path(p).name for p in report["plots"]) == ["split_flight.png", "split_impacts.png"]
+    assert all((plots / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for name in ("split_flight.png",
+                                                                                   "split_impacts.png"))
     assert report["method"] == "split" and set(report["identified"]) == set(SPLIT_IDENTIFIABLE)
     assert report["objective"]["flight"]["windows"] > 0 and report["objective"]["impacts"]["impacts"] > 0
     assert report["after"]["validation"]["loss_m"] < report["before"]["validation"]["loss_m"]
@@ -163,6 +167,8 @@ def test_cli_split_errors_are_one_line(tmp_path):
             (("--identify", "table_acceleration"), "--identify table_acceleration: only --method split identifies it"),
             (("--method", "split", "--cross-validate"), "--cross-validate: only with --method hebo"),
             (("--polish", "5"), "--polish: only with --method split"),
+            (("--plot", tmp_path), "--plot: only with --method split"),
+            (("--method", "split", "--plot", bag / "metadata.yaml"), "is a file; it names the directory"),
             (("--method", "split", "--identify", "table_acceleration", "--polish", "3"), "--polish: nothing to polish")):
         run = cli("sysid", bag, *args)
         assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr

@@ -63,6 +63,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--polish", type=count(0), default=0, metavar="EVALUATIONS",
                         help="--method split: then a Nelder-Mead polish of the scalar parameters on the "
                              "prediction loss at --horizon, this many evaluations (default 0: none)")
+    parser.add_argument("--plot", type=Path, metavar="DIR",
+                        help="--method split: write split_flight.png and split_impacts.png (the fits) to DIR")
     parser.add_argument("--out", type=Path, help="write the identified parameters to this parameter YAML")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)
@@ -110,6 +112,10 @@ def run(args: argparse.Namespace) -> int:
         problem = "--cross-validate: only with --method hebo (split does not learn at a horizon)"
     if not problem and args.method == "hebo" and args.polish:
         problem = "--polish: only with --method split (hebo polishes by itself: polish_evaluations in config/sysid.yaml)"
+    if not problem and args.plot is not None and args.method != "split":
+        problem = "--plot: only with --method split (`air-hockey plot` shows HEBO's predictions)"
+    if not problem and args.plot is not None and args.plot.exists() and not args.plot.is_dir():
+        problem = f"--plot {args.plot} is a file; it names the directory the PNGs are written to"
     if not problem and args.polish and names == ["table_acceleration"]:
         problem = "--polish: nothing to polish (--identify table_acceleration alone: it stays as fitted)"
     if problem:
@@ -175,6 +181,10 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
     start = time.monotonic()
     split = identify_split(train, tracker, settings, names, bounds(settings, names))
     chosen = dict(split.identified)
+    plots = []
+    if args.plot is not None:
+        from air_hockey_agent.tools.split_plots import write_split_plots
+        plots = [str(p) for p in write_split_plots(args.plot, split)]
     polished = _polish_split(args, tracker, settings, train, chosen) if args.polish else None
     objective = {"set": "train"}
     if split.flight is not None:
@@ -192,7 +202,7 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
         for name in polished["values"]:  # the fits' errors are not the polished values'
             std.pop(name, None)
     result = {"method": "split", "horizon": args.horizon, "initial": {n: tracker[n] for n in names},
-              "identified": chosen, "std": std, "seconds": round(time.monotonic() - start, 1),
+              "identified": chosen, "std": std, "plots": plots, "seconds": round(time.monotonic() - start, 1),
               "objective": objective, "before": {}, "after": {},
               "on_bounds": on_bounds(_flat(chosen), _flat_bounds(bounds(settings, names)), settings["bound_margin"])}
     for name, trajs in (("train", train), ("validation", validation)):
@@ -353,6 +363,7 @@ def _format_split(result: dict, out: Path | None) -> str:
         p = o["polish"]
         lines.append(f"polish: {p['evaluations']} evaluations of the position loss at {p['horizon']} s (training set, "
                      f"every {p['stride']}. frame): {p['initial_m'] * 1e3:.2f} -> {p['final_m'] * 1e3:.2f} mm")
+    lines.extend(f"wrote {path}" for path in result["plots"])
     lines.append(f"prediction loss at {result['horizon']} s (every frame): loss / traj. min / traj. median [mm]")
     for key, label in (("before", "initial"), ("after", "identified")):
         for subset in ("train", "validation"):

@@ -19,7 +19,7 @@ the parameters' standard errors come from the weighted normal equations scaled b
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -61,6 +61,7 @@ class FlightFit:
     dropped: int           # windows dropped as outliers (poor quadratic fit or outlying acceleration)
     objective: float       # weighted squared residual per window (dimensionless)
     rms_acceleration: float  # [m/s^2] unweighted residual RMS per axis
+    used: list = field(default_factory=list)  # the windows (LocalFit) of the final fit, for plots
 
 
 def flight_windows(traj: GridTrajectory, table: TableGeometry, settings: FlightSettings) -> list[LocalFit]:
@@ -162,7 +163,7 @@ def _report(windows, weights, mask, values, free, dropped) -> FlightFit:
     covariance = np.linalg.pinv(design.T @ design) * weighted / dof
     std = {n: float(math.sqrt(max(covariance[i, i], 0.0))) for i, n in enumerate(free)}
     rms = math.sqrt(sum(float(r @ r) for r in residuals) / (2 * len(used)))
-    return FlightFit(values, std, len(used), dropped, weighted / len(used), rms)
+    return FlightFit(values, std, len(used), dropped, weighted / len(used), rms, [w for w, _ in used])
 
 
 def identify_flight(trajectories: Sequence[GridTrajectory], table: TableGeometry, noise: NoiseModel,

@@ -21,7 +21,7 @@ are dropped.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
 import numpy as np
@@ -69,6 +69,7 @@ class ImpactFit:
     dropped: int           # impacts dropped (poor fit or outlier)
     rms_normal: float      # [m/s] residual RMS of the outgoing normal speed (the restitution fit's objective)
     rms_tangential: float  # [m/s] residual RMS of vb and r omega (the friction fit's objective)
+    used: list = field(default_factory=list)  # the impacts (ImpactObservation) of the final fits, for plots
 
 
 def find_impacts(traj: GridTrajectory, table: TableGeometry, acceleration, noise: NoiseModel,
@@ -290,4 +291,4 @@ def fit_impacts(impacts: Sequence[ImpactObservation], radius: float, fixed: Mapp
             mu = fit_rim_friction(kept, radius, values, bounds["friction_rim"])
         values["friction_rim"] = mu
     rms_t = float(math.sqrt(np.mean(tangential_residuals(kept, radius, values, values["friction_rim"]) ** 2)))
-    return ImpactFit(values, len(kept), len(impacts) - len(kept), rms_normal, rms_t)
+    return ImpactFit(values, len(kept), len(impacts) - len(kept), rms_normal, rms_t, kept)

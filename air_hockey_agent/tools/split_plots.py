@@ -1,0 +1,71 @@
+"""Plots of ``air-hockey sysid --method split --plot DIR``: what the split identification fitted.
+
+* ``split_flight.png``: each free-flight window's acceleration along its motion, with the table
+  acceleration's share removed, against its speed, and the fitted flight law ``-d v - mu_s`` (eq. 3.1).
+* ``split_impacts.png``: each rim impact's restitution (outgoing over incoming normal speed) against the
+  incoming normal speed, and the fitted ``e(vn) = max(e - slope |vn|, e_min)``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from air_hockey_agent.core.identification.impact_fit import restitution_law
+from air_hockey_agent.core.identification.split import AXES, SplitResult
+from air_hockey_agent.tools.plot import _save
+
+
+def write_split_plots(out: Path, result: SplitResult) -> list[Path]:
+    """The PNGs of the parts that were identified, written atomically into ``out`` (created)."""
+    import matplotlib
+    matplotlib.use("Agg")
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    if result.flight is not None and result.flight.used:
+        written.append(_flight(out, result.flight))
+    if result.impacts is not None and result.impacts.used:
+        written.append(_impacts(out, result.impacts))
+    return written
+
+
+def _flight(out: Path, flight) -> Path:
+    import matplotlib.pyplot as plt
+    values = flight.values
+    g = np.array([values[AXES[0]], values[AXES[1]]])
+    speed = np.array([float(np.linalg.norm(w.v)) for w in flight.used])
+    along = np.array([float((w.a - g) @ w.v) / s for w, s in zip(flight.used, speed)])
+    grid = np.linspace(0.0, float(speed.max()), 100)
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.plot(speed, along, ".", ms=3, alpha=0.5, label=f"{len(speed)} free-flight windows")
+    ax.plot(grid, -values["damping"] * grid - values["friction_surface"], "k-",
+            label=f"fit: -{values['damping']:.4g} v - {values['friction_surface']:.3g}")
+    ax.set(xlabel="speed [m/s]", ylabel="acceleration along the motion, tilt removed [m/s^2]",
+           title="Flight law (split identification)")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    path = _save(fig, out / "split_flight.png")
+    plt.close(fig)
+    return path
+
+
+def _impacts(out: Path, impacts) -> Path:
+    import matplotlib.pyplot as plt
+    vn = np.array([-o.before[1] for o in impacts.used])
+    e = np.array([o.after[1] for o in impacts.used]) / vn
+    grid = np.linspace(0.0, float(vn.max()), 200)
+    law = impacts.values
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.plot(vn, e, ".", ms=4, alpha=0.6, label=f"{len(vn)} rim impacts")
+    ax.plot(grid, restitution_law(grid, law), "k-",
+            label=f"fit: max({law['restitution']:.3g} - {law['restitution_slope']:.3g} vn, "
+                  f"{law['restitution_min']:.3g})")
+    ax.set(xlabel="incoming normal speed [m/s]", ylabel="restitution [-]", ylim=(0.0, 1.1),
+           title="Rim restitution (split identification)")
+    ax.grid(alpha=0.3)
+    ax.legend()
+    fig.tight_layout()
+    path = _save(fig, out / "split_impacts.png")
+    plt.close(fig)
+    return path
