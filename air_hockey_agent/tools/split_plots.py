@@ -42,12 +42,7 @@ def _flight(out: Path, flight) -> Path:
             label=f"fit: -{values['damping']:.4g} v - {values['friction_surface']:.3g}")
     ax.set(xlabel="speed [m/s]", ylabel="acceleration along the motion, tilt removed [m/s^2]",
            title="Flight law (split identification)")
-    ax.grid(alpha=0.3)
-    ax.legend()
-    fig.tight_layout()
-    path = _save(fig, out / "split_flight.png")
-    plt.close(fig)
-    return path
+    return _finish(fig, ax, out / "split_flight.png")
 
 
 def _impacts(out: Path, impacts) -> Path:
@@ -63,9 +58,15 @@ def _impacts(out: Path, impacts) -> Path:
                   f"{law['restitution_min']:.3g})")
     ax.set(xlabel="incoming normal speed [m/s]", ylabel="restitution [-]", ylim=(0.0, 1.1),
            title="Rim restitution (split identification)")
+    return _finish(fig, ax, out / "split_impacts.png")
+
+
+def _finish(fig, ax, path: Path) -> Path:
+    """Grid, legend and layout, then the PNG written atomically and the figure closed."""
+    import matplotlib.pyplot as plt
     ax.grid(alpha=0.3)
     ax.legend()
     fig.tight_layout()
-    path = _save(fig, out / "split_impacts.png")
+    _save(fig, path)
     plt.close(fig)
     return path
