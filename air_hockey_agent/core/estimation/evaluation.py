@@ -54,8 +54,10 @@ class EvaluationTotals:
     errors: dict = field(default_factory=dict)  # horizon key -> list of errors [m]
     nll: dict = field(default_factory=dict)     # horizon key -> list of -ln N(z_xy; x_xy, P_xy + R_xy)
     nis: list = field(default_factory=list)     # NIS of every gated frame
-    rest_speed: float = 0.0     # [m/s] below it a frame's NIS counts as at rest (tracker's regime_rest_speed)
-    nis_regimes: list = field(default_factory=list)  # the regime of each entry of nis (REGIMES)
+    # [m/s] below it a frame's NIS counts as at rest (tracker's regime_rest_speed); None: no NIS by regime
+    # (classifying costs sysid's objective 8 % and it does not read it)
+    rest_speed: float | None = None
+    nis_regimes: list = field(default_factory=list)  # the regime of each entry of nis (REGIMES), with rest_speed
     frames: int = 0
     poses: int = 0              # frames that carried a pose
     lost_frames: int = 0
@@ -78,13 +80,15 @@ class EvaluationTotals:
             stats = (float(v.mean()), float(np.median(v)), float(np.percentile(v, 95))) if v.size else (None,) * 3
             table[key] = {"mean_m": stats[0], "median_m": stats[1], "p95_m": stats[2], "n": int(v.size)}
         nis = np.asarray(self.nis, float)
-        regimes = np.asarray(self.nis_regimes)
-        return {"horizons": table, "bags": self.recordings, "frames": self.frames,
-                "lost_frames": self.lost_frames, "outliers_rejected": self.outliers_rejected,
-                "rejected_fraction": self.outliers_rejected / self.poses if self.poses else None,
-                "reinit_per_s": self.reinitialisations / self.seconds if self.seconds > 0 else None,
-                "nis": {k: v for k, v in _nis_stats(nis).items() if k != "n"},  # issue #13's keys
-                "nis_by_regime": {r: _nis_stats(nis[regimes == r]) for r in REGIMES}}
+        summary = {"horizons": table, "bags": self.recordings, "frames": self.frames,
+                   "lost_frames": self.lost_frames, "outliers_rejected": self.outliers_rejected,
+                   "rejected_fraction": self.outliers_rejected / self.poses if self.poses else None,
+                   "reinit_per_s": self.reinitialisations / self.seconds if self.seconds > 0 else None,
+                   "nis": {k: v for k, v in _nis_stats(nis).items() if k != "n"}}  # issue #13's keys
+        if self.rest_speed is not None:
+            regimes = np.asarray(self.nis_regimes)
+            summary["nis_by_regime"] = {r: _nis_stats(nis[regimes == r]) for r in REGIMES}
+        return summary
 
 
 REGIMES = ("rest", "flight", "impact")
@@ -181,10 +185,11 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
             errors.append(float(np.hypot(*residual)))
             if totals.loglik:
                 nll.append(_neg_log_likelihood(residual, pred.covariance[:2, :2] + ekf.settings.r[:2, :2]))
-    for earlier, before, record in zip([None, None] + records[:-2], [None] + records[:-1], records):
-        if record.nis is not None:
-            totals.nis.append(record.nis)
-            totals.nis_regimes.append(_regime(ekf, earlier, before, record.t, totals.rest_speed))
+    totals.nis.extend(r.nis for r in records if r.nis is not None)
+    if totals.rest_speed is not None:
+        totals.nis_regimes.extend(_regime(ekf, earlier, before, record.t, totals.rest_speed) for earlier, before, record
+                                  in zip([None, None] + records[:-2], [None] + records[:-1], records)
+                                  if record.nis is not None)
     totals.frames += ekf.stats.frames  # lost = missing from the stream + arrived without a usable pose
     totals.poses += len(records) - invalid
     totals.lost_frames += count_lost_frames(sorted(stamps), ekf.settings.dt, ekf.settings.max_prediction_gap) + invalid
