@@ -225,9 +225,10 @@ class PuckEKF:
             self.x, self.P = pred.state, pred.covariance
         self.stamp = t
 
-    def residual(self, z: np.ndarray) -> np.ndarray:
-        """Measurement minus the measured part of the current state, ``z - h(x)``, angle wrapped."""
-        y = np.asarray(z, float) - self.x[_MEASURED_ROWS]
+    def residual(self, z: np.ndarray, state: np.ndarray | None = None) -> np.ndarray:
+        """Measurement minus the measured part of the current state (or of ``state``), ``z - h(x)``, angle
+        wrapped."""
+        y = np.asarray(z, float) - (self.x if state is None else state)[_MEASURED_ROWS]
         y[2] = wrap_angle(y[2])
         return y
 

@@ -28,7 +28,7 @@ from typing import Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.estimation.ekf import MEASURED, SINGLE_STEP_LIMIT, PuckEKF
+from air_hockey_agent.core.estimation.ekf import _MEASURED_BLOCK, MEASURED, SINGLE_STEP_LIMIT, PuckEKF
 from air_hockey_agent.core.puck.model import wrap_angle
 from air_hockey_agent.core.puck.prediction import impact_covariance
 
@@ -48,7 +48,7 @@ class PuckIMM(PuckEKF):
         self.mode_probabilities = self._transition()[_FREE].copy()
         self._xs = [self.x.copy() for _ in range(n)]
         self._ps = [self.P.copy() for _ in range(n)]
-        self._z = None
+        self._innovations: list = []  # per mode (y, S) of the frame being fused (_innovation_and_covariance)
 
     def reset(self, state: Sequence[float] | None = None, stamp: float | None = None) -> None:
         super().reset(state, stamp)
@@ -123,39 +123,27 @@ class PuckIMM(PuckEKF):
         self.stamp = t
 
     def _gate_and_update(self, t: float, z: np.ndarray) -> int:
-        self._z = z
         y, s = super()._innovation_and_covariance(z)  # the mixture's: its NIS is the one reported
         nis = float(y @ np.linalg.solve(s, y))
         flags = super()._gate_and_update(t, z)
         self.last_nis = nis
         return flags
 
-    def update(self, z: np.ndarray) -> float:
-        self._z = np.asarray(z, float)
-        return super().update(z)
-
-    def _mode_innovations(self, z: np.ndarray, rows: Sequence[int]) -> list:
-        """Per mode: (innovation, its covariance) of the measured ``rows`` (angle wrapped)."""
-        m = len(rows)
-        r = self.settings.measurement_noise(math.hypot(self.x[2], self.x[3]))[np.ix_(range(m), range(m))]
-        out = []
-        for x, p in zip(self._xs, self._ps):
-            y = np.asarray(z[:m], float) - x[list(rows)]
-            if m == 3:
-                y[2] = wrap_angle(y[2])
-            out.append((y, p[np.ix_(rows, rows)] + r))
-        return out
-
     def _innovation_and_covariance(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The innovation and covariance of the mode the measurement fits best (the gate's question)."""
-        return min(self._mode_innovations(np.asarray(z, float), MEASURED),
-                   key=lambda ys: float(ys[0] @ np.linalg.solve(ys[1], ys[0])))
+        """The innovation and covariance of the mode the measurement fits best (the gate's question); every
+        mode's are kept for the update that follows."""
+        r = self.settings.measurement_noise(math.hypot(self.x[2], self.x[3]))
+        self._innovations = [(self.residual(z, x), p[_MEASURED_BLOCK] + r) for x, p in zip(self._xs, self._ps)]
+        return min(self._innovations, key=lambda ys: float(ys[0] @ np.linalg.solve(ys[1], ys[0])))
 
     def _apply_update(self, y: np.ndarray, s_inv: np.ndarray, rows: Sequence[int] = MEASURED) -> None:
-        """Each mode's Kalman update with its own innovation, the likelihoods, the mixture."""
+        """Each mode's Kalman update with its own innovation (the first ``len(rows)`` measured components:
+        all three, or the position alone), the likelihoods, the mixture."""
         rows = list(rows)
+        m = len(rows)
         weights = []
-        for j, (y_j, s_j) in enumerate(self._mode_innovations(self._z, rows)):
+        for j, (y_full, s_full) in enumerate(self._innovations):
+            y_j, s_j = y_full[:m], s_full[:m, :m]
             p_ht = self._ps[j][:, rows]
             gain = np.linalg.solve(s_j, p_ht.T).T
             self._xs[j] = self._xs[j] + gain @ y_j
