@@ -24,7 +24,7 @@ from typing import Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.identification.local_fit import LocalFit, fit_positions, rows_in
+from air_hockey_agent.core.identification.local_fit import LocalFit, fit_positions, rows_in, smooth_fits
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.table import TableGeometry
 
@@ -40,6 +40,10 @@ class NoiseModel:
 
     def variance(self, speed: float) -> float:
         return self.at_rest + (self.per_speed * speed) ** 2
+
+    def fit_quality(self, fit: LocalFit) -> float:
+        """A local fit's residual RMS over the noise expected at its speed [-] (about 1 for a good fit)."""
+        return fit.rms / math.sqrt(self.variance(float(np.linalg.norm(fit.v))))
 
 
 @dataclass(frozen=True)
@@ -92,9 +96,7 @@ def fit_flight(windows: Sequence[LocalFit], noise: NoiseModel, settings: FlightS
                fixed: Mapping[str, float], bounds: Mapping[str, Sequence[float]]) -> FlightFit:
     """Weighted least squares of the flight law over ``windows``; names in ``fixed`` keep their value,
     the others are identified within ``bounds`` (the table acceleration is unbounded if not given)."""
-    fit_quality = np.array([w.rms / math.sqrt(noise.variance(math.hypot(*w.v))) for w in windows])
-    smooth = fit_quality <= settings.outlier_factor * max(float(np.median(fit_quality)), 1e-12) \
-        if len(windows) else np.zeros(0, bool)
+    smooth = smooth_fits([noise.fit_quality(w) for w in windows], settings.outlier_factor)
     kept = [w for w, ok in zip(windows, smooth) if ok]
     weights = np.array([1.0 / (w.a_gain * noise.variance(math.hypot(*w.v))) for w in kept])
     free = [n for n in FLIGHT_NAMES if n not in fixed]
@@ -142,9 +144,19 @@ def _solve(windows, weights, mask, fixed, free, bounds) -> dict:
     return values
 
 
+def flight_law(values: Mapping[str, float]):
+    """``a(v)`` [m/s^2] of the flight law ``-d v - mu_s v/|v| + g`` with ``values`` (FLIGHT_NAMES)."""
+    g = np.array([values[FLIGHT_NAMES[2]], values[FLIGHT_NAMES[3]]])
+
+    def acceleration(v: np.ndarray) -> np.ndarray:
+        speed = float(np.linalg.norm(v))
+        friction = values["friction_surface"] * v / speed if speed > 0.0 else 0.0
+        return g - values["damping"] * v - friction
+    return acceleration
+
+
 def _model_acceleration(window: LocalFit, values: Mapping[str, float]) -> np.ndarray:
-    rows, _ = _rows(window)
-    return rows @ np.array([values[n] for n in FLIGHT_NAMES])
+    return flight_law(values)(window.v)
 
 
 def _normalised_residuals(windows, weights, values) -> np.ndarray:

@@ -27,7 +27,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from air_hockey_agent.core.identification.flight_fit import NoiseModel
-from air_hockey_agent.core.identification.local_fit import fit_angle_rate, fit_positions, rows_in
+from air_hockey_agent.core.identification.local_fit import fit_angle_rate, fit_positions, rows_in, smooth_fits
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
@@ -129,7 +129,7 @@ def _observe(traj, table, wall, k, n_rows, acceleration, noise, settings) -> Imp
     if float(n @ v_in) > -settings.min_normal_speed or float(n @ v_out) <= 0.0:
         return None
     spins = [fit_angle_rate(rows * dt, z[rows, 2]) for rows in (pre, post)]
-    quality = max(f.rms / math.sqrt(noise.variance(float(np.linalg.norm(f.v)))) for f in fits)
+    quality = max(noise.fit_quality(f) for f in fits)
     return ImpactObservation(wall, t_ref + tau, (float(b @ v_in), float(n @ v_in), spins[0]),
                              (float(b @ v_out), float(n @ v_out), spins[1]), quality)
 
@@ -272,8 +272,7 @@ def fit_impacts(impacts: Sequence[ImpactObservation], radius: float, fixed: Mapp
                 start: Mapping[str, float]) -> ImpactFit:
     """Restitution law, then rim friction, over the impacts whose fits are good; ``fixed`` names keep
     their values, ``start`` (all IMPACT_NAMES) seeds the nonlinear fits."""
-    quality = np.array([o.fit_quality for o in impacts])
-    smooth = quality <= settings.outlier_factor * max(float(np.median(quality)), 1e-12) if len(impacts) else quality
+    smooth = smooth_fits([o.fit_quality for o in impacts], settings.outlier_factor)
     good = [o for o, ok in zip(impacts, smooth) if ok]
     needed = sum(1 for n in IMPACT_NAMES if n not in fixed) + 1
     if len(good) < needed:

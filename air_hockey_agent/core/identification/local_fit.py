@@ -68,3 +68,12 @@ def rows_in(z: np.ndarray, start: int, stop: int) -> np.ndarray:
     stop = max(start, min(len(z), stop))
     rows = np.arange(start, stop)
     return rows[~np.isnan(z[start:stop, 0])]
+
+
+def smooth_fits(quality, factor: float) -> np.ndarray:
+    """Mask of the fits whose quality (residual RMS over the expected noise) is within ``factor`` times the
+    median quality: the others had an impact, a hit or a glitch inside."""
+    quality = np.asarray(quality, float)
+    if not quality.size:
+        return np.zeros(0, bool)
+    return quality <= factor * max(float(np.median(quality)), 1e-12)

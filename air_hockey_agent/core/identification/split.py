@@ -14,7 +14,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.identification.flight_fit import (FlightFit, FlightSettings, NoiseModel,
+from air_hockey_agent.core.identification.flight_fit import (FlightFit, FlightSettings, NoiseModel, flight_law,
                                                            identify_flight)
 from air_hockey_agent.core.identification.impact_fit import ImpactFit, ImpactSettings, find_impacts, fit_impacts
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
@@ -49,17 +49,6 @@ def impact_settings(settings: Mapping[str, Any]) -> ImpactSettings:
 def noise_model(tracker: Mapping[str, Any]) -> NoiseModel:
     """The tracker's position noise (x axis's R and its growth with speed) as the fits' weights."""
     return NoiseModel(tracker["measurement_noise"][0], tracker["measurement_noise_per_speed"])
-
-
-def flight_law(values: Mapping[str, float]):
-    """``a(v)`` [m/s^2] of the flight law with ``values`` (FLIGHT_NAMES of :mod:`.flight_fit`)."""
-    g = np.array([values[AXES[0]], values[AXES[1]]])
-
-    def acceleration(v: np.ndarray) -> np.ndarray:
-        speed = float(np.linalg.norm(v))
-        friction = values["friction_surface"] * v / speed if speed > 0.0 else 0.0
-        return g - values["damping"] * v - friction
-    return acceleration
 
 
 def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str, Any], settings: Mapping[str, Any],
