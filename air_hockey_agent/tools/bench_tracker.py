@@ -37,7 +37,8 @@ def _timed(fn, *args) -> float:
 
 
 def run_benchmark(n: int, seed: int, params_files: Sequence[Path] = ()) -> dict:
-    ekf = PuckEKF.from_params(load_tracker_params(params_files))
+    params = load_tracker_params(params_files)
+    ekf = PuckEKF.from_params(params)
     model, settings, table = ekf.model, ekf.settings, ekf.model.table
     rng = np.random.default_rng(seed)
     states = [np.array([rng.uniform(-table.x_limit, table.x_limit), rng.uniform(-table.y_limit, table.y_limit),
@@ -50,7 +51,7 @@ def run_benchmark(n: int, seed: int, params_files: Sequence[Path] = ()) -> dict:
         z = s[[0, 1, 4]] + rng.normal(0.0, 1e-4, 3)
         update.append(_timed(ekf.update, z))
     result = {"update_us": _stats(update), "predict_us": {"stepwise": {}, "fast": {}}, "ratio_stepwise_over_fast": {},
-              "frame_us": _frame_costs(params_files, states, rng)}
+              "frame_us": _frame_costs(params, states, rng)}
     for h in HORIZONS:
         step = [_timed(predict_stepwise, model, s, p0, h, settings.dt, settings.q) for s in states[: max(50, n // 10)]]
         fast = [_timed(predict_fast, model, s, p0, h, settings.dt, settings.q) for s in states]
@@ -61,10 +62,9 @@ def run_benchmark(n: int, seed: int, params_files: Sequence[Path] = ()) -> dict:
     return result
 
 
-def _frame_costs(params_files: Sequence[Path], states: list, rng: np.random.Generator) -> dict:
+def _frame_costs(params: dict, states: list, rng: np.random.Generator) -> dict:
     """One frame (predict one model step, then fuse) per filter kind on the same states, with its
     ratio to the EKF's in this run (the filter option's own cost, issue #13)."""
-    params = load_tracker_params(params_files)
     zs = [s[[0, 1, 4]] + rng.normal(0.0, 1e-4, 3) for s in states]
     out = {}
     for kind in FILTER_KINDS:

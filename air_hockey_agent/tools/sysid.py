@@ -18,6 +18,7 @@ the same way; the objectives printed are the fits' own.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import multiprocessing
 import os
@@ -80,6 +81,19 @@ def _partial(job: tuple) -> object:
     w = _WORK
     return partial_loss({**w["tracker"], **candidate}, w["trajectories"][share::shares], horizon, w["loss"],
                         w["stride"])
+
+
+@contextlib.contextmanager
+def _worker_pool(settings: dict):
+    """(pool or None, workers): ``workers`` forked processes (they inherit _WORK), closed afterwards."""
+    workers = min(settings["workers"], os.cpu_count() or 1)
+    pool = multiprocessing.get_context("fork").Pool(workers) if workers > 1 else None
+    try:
+        yield pool, workers
+    finally:
+        if pool is not None:
+            pool.close()
+            pool.join()
 
 
 class _Objective:
@@ -205,9 +219,7 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
               "identified": chosen, "std": std, "plots": plots, "seconds": round(time.monotonic() - start, 1),
               "objective": objective, "before": {}, "after": {},
               "on_bounds": on_bounds(_flat(chosen), _flat_bounds(bounds(settings, names)), settings["bound_margin"])}
-    for name, trajs in (("train", train), ("validation", validation)):
-        result["before"][name] = loss_report(tracker, trajs, args.horizon).as_dict()
-        result["after"][name] = loss_report({**tracker, **chosen}, trajs, args.horizon).as_dict()
+    result["before"], result["after"] = _before_after(tracker, chosen, train, validation, args.horizon)
     result["seconds_with_reports"] = round(time.monotonic() - start, 1)
     result["summary_line"] = (f"identified by `air-hockey sysid --method split` ({len(train)} training "
                               f"trajectories) on {datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}")
@@ -221,22 +233,24 @@ def _polish_split(args, tracker: dict, settings: dict, train: list, split_values
     box = bounds(settings, names)
     start = {n: float(min(max(split_values[n], box[n][0]), box[n][1])) for n in names}
     _WORK.update(tracker={**tracker, **split_values}, trajectories=train, loss="position", stride=settings["stride"])
-    workers = min(settings["workers"], os.cpu_count() or 1)
-    pool = multiprocessing.get_context("fork").Pool(workers) if workers > 1 else None
     bar = Progress(f"sysid split polish @ {args.horizon} s", args.json)
-    try:
+    with _worker_pool(settings) as (pool, workers):
         objective = _Objective(pool, workers, args.horizon, "position")
         first = objective([start])[0]
         history = [(start, first)]
         best, value = polish(objective, box, start, first, args.polish, history,
                              lambda done, total, best: bar(done, total, f"evaluations, best {best * 1e3:.2f} mm"),
                              args.polish)
-    finally:
-        if pool is not None:
-            pool.close()
-            pool.join()
     return {"evaluations": len(history), "horizon": args.horizon, "stride": settings["stride"],
             "initial_m": first, "final_m": value, "values": best}
+
+
+def _before_after(tracker: dict, identified: dict, train: list, validation: list, horizon: float) -> tuple:
+    """The loss reports (thesis table 5.2/5.3 columns) of the tracker's and the identified parameters on
+    both sets, every frame."""
+    sets = (("train", train), ("validation", validation))
+    return ({name: loss_report(tracker, trajs, horizon).as_dict() for name, trajs in sets},
+            {name: loss_report({**tracker, **identified}, trajs, horizon).as_dict() for name, trajs in sets})
 
 
 def _flat(values: dict) -> dict:
@@ -259,11 +273,8 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
     names = args.identify
     _WORK.update(tracker=tracker, trajectories=train, loss=args.loss, stride=settings["stride"])
     learn_at = HORIZONS if args.cross_validate else (args.horizon,)
-    workers = min(settings["workers"], os.cpu_count() or 1)
-    context = multiprocessing.get_context("fork")
-    pool = context.Pool(workers) if workers > 1 else None
     start = time.monotonic()
-    try:
+    with _worker_pool(settings) as (pool, workers):
         runs = {}
         for h in learn_at:
             bar = Progress(f"sysid {args.loss} @ {h} s", args.json)
@@ -274,10 +285,6 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
                              {n: tracker[n] for n in names}, args.iterations, args.batch, args.seed,
                              settings["random_samples"], settings["polish_evaluations"], progress)
             runs[h] = ident
-    finally:
-        if pool is not None:
-            pool.close()
-            pool.join()
     chosen = runs[args.horizon]
     initial = {n: tracker[n] for n in names}
     result = {"loss": args.loss, "horizon": args.horizon, "initial": initial, "identified": chosen.best,
@@ -287,9 +294,7 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
                             "set": "train", "initial": chosen.initial_objective, "identified": chosen.best_objective},
               "on_bounds": on_bounds(chosen.best, bounds(settings, names), settings["bound_margin"]),
               "before": {}, "after": {}}
-    for name, trajs in (("train", train), ("validation", validation)):
-        result["before"][name] = loss_report(tracker, trajs, args.horizon).as_dict()
-        result["after"][name] = loss_report({**tracker, **chosen.best}, trajs, args.horizon).as_dict()
+    result["before"], result["after"] = _before_after(tracker, chosen.best, train, validation, args.horizon)
     if args.cross_validate:
         result["learned"] = {str(h): r.best for h, r in runs.items()}
         result["cross_validation"] = {
