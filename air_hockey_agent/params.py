@@ -167,6 +167,13 @@ def yaml_float(value: float) -> str:
     return text
 
 
+def yaml_value(value: float | list[float] | tuple[float, ...]) -> str:
+    """A float, or a list of them as a flow sequence, as YAML that reads back as floats (:func:`yaml_float`)."""
+    if isinstance(value, (list, tuple)):
+        return "[" + ", ".join(yaml_float(v) for v in value) + "]"
+    return yaml_float(value)
+
+
 def validate(specs: Iterable[ParamSpec], values: Mapping[str, Any]) -> dict[str, Any]:
     """Check a complete set of values against their specs; raise on the first bad one."""
     return {spec.name: spec.check(values[spec.name]) for spec in specs}

@@ -29,7 +29,7 @@ import numpy as np
 
 from air_hockey_agent.core.identification.noise import calibrate_by_regime, iterate
 from air_hockey_agent.core.identification.sysid import loss_report
-from air_hockey_agent.params import yaml_float
+from air_hockey_agent.params import yaml_value
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 from air_hockey_agent.tools.argtypes import count, number
@@ -146,12 +146,10 @@ def _write(path: Path, r: list, q: list, per_speed: float | None, args: argparse
            calibration=None) -> None:
     text = (f"# Noise covariances estimated by `air-hockey noise-estimate` (eq. 3.12, 3.13; {args.iterations} "
             f"iterations{', fixed ' + args.fix[0] if args.fix else ''}).\n/**/puck_tracker:\n  ros__parameters:\n"
-            f"    measurement_noise: [{', '.join(yaml_float(v) for v in r)}]\n"
-            f"    process_noise: [{', '.join(yaml_float(v) for v in q)}]\n")
+            f"    measurement_noise: {yaml_value(r)}\n    process_noise: {yaml_value(q)}\n")
     if per_speed is not None:
-        text += f"    measurement_noise_per_speed: {yaml_float(per_speed)}\n"
+        text += f"    measurement_noise_per_speed: {yaml_value(per_speed)}\n"
     if calibration is not None:
-        rest = calibration.values["process_noise_rest"]
-        text += (f"    process_noise_rest: [{', '.join(yaml_float(v) for v in rest)}]\n"
-                 f"    impact_noise: {yaml_float(calibration.values['impact_noise'])}\n")
+        text += (f"    process_noise_rest: {yaml_value(calibration.values['process_noise_rest'])}\n"
+                 f"    impact_noise: {yaml_value(calibration.values['impact_noise'])}\n")
     write_text_atomic(path, text)

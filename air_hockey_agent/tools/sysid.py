@@ -31,7 +31,7 @@ from air_hockey_agent.bags.trajectories import split_train_validation
 from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split
 from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PHYSICAL, combine, identify,
                                                       loss_report, nis_median, on_bounds, partial_loss, polish)
-from air_hockey_agent.params import yaml_float
+from air_hockey_agent.params import yaml_value
 from air_hockey_agent.sysid_params import bounds
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.progress import Progress
@@ -386,10 +386,7 @@ def _value_text(value) -> str:
 
 def write_params_yaml(path: Path, values: dict, comment: str) -> None:
     """Parameter YAML for the puck_tracker, written atomically (temporary file, then rename)."""
-    body = "".join(f"    {name}: {_yaml_value(value)}\n" for name, value in values.items())
+    body = "".join(f"    {name}: {yaml_value(value)}\n" for name, value in values.items())
     text = f"# Physical parameters of the puck model, {comment}.\n/**/puck_tracker:\n  ros__parameters:\n{body}"
     write_text_atomic(path, text)
 
-
-def _yaml_value(value) -> str:
-    return ("[" + ", ".join(yaml_float(v) for v in value) + "]") if isinstance(value, list) else yaml_float(value)

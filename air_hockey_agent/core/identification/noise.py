@@ -24,8 +24,9 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED, PuckEKF
-from air_hockey_agent.core.estimation.evaluation import REGIMES, EvaluationTotals, evaluate_stream
+from air_hockey_agent.core.estimation.evaluation import REGIMES
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
+from air_hockey_agent.core.identification.sysid import filter_pass_totals
 from air_hockey_agent.core.puck.model import wrap_angle
 
 
@@ -125,10 +126,7 @@ class RegimeCalibration:
 
 def regime_nis(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory]) -> dict:
     """NIS of every gated frame of ``trajectories``, by regime (rest / flight / impact)."""
-    ekf = PuckEKF.from_params(params)
-    totals = EvaluationTotals((), rest_speed=params["regime_rest_speed"])
-    for traj in trajectories:
-        evaluate_stream(ekf, traj.frames(), totals)
+    totals = filter_pass_totals(params, trajectories, params["regime_rest_speed"])
     nis, regimes = np.asarray(totals.nis, float), np.asarray(totals.nis_regimes)
     return {r: nis[regimes == r] for r in REGIMES}
 

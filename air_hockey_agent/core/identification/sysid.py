@@ -74,11 +74,18 @@ def partial_loss(params: Mapping[str, Any], trajectories: Sequence[GridTrajector
 def nis_median(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory]) -> float | None:
     """Median normalised innovation squared of the filter with tracker parameters ``params`` over every
     gated frame of ``trajectories`` (3 dof: 2.37 when the filter is calibrated), None without any."""
+    return filter_pass_totals(params, trajectories).summary()["nis"]["median"]
+
+
+def filter_pass_totals(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory],
+                       rest_speed: float | None = None) -> EvaluationTotals:
+    """The stream counts and NIS (by regime with ``rest_speed``) of the filter with tracker parameters
+    ``params`` over ``trajectories``, without predictions."""
     ekf = PuckEKF.from_params(params)
-    totals = EvaluationTotals(())
+    totals = EvaluationTotals((), rest_speed=rest_speed)
     for traj in trajectories:
         evaluate_stream(ekf, traj.frames(), totals)
-    return totals.summary()["nis"]["median"]
+    return totals
 
 
 def combine(parts: Sequence[PartialLoss], loss: str = "position") -> LossReport:
