@@ -336,10 +336,14 @@ class PuckEKF:
         self._angle_rejections += 1
         if self._angle_rejections >= self.settings.max_consecutive_rejections:
             self._angle_rejections = 0
-            self.x[4], self.x[5] = wrap_angle(angle), 0.0
-            self.P[4:6, :] = 0.0
-            self.P[:, 4:6] = 0.0
-            self.P[4, 4], self.P[5, 5] = self.settings.r[2, 2], self.settings.p0[5, 5]
+            self._restart_angle(angle)
+
+    def _restart_angle(self, angle: float) -> None:
+        """Angle from the measured ``angle`` [rad], spin unknown, uncorrelated with the rest."""
+        self.x[4], self.x[5] = wrap_angle(angle), 0.0
+        self.P[4:6, :] = 0.0
+        self.P[:, 4:6] = 0.0
+        self.P[4, 4], self.P[5, 5] = self.settings.r[2, 2], self.settings.p0[5, 5]
 
     def _collect_for_initialisation(self, t: float, z: np.ndarray | None) -> int:
         if z is None:

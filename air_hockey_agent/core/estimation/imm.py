@@ -58,13 +58,11 @@ class PuckIMM(PuckEKF):
         super()._initialise_from_pending()
         self._restart_modes()
 
-    def _update_position_only(self, y: np.ndarray, s: np.ndarray, angle: float) -> None:
-        rejections = self._angle_rejections
-        super()._update_position_only(y, s, angle)
-        if self._angle_rejections < rejections + 1:  # angle and spin restarted from the measurement
-            probabilities = self.mode_probabilities
-            self._restart_modes()
-            self.mode_probabilities = probabilities
+    def _restart_angle(self, angle: float) -> None:
+        super()._restart_angle(angle)
+        probabilities = self.mode_probabilities  # the modes restart from the mixture, their weights stay
+        self._restart_modes()
+        self.mode_probabilities = probabilities
 
     def _transition(self) -> np.ndarray:
         """Markov matrix: row i holds the probabilities of the next frame's modes after mode i."""
