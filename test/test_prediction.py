@@ -3,6 +3,7 @@ import numpy as np
 import pytest
 
 from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise
+from air_hockey_agent.core.table import WALL_FAR, WALL_RIGHT
 from model_fixtures import DT, Q, model
 
 P0 = np.diag([1e-7, 1e-7, 1e-3, 1e-3, 1e-4, 1e-2])
@@ -68,12 +69,71 @@ def test_impact_noise_adds_its_covariance_after_a_rim_impact_only():
         assert extra[5, 5] > 0.0
 
 
-def test_a_tilted_table_is_predicted_step_by_step_with_or_without_covariance():
-    m = model(table_acceleration=(0.02, -0.01))
+def assert_agree(a, b, cov_rtol):
+    """Two predictions of the same state and horizon agree: state, covariance, impacts, samples, crossings."""
+    diff = a.state - b.state
+    diff[4] = (diff[4] + np.pi) % (2 * np.pi) - np.pi
+    assert np.abs(diff).max() < 1e-10
+    if a.covariance is not None:
+        assert np.abs(a.covariance - b.covariance).max() <= cov_rtol * np.abs(a.covariance).max()
+    assert [i[1] for i in a.impacts] == [i[1] for i in b.impacts]
+    assert np.allclose([i[0] for i in a.impacts], [i[0] for i in b.impacts], atol=1e-10)
+    assert len(a.samples) == len(b.samples)
+    assert a.crossings.keys() == b.crossings.keys()
+    for line, crossing in a.crossings.items():
+        assert crossing.time == pytest.approx(b.crossings[line].time, abs=1e-9)
+        assert crossing.y == pytest.approx(b.crossings[line].y, abs=1e-9)
+        assert (crossing.vx, crossing.vy) == pytest.approx((b.crossings[line].vx, b.crossings[line].vy), abs=1e-10)
+
+
+@pytest.mark.parametrize("accel, damping", [((0.02, -0.01), 0.125), ((-0.3, 0.5), 0.5), ((0.4, 0.0), 0.0),
+                                            ((0.0, -0.2), 2.0)])
+def test_fast_prediction_on_a_tilted_table_agrees_with_stepwise(accel, damping):
+    """Without surface friction a table acceleration keeps the closed form (AcceleratedMotion): same states,
+    covariances, impacts and line crossings as step by step, with curved paths that turn back (strong g)."""
+    m = model(friction_surface=0.0, damping=damping, table_acceleration=accel)
+    flat = model(friction_surface=0.0, damping=damping)
+    for state, horizon in random_states(60, seed=11):
+        for cov, every in ((P0, 6), (None, 6), (P0, 0)):  # without samples the jumps are long
+            a = predict_stepwise(m, state, cov, horizon, DT, Q, lines=LINES, sample_every=every, impact_noise=0.15)
+            b = predict_fast(m, state, cov, horizon, DT, Q, lines=LINES, sample_every=every, impact_noise=0.15)
+            assert_agree(a, b, 1e-9)
+        assert np.linalg.norm(b.state[:2] - predict_fast(flat, state, None, horizon, DT, Q).state[:2]) > 1e-4
+
+
+def test_a_puck_at_rest_on_a_tilted_table_slides_downhill_into_the_rim():
+    m = model(friction_surface=0.0, table_acceleration=(0.0, 0.3))
+    rest = np.array([0.0, 0.3, 0.0, 0.0, 0.0, 0.0])
+    a = predict_stepwise(m, rest, P0, 1.5, DT, Q, lines=LINES)
+    b = predict_fast(m, rest, P0, 1.5, DT, Q, lines=LINES)
+    assert_agree(a, b, 1e-9)
+    assert b.impacts and b.impacts[0][1] == WALL_RIGHT  # the long rim at +y
+
+
+def test_a_puck_thrown_uphill_comes_back_across_the_line_and_into_the_rim_behind_it():
+    """The closed form finds a line crossing and a rim impact after the motion along them turned back."""
+    m = model(friction_surface=0.0, table_acceleration=(0.5, 0.2))
+    uphill = np.array([0.5, 0.3, -0.4, -0.3, 0.0, 0.0])  # away from the line x = 0.778 and the far rim
+    a = predict_stepwise(m, uphill, P0, 3.0, DT, Q, lines=LINES)
+    b = predict_fast(m, uphill, P0, 3.0, DT, Q, lines=LINES)
+    assert_agree(a, b, 1e-9)
+    assert 0.778 in b.crossings and b.crossings[0.778].vx > 0.0
+    assert [wall for _, wall, *_ in b.impacts][:1] == [WALL_FAR]
+
+
+def test_a_puck_that_crosses_a_line_and_turns_back_crosses_it_at_the_first_time():
+    m = model(friction_surface=0.0, table_acceleration=(-0.8, 0.0))
+    over = np.array([0.6, 0.3, 0.6, 0.0, 0.0, 0.0])  # out to x = 0.82, back over the line x = 0.778
+    a = predict_stepwise(m, over, P0, 1.5, DT, Q, lines=LINES)
+    b = predict_fast(m, over, P0, 1.5, DT, Q, lines=LINES)
+    assert_agree(a, b, 1e-9)
+    assert not b.impacts and b.crossings[0.778].vx > 0.0  # on the way out
+
+
+def test_with_surface_friction_a_tilted_table_is_predicted_step_by_step():
+    m = model(friction_surface=0.05, table_acceleration=(0.02, -0.01))
     for state, horizon in random_states(10, seed=7):
         with_cov = predict_fast(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, impact_noise=0.15)
-        mean_only = predict_fast(m, state, None, horizon, DT, Q, lines=LINES, sample_every=6)
-        flat = predict_stepwise(model(), state, P0, horizon, DT, Q)
-        assert mean_only.covariance is None and np.array_equal(with_cov.state, mean_only.state)
-        assert with_cov.crossings.keys() == mean_only.crossings.keys()
-        assert np.linalg.norm(with_cov.state[:2] - flat.state[:2]) > 1e-4  # the acceleration acted
+        stepwise = predict_stepwise(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, impact_noise=0.15)
+        assert np.array_equal(with_cov.state, stepwise.state)
+        assert np.array_equal(with_cov.covariance, stepwise.covariance)

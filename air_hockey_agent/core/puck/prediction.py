@@ -14,8 +14,9 @@ Two predictors with one result type:
   table ``G_k = sum_i F_d^i Q F_d^iT`` of the damping-only transition ``F_d``: exact when
   ``friction_surface = 0``, otherwise it slightly overstates the cross-track velocity noise at low
   speed (conservative). Mean and transition Jacobian are exact in both cases. With a table
-  acceleration (``PuckParams.table_acceleration`` not zero) the direction of motion is no longer
-  constant between impacts and the fast predictor is the stepwise one (``bench tracker`` shows the cost).
+  acceleration (``PuckParams.table_acceleration`` not zero) the path bends: without surface friction the
+  step is still linear and :class:`.free_flight.AcceleratedMotion` jumps in closed form (the noise table
+  is then exact); with both, the fast predictor is the stepwise one (``bench tracker`` shows the cost).
 
 Line crossings (e.g. the robots' defend lines) are interpolated linearly inside the step that
 crosses, identically in both predictors.
@@ -28,7 +29,7 @@ from typing import Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.puck.free_flight import FreeMotion, record_free_crossings
+from air_hockey_agent.core.puck.free_flight import AcceleratedMotion, FreeMotion
 from air_hockey_agent.core.puck.model import PuckModel
 
 STEP_EPS = 1e-9  # [-] fraction of a step below which a horizon remainder is dropped (float rounding)
@@ -176,8 +177,10 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, ho
     With ``cov=None`` only the mean is propagated (``Prediction.covariance`` is None): the offline
     evaluation and system identification need no covariance.
     """
-    if model.params.accelerated:  # a table acceleration bends the free flight: no closed form here
+    params = model.params
+    if params.accelerated and params.friction_surface > 0.0:  # no closed form for this flight
         return predict_stepwise(model, state, cov, horizon, dt, q, lines, sample_every, impact_noise)
+    free_motion = AcceleratedMotion if params.accelerated else FreeMotion
     with_cov = cov is not None
     table = noise_table(dt, model.params.damping, q) if with_cov else None
     steps, remainder = _split_horizon(horizon, dt)
@@ -188,12 +191,11 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, ho
         budget = steps - done
         if sample_every:
             budget = min(budget, sample_every - done % sample_every)
-        free = FreeMotion(model, s, dt)
-        hit = model.first_impact(free.x0, free.y0, free.ux, free.uy, math.inf) if free.s0 > 0.0 else None
-        reach = free.first_step_reaching(hit[0], budget) if hit is not None else None
+        free = free_motion(model, s, dt)
+        reach = free.impact_step(budget)
         jump = budget if reach is None else reach - 1
         if jump > 0:
-            record_free_crossings(rec, free, done * dt, jump)
+            free.record_crossings(rec, done * dt, jump)
             if with_cov:
                 phi = free.jacobian(jump)
                 p = phi @ p @ phi.T + table.get(jump)
