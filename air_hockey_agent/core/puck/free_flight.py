@@ -145,8 +145,8 @@ class AcceleratedMotion:
     ``v_m = c + (v_0 - c) a^m`` (``v_m = v_0 + m dt g_u`` without damping), and the distance travelled in
     ``n`` steps is ``dt sum_{m<n} v_m``. The velocity moves monotonically in ``m``, so a signed distance from a
     line (a rim, a defend line) either rises and then falls (its first step at or beyond the line is found by
-    bisection) or falls and then rises (the same, among the steps before the motion turns). The Jacobian does not depend on ``g``: it is the damping-only
-    transition ``F_d^n``, and the noise table's ``G_n`` is exact.
+    bisection) or falls and then rises (the same, among the steps before the motion turns). The Jacobian does
+    not depend on ``g``: it is the damping-only transition ``F_d^n``, and the noise table's ``G_n`` is exact.
     """
 
     def __init__(self, model: PuckModel, state: np.ndarray, dt: float) -> None:
@@ -238,6 +238,76 @@ class AcceleratedMotion:
             frac = 0.0 if x0 == 0.0 else x0 / (x0 - x1)
             rec.cross(line, t0 + (i - 1 + frac) * self.dt, before[1] + frac * (after[1] - before[1]), before[2],
                       before[3])
+
+
+class MarchedMotion:
+    """Free model steps with a table acceleration and surface friction, marched in scalar arithmetic.
+
+    No closed form is known here (the friction acts along a direction the acceleration keeps turning), so
+    the mean takes the model's own decay (:meth:`PuckModel.decay`) step by step, without the 6x6 matrix
+    products of the stepwise prediction: the transition of free steps keeps the form ``[[I, B], [0, A]]`` on
+    (position, velocity), so the Jacobian is two 2x2 blocks multiplied up (exact), and the noise is taken
+    from the damping-only table ``G_n``, which slightly overstates the velocity noise across the motion, as
+    for friction without acceleration. A puck the friction holds at rest (``a |g| <= mu_s``) stays there.
+    """
+
+    def __init__(self, model: PuckModel, state: np.ndarray, dt: float) -> None:
+        self.dt = dt
+        self.x0, self.y0, vx, vy, self.theta0, self.omega = as_floats(state)
+        self._model = model
+        self._path = [(self.x0, self.y0, vx, vy)]   # position and velocity after m steps
+        self._blocks = [(1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0)]  # A (row-major), then B, after m steps
+
+    def impact_step(self, max_steps: int) -> int | None:
+        """March up to max_steps steps; the first whose end lies on or beyond a rim line (the model takes it
+        itself), or None. A puck on or beyond a rim line now: step 1."""
+        table, dt = self._model.table, self.dt
+        bounds = {(1.0, 0.0): -math.inf, (-1.0, 0.0): math.inf, (0.0, 1.0): -math.inf, (0.0, -1.0): math.inf}
+        for wall, normal in enumerate(WALL_NORMALS):  # rims are axis-parallel: distance n.p + h <= 0 is a bound
+            d0 = table.distance_to_wall(wall, self.x0, self.y0)
+            if d0 < 0.0 and wall in SHORT_WALLS:
+                continue  # inside a goal: no short-rim impact (PuckModel.first_impact)
+            if d0 <= 0.0:
+                return 1
+            bounds[normal] = -table.wall_offset(wall) if sum(normal) > 0.0 else table.wall_offset(wall)
+        x_lo, x_hi, y_lo, y_hi = bounds[1.0, 0.0], bounds[-1.0, 0.0], bounds[0.0, 1.0], bounds[0.0, -1.0]
+        x, y, vx, vy = self._path[-1]
+        a00, a01, a10, a11, b00, b01, b10, b11 = self._blocks[-1]
+        for n in range(1, max_steps + 1):
+            x, y = x + dt * vx, y + dt * vy
+            b00, b01, b10, b11 = b00 + dt * a00, b01 + dt * a01, b10 + dt * a10, b11 + dt * a11
+            vx, vy, ((d00, d01), (d10, d11)) = self._model.decay(vx, vy, dt)
+            a00, a01, a10, a11 = (d00 * a00 + d01 * a10, d00 * a01 + d01 * a11,
+                                  d10 * a00 + d11 * a10, d10 * a01 + d11 * a11)
+            self._path.append((x, y, vx, vy))
+            self._blocks.append((a00, a01, a10, a11, b00, b01, b10, b11))
+            if x <= x_lo or x >= x_hi or y <= y_lo or y >= y_hi:
+                return n
+            if vx == 0.0 and vy == 0.0 and self._model.decay(0.0, 0.0, dt)[:2] == (0.0, 0.0):
+                return None  # held at rest: every later step is this one
+        return None
+
+    def _at(self, items: list, n: int):
+        return items[min(n, len(items) - 1)]
+
+    def state_after(self, n: int) -> np.ndarray:
+        x, y, vx, vy = self._at(self._path, n)
+        return np.array([x, y, vx, vy, wrap_angle(self.theta0 + n * self.dt * self.omega), self.omega])
+
+    def jacobian(self, n: int) -> np.ndarray:
+        """Exact Jacobian of n free steps."""
+        a00, a01, a10, a11, b00, b01, b10, b11 = self._at(self._blocks, n)
+        return np.array([[1.0, 0.0, b00, b01, 0.0, 0.0], [0.0, 1.0, b10, b11, 0.0, 0.0],
+                         [0.0, 0.0, a00, a01, 0.0, 0.0], [0.0, 0.0, a10, a11, 0.0, 0.0],
+                         [0.0, 0.0, 0.0, 0.0, 1.0, n * self.dt], [0.0, 0.0, 0.0, 0.0, 0.0, 1.0]])
+
+    def record_crossings(self, rec, t0: float, n: int) -> None:
+        """Crossings of ``rec``'s pending lines during the n marched steps, found as the stepwise prediction
+        finds them (``rec.step`` of each step in turn)."""
+        for i in range(1, n + 1):
+            if not rec.pending:
+                return
+            rec.step(t0 + (i - 1) * self.dt, self.dt, self._at(self._path, i - 1), self._at(self._path, i), ())
 
 
 def _first_true(predicate, hi: int, lo: int = 0) -> int:

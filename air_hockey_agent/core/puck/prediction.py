@@ -16,7 +16,8 @@ Two predictors with one result type:
   speed (conservative). Mean and transition Jacobian are exact in both cases. With a table
   acceleration (``PuckParams.table_acceleration`` not zero) the path bends: without surface friction the
   step is still linear and :class:`.free_flight.AcceleratedMotion` jumps in closed form (the noise table
-  is then exact); with both, the fast predictor is the stepwise one (``bench tracker`` shows the cost).
+  is then exact); with both, no closed form is known and :class:`.free_flight.MarchedMotion` takes the free
+  steps in scalar arithmetic, without the matrix products (``bench tracker`` shows the costs).
 
 Line crossings (e.g. the robots' defend lines) are interpolated linearly inside the step that
 crosses, identically in both predictors.
@@ -29,7 +30,7 @@ from typing import Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.puck.free_flight import AcceleratedMotion, FreeMotion
+from air_hockey_agent.core.puck.free_flight import AcceleratedMotion, FreeMotion, MarchedMotion
 from air_hockey_agent.core.puck.model import PuckModel
 
 STEP_EPS = 1e-9  # [-] fraction of a step below which a horizon remainder is dropped (float rounding)
@@ -178,9 +179,8 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, ho
     evaluation and system identification need no covariance.
     """
     params = model.params
-    if params.accelerated and params.friction_surface > 0.0:  # no closed form for this flight
-        return predict_stepwise(model, state, cov, horizon, dt, q, lines, sample_every, impact_noise)
-    free_motion = AcceleratedMotion if params.accelerated else FreeMotion
+    free_motion = (FreeMotion if not params.accelerated else
+                   AcceleratedMotion if params.friction_surface == 0.0 else MarchedMotion)
     with_cov = cov is not None
     table = noise_table(dt, model.params.damping, q) if with_cov else None
     steps, remainder = _split_horizon(horizon, dt)
