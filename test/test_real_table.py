@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.estimation.synthetic import MocapImperfections, MocapSampler
+from air_hockey_agent.core.estimation.synthetic import (MocapImperfections, MocapSampler, ShotRanges, stepped_state_at,
+                                                       synthetic_session)
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.puck.real_table import GRAVITY, RealTablePuck, TableEffects, real_rim_impact
 from air_hockey_agent.core.table import TableGeometry
@@ -92,3 +93,38 @@ def test_marker_noise_grows_with_speed():
     fast = np.array([sampler.sample(k / 120, lambda _t: (0.0, 0.0, 0.0, 3.0))[1][0] for k in range(4000)])
     assert np.std(resting) == pytest.approx(1e-4, rel=0.05)
     assert np.std(fast) == pytest.approx(math.hypot(1e-4, 3.0 * 4e-4), rel=0.05)
+
+
+def test_between_its_samples_the_truth_is_the_test_beds_own_step_cut_short():
+    """stepped_state_at (the truth at a mocap stamp between the test bed's 1 ms samples) equals the test
+    bed's own step from the sample before, cut at the stamp (to what a shorter step's velocity changes:
+    dt' (dt - dt') |a| <= dt^2 |a| / 4, below 1e-7 m at |a| < 0.4 m/s^2), in flight on a tilted, filmy table;
+    the angle wraps across pi."""
+    effects = TableEffects(tilt=0.01, random_acceleration=0.0)
+    puck = RealTablePuck(TABLE, effects, np.random.default_rng(3))
+    times, states = puck.simulate(np.array([0.0, 0.0, 0.8, 0.3, 3.1, 20.0]), 0.2, 1e-3)
+    wrap = int(np.flatnonzero(np.abs(np.diff(states[:, 4])) > math.pi)[0])  # the step the angle wraps in
+    rng = np.random.default_rng(4)
+    for t in [times[wrap] + 5e-4, *rng.uniform(0.0, 0.2, 200)]:
+        i = int(t / 1e-3)
+        own = puck.step(states[i], times[i], t - times[i])
+        truth = stepped_state_at(times, states, t)
+        assert truth[:2] == pytest.approx(own[:2], abs=1e-7)
+        assert abs(math.remainder(truth[4] - own[4], 2 * math.pi)) < 1e-12
+    assert np.array_equal(stepped_state_at(times, states, times[7]), states[7])
+
+
+def test_a_test_bed_session_takes_no_step_of_the_trackers_model(monkeypatch):
+    """With the test bed as the truth, the puck model is never stepped: not even between samples."""
+    from air_hockey_agent.core.puck.model import PuckModel, PuckParams
+    from air_hockey_agent.core.puck.real_table import testbed_shots
+
+    def forbidden(*_args, **_kwargs):
+        raise AssertionError("the tracker's model was stepped")
+    monkeypatch.setattr(PuckModel, "step", forbidden)
+    model = PuckModel(TABLE, PuckParams(0.0, 0.125, 1.0, 0.1))
+    shots = ShotRanges(speed=(0.5, 2.0), spin=(-5.0, 5.0), duration=1.5, pause=0.2)
+    rng = np.random.default_rng(8)
+    frames = synthetic_session(model, shots, 3, 120.0, MocapImperfections(jitter_std=2e-4), rng, 1e-3,
+                               testbed_shots(TableEffects(), TABLE, (0.3, 0.6), 1e-3, rng))
+    assert len(frames) > 300 and any(f.measurement is not None for f in frames)

@@ -1,6 +1,7 @@
 """Synthetic puck trajectories and mocap streams from the puck model (ground truth for tests and demos).
 
-The true trajectory is the model integrated with a fine step; the mocap stream samples it at a nominal
+The true trajectory is the model integrated with a fine step (or another simulator's: pybullet, the test
+bed, whose truth between samples is then theirs, not the model's); the mocap stream samples it at a nominal
 rate with timestamp jitter, Gaussian noise, lost frames, repeated frames and one-frame glitches
 (the imperfections of real OptiTrack recordings, issue #3).
 """
@@ -69,6 +70,29 @@ def true_state_at(model: PuckModel, times: np.ndarray, states: np.ndarray, t: fl
     return states[index] if rest <= 0.0 else model.step(states[index], rest, with_jacobian=False).state
 
 
+def stepped_state_at(times: np.ndarray, states: np.ndarray, t: float) -> np.ndarray:
+    """True state at any time t [s] within a trajectory from a simulator that is not the tracker's model
+    (pybullet, the test bed), without that model: both integrate semi-implicitly, each step moving in a
+    straight line at the velocity it ends with, so position and angle are interpolated linearly inside the
+    step and velocity and spin are the step's own (its end values). Inside a step with a rim impact the
+    line cuts the simulator's corner by at most half a step's travel (0.5 mm at 1 m/s and 1 kHz)."""
+    index = int(np.clip(np.searchsorted(times, t, side="right") - 1, 0, len(times) - 1))
+    if t <= times[index] or index + 1 == len(times):
+        return states[index].copy()
+    before, after = states[index], states[index + 1]
+    frac = (t - times[index]) / (times[index + 1] - times[index])
+    return np.array([before[0] + frac * (after[0] - before[0]), before[1] + frac * (after[1] - before[1]),
+                     after[2], after[3], wrap_angle(before[4] + frac * wrap_angle(after[4] - before[4])), after[5]])
+
+
+StateAt = Callable[[np.ndarray, np.ndarray, float], np.ndarray]
+
+
+def model_state_at(model: PuckModel) -> StateAt:
+    """:func:`true_state_at` of ``model`` as a ``state_at(times, states, t)``."""
+    return lambda times, states, t: true_state_at(model, times, states, t)
+
+
 class MocapSampler:
     """Turns true poses into mocap frames with the imperfections of :class:`MocapImperfections`.
 
@@ -112,12 +136,15 @@ class MocapSampler:
 
 
 def mocap_stream(model: PuckModel, times: np.ndarray, states: np.ndarray, rate: float,
-                 noise: MocapImperfections, rng: np.random.Generator) -> list[tuple[float, np.ndarray | None]]:
-    """Sample a true trajectory as a mocap stream: list of (stamp [s], (x, y, theta) or None if lost)."""
+                 noise: MocapImperfections, rng: np.random.Generator,
+                 state_at: StateAt | None = None) -> list[tuple[float, np.ndarray | None]]:
+    """Sample a true trajectory as a mocap stream: list of (stamp [s], (x, y, theta) or None if lost).
+    ``state_at(times, states, t)`` gives the truth between samples (default: the model, :func:`true_state_at`)."""
     sampler = MocapSampler(noise, rng)
+    state_at = state_at or model_state_at(model)
 
     def pose_at(stamp: float) -> Sequence[float]:
-        x, y, vx, vy, theta, _ = true_state_at(model, times, states, stamp)
+        x, y, vx, vy, theta, _ = state_at(times, states, stamp)
         return x, y, theta, math.hypot(vx, vy)
 
     frames = (sampler.sample(k / rate, pose_at, times[-1]) for k in range(int(times[-1] * rate)))
@@ -152,10 +179,12 @@ def synthetic_session(model: PuckModel, shots: ShotRanges, n_shots: int, rate: f
     """Consecutive random shots recorded like a mocap session (a bag generator for tests and tools).
 
     Each shot's truth comes from ``simulate(state, duration) -> (times, states)`` (default: the puck
-    model integrated with ``fine_dt`` [s]; the table simulation can stand in) and is sampled by
+    model integrated with ``fine_dt`` [s]; the table simulation or the test bed can stand in, and then the
+    truth between their samples is theirs, :func:`stepped_state_at`, not the model's) and is sampled by
     :func:`mocap_stream`; a pause without frames separates shots. Shots that leave the table through
     a goal end there.
     """
+    state_at = stepped_state_at if simulate is not None else model_state_at(model)
     if simulate is None:
         def simulate(state: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
             return simulate_truth(model, state, duration, fine_dt)
@@ -163,8 +192,8 @@ def synthetic_session(model: PuckModel, shots: ShotRanges, n_shots: int, rate: f
     offset = 0.0
     for _ in range(n_shots):
         times, states = simulate(random_shot(model, shots, rng), shots.duration)
-        for stamp, z in mocap_stream(model, times, states, rate, noise, rng):
-            truth = true_state_at(model, times, states, stamp)
+        for stamp, z in mocap_stream(model, times, states, rate, noise, rng, state_at):
+            truth = state_at(times, states, stamp)
             if not model.table.contains(truth[0], truth[1], model.table.puck_radius):
                 break  # scored: the recording of this shot ends
             session.append(SyntheticFrame(offset + stamp, z, truth))
