@@ -28,8 +28,12 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)  # the whole of stdout is one JSON document
     assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "rejected_fraction",
-                           "reinit_per_s", "nis", "nis_by_regime"}
+                           "reinit_per_s", "nis", "nis_by_regime", "by_path"}
     assert set(report["nis"]) == {"median", "mean"}
+    assert set(report["by_path"]) == set(report["horizons"])
+    for key, paths in report["by_path"].items():
+        assert list(paths) == ["rest", "no_impact", "one_impact", "impacts"]
+        assert sum(v["n"] for v in paths.values()) == report["horizons"][key]["n"]
     assert set(report["nis_by_regime"]) == {"rest", "flight", "impact"}
     assert all(set(v) == {"median", "mean", "n"} for v in report["nis_by_regime"].values())
     assert 0.0 <= report["rejected_fraction"] < 0.1 and report["reinit_per_s"] >= 0.0
@@ -77,6 +81,7 @@ def test_human_readable_table(bags):
     out = cli("eval-prediction", bags / "a")
     assert out.returncode == 0
     assert "median [mm]" in out.stdout and "outliers rejected" in out.stdout
+    assert "by the predicted path" in out.stdout and "one rim impact" in out.stdout
 
 
 def test_synth_bag_refuses_to_overwrite(bags):

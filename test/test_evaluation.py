@@ -174,3 +174,33 @@ def test_nis_by_regime_separates_rest_flight_and_rim_impacts(params):
     assert all(regimes[r]["n"] > 0 for r in regimes)
     assert sum(regimes[r]["n"] for r in regimes) == len(totals.nis)
     assert 1.5 < regimes["flight"]["median"] < 3.5
+
+
+def session_on_testbed(ekf, shots: int, seed: int):
+    """A session on the test bed with config/synthetic.yaml's shots, effects and mocap, as synth-bag
+    --source testbed writes it."""
+    from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
+    from air_hockey_agent.params import load_node_params
+    from air_hockey_agent.tools.synth_bag import SESSION_PARAMS
+    cfg = load_node_params(["synthetic.yaml"], "/synth_bag", SESSION_PARAMS, [])
+    ranges = ShotRanges(tuple(cfg["speed"]), tuple(cfg["spin"]), cfg["shot_duration"], cfg["pause"])
+    simulate = testbed_shots(TableEffects.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"],
+                             cfg["fine_dt"], np.random.default_rng([seed, 1]))
+    return synthetic_session(ekf.model, ranges, shots, cfg["rate"], MocapImperfections.from_params(cfg),
+                             np.random.default_rng(seed), cfg["fine_dt"], simulate)
+
+
+@pytest.mark.parametrize("seed", [10, 13])
+def test_errors_by_path_put_the_unforeseeable_hits_from_rest_apart(params, seed):
+    """On the test bed a human hits a resting puck: predictions made at rest miss the whole shot, free
+    flight is predicted far better, and each rim impact on the way adds error (the test bed's rims are not
+    the model's). Every comparison is in exactly one path."""
+    ekf = PuckEKF.from_params(params)
+    totals = EvaluationTotals((0.5,), rest_speed=params["regime_rest_speed"])
+    evaluate_stream(ekf, frames_of(session_on_testbed(ekf, 6, seed)), totals)
+    summary = totals.summary()
+    paths = summary["by_path"]["0.5"]
+    assert sum(v["n"] for v in paths.values()) == summary["horizons"]["0.5"]["n"]
+    assert all(v["n"] > 20 for v in paths.values())
+    assert paths["rest"]["median_m"] > 10 * paths["no_impact"]["median_m"]
+    assert paths["no_impact"]["median_m"] < paths["one_impact"]["median_m"] < paths["impacts"]["median_m"]

@@ -6,8 +6,11 @@ frame at which the filter has a state the position is predicted ``h`` seconds ah
 valid pose at ``t + h``, fused by the filter or not (marker glitches excepted), so rejecting frames does
 not make a filter look better. Reported per horizon: mean, median and 95th percentile of the error [m]
 over all comparisons and their number; frames, lost frames, rejected outliers, the rejected fraction of
-the poses, re-initialisations per second and the normalised innovation squared (NIS). A bag that cannot
-be used gives a one-line error on stderr and exit code 2; the other bags are still evaluated.
+the poses, re-initialisations per second and the normalised innovation squared (NIS), also by regime
+(rest, flight, impact). Where the error comes from: the median per horizon by the predicted path (JSON
+"by_path"): started at rest (a later motion is a hit no model foresees), or through no, one, or two and
+more rim impacts. A bag that cannot be used gives a one-line error on stderr and exit code 2; the other
+bags are still evaluated.
 """
 from __future__ import annotations
 
@@ -91,6 +94,21 @@ def format_table(summary: dict) -> str:
                          f"{s['p95_m'] * 1e3:>9.2f} {s['n']:>8}")
         else:
             lines.append(f"{key:>11} {'-':>10} {'-':>12} {'-':>9} {0:>8}")
-    return "\n".join(lines)
+    return "\n".join(lines + _path_table(summary["by_path"]))
+
+
+PATH_TITLES = {"rest": "from rest", "no_impact": "no rim impact", "one_impact": "one rim impact",
+               "impacts": "two or more"}
+
+
+def _path_table(by_path: dict) -> list[str]:
+    """Median error [mm] (and n) per horizon by the predicted path: where the error comes from."""
+    lines = ["median error [mm] (n) by the predicted path",
+             f"{'horizon [s]':>11} " + "".join(f"{title:>18}" for title in PATH_TITLES.values())]
+    for key, paths in by_path.items():
+        cells = [("-" if v["median_m"] is None else f"{v['median_m'] * 1e3:.2f}") + f" ({v['n']})"
+                 for v in paths.values()]
+        lines.append(f"{key:>11} " + "".join(f"{c:>18}" for c in cells))
+    return lines
 
 

@@ -58,6 +58,7 @@ class EvaluationTotals:
     # (classifying costs sysid's objective 8 % and it does not read it)
     rest_speed: float | None = None
     nis_regimes: list = field(default_factory=list)  # the regime of each entry of nis (REGIMES), with rest_speed
+    paths: dict = field(default_factory=dict)   # horizon key -> the PATHS entry of each error, with rest_speed
     frames: int = 0
     poses: int = 0              # frames that carried a pose
     lost_frames: int = 0
@@ -70,6 +71,7 @@ class EvaluationTotals:
         for h in self.horizons:
             self.errors.setdefault(horizon_key(h), [])
             self.nll.setdefault(horizon_key(h), [])
+            self.paths.setdefault(horizon_key(h), [])
 
     def summary(self) -> dict:
         """Per horizon mean / median / p95 [m] and count, plus the stream counts and the filter's
@@ -88,10 +90,25 @@ class EvaluationTotals:
         if self.rest_speed is not None:
             regimes = np.asarray(self.nis_regimes)
             summary["nis_by_regime"] = {r: _nis_stats(nis[regimes == r]) for r in REGIMES}
+            summary["by_path"] = {key: self._by_path(key) for key in self.errors}
         return summary
+
+    def _by_path(self, key: str) -> dict:
+        errors, paths = np.asarray(self.errors[key], float), np.asarray(self.paths[key])
+        return {p: {"median_m": float(np.median(errors[paths == p])) if np.any(paths == p) else None,
+                    "n": int(np.sum(paths == p))} for p in PATHS}
 
 
 REGIMES = ("rest", "flight", "impact")
+# What a prediction went through (eval-prediction's errors by path): it started at rest (a later motion is a
+# hit no model foresees), or it flew with no, one, or two and more rim impacts on the predicted path
+PATHS = ("rest", "no_impact", "one_impact", "impacts")
+
+
+def _path(start_state: np.ndarray, impacts: int, rest_speed: float) -> str:
+    if np.hypot(start_state[2], start_state[3]) < rest_speed:
+        return "rest"
+    return PATHS[1 + min(impacts, 2)]
 
 
 def _nis_stats(nis: np.ndarray) -> dict:
@@ -175,7 +192,7 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
     starts = [r for r in records if r.x is not None]
     tolerance = 0.5 * ekf.settings.dt
     for h in totals.horizons:
-        errors, nll = totals.errors[horizon_key(h)], totals.nll[horizon_key(h)]
+        errors, nll, paths = totals.errors[horizon_key(h)], totals.nll[horizon_key(h)], totals.paths[horizon_key(h)]
         for start in starts[::totals.stride]:
             j = _nearest(truth_t, start.t + h)
             if j is None or abs(truth_t[j] - (start.t + h)) > tolerance or truth_t[j] <= start.t:
@@ -183,6 +200,8 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
             pred = predict_fast(ekf.model, start.x, start.P, truth_t[j] - start.t, ekf.settings.dt, ekf.settings.q)
             residual = truth[j].z[:2] - pred.state[:2]
             errors.append(float(np.hypot(*residual)))
+            if totals.rest_speed is not None:
+                paths.append(_path(start.x, len(pred.impacts), totals.rest_speed))
             if totals.loglik:
                 nll.append(_neg_log_likelihood(residual, pred.covariance[:2, :2] + ekf.settings.r[:2, :2]))
     totals.nis.extend(r.nis for r in records if r.nis is not None)
