@@ -17,6 +17,23 @@ def random_states(n, seed):
                         rng.uniform(-3, 3), rng.uniform(-20, 20)]), float(rng.choice([0.5, 1.0, 1.5, 1.2345]))
 
 
+def assert_agree(a, b, cov_rtol):
+    """Two predictions of the same state and horizon agree: state, covariance, impacts, samples, crossings."""
+    diff = a.state - b.state
+    diff[4] = (diff[4] + np.pi) % (2 * np.pi) - np.pi
+    assert np.abs(diff).max() < 1e-10
+    if a.covariance is not None:
+        assert np.abs(a.covariance - b.covariance).max() <= cov_rtol * np.abs(a.covariance).max()
+    assert [i[1] for i in a.impacts] == [i[1] for i in b.impacts]
+    assert np.allclose([i[0] for i in a.impacts], [i[0] for i in b.impacts], atol=1e-10)
+    assert len(a.samples) == len(b.samples)
+    assert a.crossings.keys() == b.crossings.keys()
+    for line, crossing in a.crossings.items():
+        assert crossing.time == pytest.approx(b.crossings[line].time, abs=1e-9)
+        assert crossing.y == pytest.approx(b.crossings[line].y, abs=1e-9)
+        assert (crossing.vx, crossing.vy) == pytest.approx((b.crossings[line].vx, b.crossings[line].vy), abs=1e-10)
+
+
 @pytest.mark.parametrize("friction, cov_rtol, impact_noise",
                          [(0.0, 1e-10, 0.0), (2.28e-4, 1e-5, 0.0), (0.05, 1e-3, 0.0), (2.28e-4, 1e-5, 0.15)])
 def test_fast_prediction_agrees_with_stepwise(friction, cov_rtol, impact_noise):
@@ -24,17 +41,7 @@ def test_fast_prediction_agrees_with_stepwise(friction, cov_rtol, impact_noise):
     for state, horizon in random_states(60, seed=int(friction * 1e6)):
         a = predict_stepwise(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, impact_noise=impact_noise)
         b = predict_fast(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, impact_noise=impact_noise)
-        diff = a.state - b.state
-        diff[4] = (diff[4] + np.pi) % (2 * np.pi) - np.pi
-        assert np.abs(diff).max() < 1e-10
-        assert np.abs(a.covariance - b.covariance).max() <= cov_rtol * np.abs(a.covariance).max()
-        assert [i[1] for i in a.impacts] == [i[1] for i in b.impacts]
-        assert np.allclose([i[0] for i in a.impacts], [i[0] for i in b.impacts], atol=1e-10)
-        assert len(a.samples) == len(b.samples)
-        assert a.crossings.keys() == b.crossings.keys()
-        for line, crossing in a.crossings.items():
-            assert crossing.time == pytest.approx(b.crossings[line].time, abs=1e-9)
-            assert crossing.y == pytest.approx(b.crossings[line].y, abs=1e-9)
+        assert_agree(a, b, cov_rtol)
 
 
 def test_predicted_covariance_grows_with_the_horizon():
@@ -67,23 +74,6 @@ def test_impact_noise_adds_its_covariance_after_a_rim_impact_only():
         assert extra[2, 2] == pytest.approx(0.04 * speed2, rel=0.1)
         assert extra[3, 3] == pytest.approx(0.04 * speed2, rel=0.1)
         assert extra[5, 5] > 0.0
-
-
-def assert_agree(a, b, cov_rtol):
-    """Two predictions of the same state and horizon agree: state, covariance, impacts, samples, crossings."""
-    diff = a.state - b.state
-    diff[4] = (diff[4] + np.pi) % (2 * np.pi) - np.pi
-    assert np.abs(diff).max() < 1e-10
-    if a.covariance is not None:
-        assert np.abs(a.covariance - b.covariance).max() <= cov_rtol * np.abs(a.covariance).max()
-    assert [i[1] for i in a.impacts] == [i[1] for i in b.impacts]
-    assert np.allclose([i[0] for i in a.impacts], [i[0] for i in b.impacts], atol=1e-10)
-    assert len(a.samples) == len(b.samples)
-    assert a.crossings.keys() == b.crossings.keys()
-    for line, crossing in a.crossings.items():
-        assert crossing.time == pytest.approx(b.crossings[line].time, abs=1e-9)
-        assert crossing.y == pytest.approx(b.crossings[line].y, abs=1e-9)
-        assert (crossing.vx, crossing.vy) == pytest.approx((b.crossings[line].vx, b.crossings[line].vy), abs=1e-10)
 
 
 @pytest.mark.parametrize("accel, damping", [((0.02, -0.01), 0.125), ((-0.3, 0.5), 0.5), ((0.4, 0.0), 0.0),
