@@ -48,7 +48,19 @@ def test_split_at_long_gaps_and_cut_rest():
     pieces = split_trajectories(GridTrajectory(10.0, DT, z), max_gap=1.0)
     assert len(pieces) == 2 and pieces[1].t0 == pytest.approx(10.0 + 700 * DT)
     cut = cut_rest(pieces[0], rest_speed=0.05, window=0.1)  # window = 12 steps
-    # the motion (rows 100-299) is kept, with at most one window of rest at each end
-    assert cut is not None and 100 - 12 <= round((cut.t0 - 10.0) / DT) <= 100
-    assert 199 * DT <= cut.duration <= (199 + 2 * 12) * DT
+    # the motion (rows 100-299) is kept from its first moved frame (the start, where a hit would be, and the
+    # rest before it are cut), with at most one window of rest at the end
+    assert cut is not None and round((cut.t0 - 10.0) / DT) in (100, 101)
+    assert 198 * DT <= cut.duration <= (199 + 12) * DT
     assert cut_rest(GridTrajectory(0.0, DT, np.zeros((50, 3))), 0.05, 0.1) is None
+
+
+def test_cut_rest_starts_after_a_human_hit_not_before_it():
+    """A resting puck (0.1 mm marker noise) hit to 2 m/s at row 60: the kept part starts at the hit's first
+    moved frame, so no prediction is made from the rest before the hit (thesis sec. 4.5.1 cuts the hitting)."""
+    rng = np.random.default_rng(0)
+    x = np.concatenate([np.zeros(60), 2.0 * DT * np.arange(1, 241)]) + rng.normal(0.0, 1e-4, 300)
+    z = np.column_stack([x, np.zeros(300), np.zeros(300)])
+    cut = cut_rest(GridTrajectory(0.0, DT, z), rest_speed=0.05, window=0.1)
+    assert round(cut.t0 / DT) in (60, 61)
+    assert cut.z[0, 0] > 1e-3 or cut.z[1, 0] > 1e-2  # moving from its first frames

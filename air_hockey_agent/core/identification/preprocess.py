@@ -6,8 +6,8 @@
 * :func:`interpolate_frozen`: frames whose position repeats the previous one within ``threshold``
   (1e-6 m in the thesis) are replaced by linear interpolation between the neighbouring good frames.
 * :func:`split_trajectories`: a long recording is cut where more than ``max_gap`` seconds have no frame.
-* :func:`cut_rest`: the start and end of a trajectory where the puck is at rest or moved slowly by
-  hand are cut (speed below ``rest_speed`` over a window).
+* :func:`cut_rest`: the start of a trajectory up to the human's hit and its end where the puck is at rest
+  or moved slowly by hand are cut (speed below ``rest_speed`` over a window).
 
 A grid trajectory is a :class:`GridTrajectory`: start time, step and an (n, 3) array of
 (x, y, theta) with NaN rows for blanks.
@@ -90,7 +90,11 @@ def split_trajectories(traj: GridTrajectory, max_gap: float) -> list[GridTraject
 def cut_rest(traj: GridTrajectory, rest_speed: float, window: float) -> GridTrajectory | None:
     """Drop the start and end where the puck moves slower than ``rest_speed`` [m/s] over ``window`` [s].
 
-    The kept part is the motion plus at most one window of rest at each end; None if it never moves.
+    The kept part starts at the end of the first window with motion: for a human hit (which moves the puck
+    farther than ``rest_speed * window`` within a frame or two) the frame after it, so the hit and the
+    rest before it are cut, as the thesis cuts "the hitting" (sec. 4.5.1); predictions from the rest
+    before a hit would miss the whole shot, whatever the model. It ends at most one window into the rest
+    after the motion. None if it never moves.
     """
     steps = max(1, int(round(window / traj.dt)))
     z = traj.z
@@ -102,7 +106,7 @@ def cut_rest(traj: GridTrajectory, rest_speed: float, window: float) -> GridTraj
     idx = np.flatnonzero(moving)
     if idx.size == 0:
         return None
-    first, last = idx[0], min(idx[-1] + steps, len(z) - 1)
+    first, last = idx[0] + steps, min(idx[-1] + steps, len(z) - 1)
     return GridTrajectory(traj.t0 + first * traj.dt, traj.dt, z[first:last + 1].copy())
 
 
