@@ -4,8 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.identification.preprocess import (GridTrajectory, cut_rest, interpolate_frozen, split_trajectories,
-                                              to_model_grid)
+from air_hockey_agent.core.identification.preprocess import (GridTrajectory, cut_rest, grid_glitches,
+                                                             interpolate_frozen, preprocess, split_trajectories,
+                                                             to_model_grid)
 
 DT = 1 / 120
 
@@ -64,3 +65,22 @@ def test_cut_rest_starts_after_a_human_hit_not_before_it():
     cut = cut_rest(GridTrajectory(0.0, DT, z), rest_speed=0.05, window=0.1)
     assert round(cut.t0 / DT) in (60, 61)
     assert cut.z[0, 0] > 1e-3 or cut.z[1, 0] > 1e-2  # moving from its first frames
+
+
+def test_a_marker_glitch_in_the_rest_does_not_start_the_trajectory():
+    """A one-frame glitch (10 cm) at row 30 of the rest looks like motion to the window test; screened as
+    a glitch (a pose jumping faster than glitch_speed from both neighbours) it no longer starts the
+    trajectory, which starts at the hit (row 60)."""
+    rng = np.random.default_rng(1)
+    x = np.concatenate([np.zeros(60), 2.0 * DT * np.arange(1, 241)])
+    z = np.column_stack([x, np.zeros(300), np.zeros(300)]) + rng.normal(0.0, 1e-4, (300, 3))
+    z[30, 1] += 0.1
+    traj = GridTrajectory(0.0, DT, z)
+    assert round(cut_rest(traj, 0.05, 0.1).t0 / DT) <= 30  # fooled without the screen: starts at the glitch
+    glitches = grid_glitches(traj, speed=10.0, max_gap=0.5)
+    assert glitches == [30]
+    assert round(cut_rest(traj, 0.05, 0.1, glitches).t0 / DT) in (60, 61)
+    prep = {"frozen_threshold": 1e-6, "max_gap": 0.5, "rest_speed": 0.05, "rest_window": 0.1, "min_duration": 1.0}
+    stamps = list(np.arange(300) * DT)
+    (cut,) = preprocess(stamps, list(z), DT, prep, glitch_speed=10.0).trajectories
+    assert round(cut.t0 / DT) in (60, 61)

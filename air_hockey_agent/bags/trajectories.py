@@ -67,7 +67,7 @@ def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, A
                      off_table_warning(measurements, tracker)):
             if note:
                 result.warnings.append(f"{bag}: {note}")
-        done = preprocess([r.stamp for r in records], measurements, dt, prep)
+        done = preprocess([r.stamp for r in records], measurements, dt, prep, tracker["glitch_speed"])
         result.frozen += done.frozen
         result.at_rest += done.at_rest
         result.too_short += done.too_short

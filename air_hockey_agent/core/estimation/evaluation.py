@@ -142,17 +142,17 @@ class _FrameRecord:
 
 def valid_poses(frames: Sequence[Frame], ekf: PuckEKF) -> list[bool]:
     """For each frame, whether its pose is ground truth: plausible to ``ekf`` (:meth:`PuckEKF.plausible`)
-    and not a marker glitch (:func:`_glitches`), whatever the filter makes of it."""
+    and not a marker glitch (:func:`marker_glitches`), whatever the filter makes of it."""
     s = ekf.settings
     poses = [None if z is None else np.asarray(z, float) for _, z in frames]
     ok = [z is not None and ekf.plausible(z) for z in poses]
     if s.glitch_speed is not None:
-        for k in _glitches([t for t, _ in frames], poses, ok, s.glitch_speed, s.max_prediction_gap):
+        for k in marker_glitches([t for t, _ in frames], poses, ok, s.glitch_speed, s.max_prediction_gap):
             ok[k] = False
     return ok
 
 
-def _glitches(stamps: Sequence[float], poses: list, ok: list[bool], speed: float, max_gap: float) -> list[int]:
+def marker_glitches(stamps: Sequence[float], poses: list, ok: list[bool], speed: float, max_gap: float) -> list[int]:
     """Indices of poses that jump faster than ``speed`` [m/s] from every neighbouring pose (the previous
     and the next within ``max_gap`` [s]): marker glitches."""
     posed = [k for k, good in enumerate(ok) if good]

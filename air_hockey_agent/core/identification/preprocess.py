@@ -20,6 +20,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from air_hockey_agent.core.estimation.evaluation import marker_glitches
+
 
 @dataclass
 class GridTrajectory:
@@ -87,17 +89,30 @@ def split_trajectories(traj: GridTrajectory, max_gap: float) -> list[GridTraject
     return [GridTrajectory(traj.t0 + p[0] * traj.dt, traj.dt, traj.z[p[0]:p[-1] + 1].copy()) for p in pieces]
 
 
-def cut_rest(traj: GridTrajectory, rest_speed: float, window: float) -> GridTrajectory | None:
+def grid_glitches(traj: GridTrajectory, speed: float, max_gap: float) -> list[int]:
+    """Rows of ``traj`` that are marker glitches: poses that jump faster than ``speed`` [m/s] from both
+    neighbouring poses (the definition the evaluation screens ground truth with)."""
+    poses = [None if np.isnan(row[0]) else row for row in traj.z]
+    return marker_glitches([traj.t0 + k * traj.dt for k in range(len(traj))], poses,
+                           [p is not None for p in poses], speed, max_gap)
+
+
+def cut_rest(traj: GridTrajectory, rest_speed: float, window: float,
+             glitches: Sequence[int] = ()) -> GridTrajectory | None:
     """Drop the start and end where the puck moves slower than ``rest_speed`` [m/s] over ``window`` [s].
 
     The kept part starts at the end of the first window with motion: for a human hit (which moves the puck
     farther than ``rest_speed * window`` within a frame or two) the frame after it, so the hit and the
     rest before it are cut, as the thesis cuts "the hitting" (sec. 4.5.1); predictions from the rest
     before a hit would miss the whole shot, whatever the model. It ends at most one window into the rest
-    after the motion. None if it never moves.
+    after the motion. Rows in ``glitches`` (marker glitches, :func:`grid_glitches`) count as lost here: a
+    glitch in the rest would look like motion and start the trajectory at it. None if it never moves.
     """
     steps = max(1, int(round(window / traj.dt)))
     z = traj.z
+    if len(glitches):
+        z = z.copy()
+        z[list(glitches)] = np.nan
     moving = np.zeros(len(z), bool)
     for k in range(len(z) - steps):
         a, b = z[k, :2], z[k + steps, :2]
@@ -121,14 +136,17 @@ class Preprocessed:
 
 
 def preprocess(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt: float,
-               prep: Mapping[str, Any]) -> Preprocessed:
+               prep: Mapping[str, Any], glitch_speed: float | None = None) -> Preprocessed:
     """Algorithm 2 and the cleaning after it on one recording (table-frame (x, y, theta) per stamp, None
     for a lost frame): grid, interpolate frozen frames, split at gaps, cut rest, drop short pieces
-    (``prep``: the sysid parameters ``frozen_threshold``, ``max_gap``, ``rest_*``, ``min_duration``)."""
+    (``prep``: the sysid parameters ``frozen_threshold``, ``max_gap``, ``rest_*``, ``min_duration``). With
+    ``glitch_speed`` [m/s] (the tracker's), marker glitches do not count as motion when the rest is cut;
+    they stay in the trajectory (the filter meets them as it would live)."""
     grid = to_model_grid(stamps, z, dt)
     result = Preprocessed([], interpolate_frozen(grid, prep["frozen_threshold"]))
     for piece in split_trajectories(grid, prep["max_gap"]):
-        traj = cut_rest(piece, prep["rest_speed"], prep["rest_window"])
+        glitches = grid_glitches(piece, glitch_speed, prep["max_gap"]) if glitch_speed else []
+        traj = cut_rest(piece, prep["rest_speed"], prep["rest_window"], glitches)
         if traj is None:
             result.at_rest += 1
         elif traj.duration < prep["min_duration"]:
