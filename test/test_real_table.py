@@ -76,6 +76,10 @@ def test_rims_keep_the_puck_on_the_table_and_a_goal_mouth_lets_it_through():
     assert np.all(np.abs(states[:, 1]) <= TABLE.y_limit + 1e-9) and np.all(np.abs(states[:, 0]) <= TABLE.x_limit)
     _, into_goal = puck.simulate(np.array([0.5, 0.0, 3.0, 0.0, 0.0, 0.0]), 0.5, 1e-3)
     assert into_goal[-1, 0] > TABLE.x_limit
+    # in through the mouth at an angle, then sideways beyond the mouth's width inside the goal: it stays in
+    _, slanted = puck.simulate(np.array([0.85, 0.0, 2.0, 1.0, 0.0, 0.0]), 0.5, 1e-3)
+    inside = np.flatnonzero(slanted[:, 0] > TABLE.x_limit)
+    assert inside.size and abs(slanted[-1, 1]) > TABLE.goal_mouth and np.all(slanted[inside[0]:, 0] > TABLE.x_limit)
 
 
 def test_a_human_hit_moves_a_resting_puck_at_its_time():

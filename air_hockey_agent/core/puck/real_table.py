@@ -127,20 +127,23 @@ class RealTablePuck:
             new_v = v + dt * (external - fx.damping * v - fx.friction_surface * v / speed)
             if float(new_v @ v) <= 0.0:
                 new_v = np.zeros(2)  # friction stopped it within the step
+        before = (s[0], s[1])
         s[2:4] = new_v
         s[0:2] += dt * new_v
         s[4] = wrap_angle(s[4] + dt * s[5])
-        return self._rims(s)
+        return self._rims(s, before)
 
-    def _rims(self, s: np.ndarray) -> np.ndarray:
-        """Reflect a puck whose centre crossed a rim line (outside a goal mouth) and apply the impact."""
+    def _rims(self, s: np.ndarray, before: tuple[float, float]) -> np.ndarray:
+        """Reflect a puck whose centre crossed a rim line in this step from ``before`` (outside a goal mouth)
+        and apply the impact. A puck that went into a goal stays there: behind a short rim line there is no
+        rim to bounce it back, wherever its y drifts."""
         table = self.table
         for wall, (nx, ny) in enumerate(WALL_NORMALS):
             distance = nx * s[0] + ny * s[1] + table.wall_offset(wall)
             vn = nx * s[2] + ny * s[3]
             if distance >= 0.0 or vn >= 0.0:
                 continue
-            if wall in SHORT_WALLS and table.in_goal_mouth(s[1]):
+            if wall in SHORT_WALLS and (table.in_goal_mouth(s[1]) or table.distance_to_wall(wall, *before) < 0.0):
                 continue
             bx, by = ny, -nx
             vb = bx * s[2] + by * s[3]
