@@ -84,3 +84,50 @@ def test_restitution_levels_off_at_its_floor():
     assert speed_restitution(1.0, 0.15, -3.0, 0.67) == (0.67, 0.0)  # 1 - 0.45 is below the floor
     assert rim_impact(0.0, -4.0, 0.0, R, 1.0, MU, 0.15, 0.67).vn == pytest.approx(0.67 * 4.0)
     assert speed_restitution(0.6, 0.15, -3.0, 0.67) == (0.6, 0.0)  # a floor above e: e stays constant
+
+
+@pytest.mark.parametrize("beta", [-1.0, -0.6, 0.0, 0.5])
+def test_a_sticking_impact_leaves_minus_beta_of_the_slip(beta):
+    vb, vn, om = 0.3, -2.0, 1.0
+    res = rim_impact(vb, vn, om, R, E, MU, tangential=beta)
+    assert not res.sliding
+    assert res.vb + R * res.omega == pytest.approx(-beta * (vb + R * om), abs=1e-12)
+    # the angular momentum about the contact point is conserved in a rim impact (the impulse acts there)
+    assert res.vb - 0.5 * R * res.omega == pytest.approx(vb - 0.5 * R * om, abs=1e-12)
+
+
+@pytest.mark.parametrize("beta", [-0.7, 0.5])
+def test_branches_agree_on_the_switching_boundary_with_a_tangential_restitution(beta):
+    vn, om = -1.5, 0.0
+    boundary = 3 * MU * (1 + E) * abs(vn) / (1 + beta)  # |c| at the switch
+    below = rim_impact(boundary * (1 - 1e-9), vn, om, R, E, MU, tangential=beta)
+    above = rim_impact(boundary * (1 + 1e-9), vn, om, R, E, MU, tangential=beta)
+    assert not below.sliding and above.sliding
+    assert np.allclose([below.vb, below.vn, below.omega], [above.vb, above.vn, above.omega], atol=1e-7)
+
+
+@pytest.mark.parametrize("beta", [-0.7, 0.4])
+@pytest.mark.parametrize("state", [(0.3, -2.0, 1.0), (2.0, -1.0, 5.0)], ids=["sticking", "sliding"])
+def test_branch_jacobian_with_a_tangential_restitution_matches_finite_differences(state, beta):
+    h = 1e-7
+    res = rim_impact(*state, R, E, MU, 0.2, 0.6, beta)
+    fd = np.zeros((3, 3))
+    for i in range(3):
+        d = np.zeros(3)
+        d[i] = h
+        plus = rim_impact(*(np.add(state, d)), R, E, MU, 0.2, 0.6, beta)
+        minus = rim_impact(*(np.subtract(state, d)), R, E, MU, 0.2, 0.6, beta)
+        fd[:, i] = (np.array(plus[:3]) - np.array(minus[:3])) / (2 * h)
+    assert np.allclose(res.jacobian, fd, atol=1e-6)
+
+
+def test_energy_never_increases_with_a_tangential_restitution_up_to_one():
+    rng = np.random.default_rng(4)
+    for _ in range(500):
+        vb, om = rng.uniform(-3, 3), rng.uniform(-50, 50)
+        vn = -rng.uniform(0.01, 3)
+        e, mu, beta = rng.uniform(0, 1), rng.uniform(0, 0.6), rng.uniform(-1, 1)
+        res = rim_impact(vb, vn, om, R, e, mu, tangential=beta)
+        before = vb ** 2 + vn ** 2 + 0.5 * R ** 2 * om ** 2
+        after = res.vb ** 2 + res.vn ** 2 + 0.5 * R ** 2 * res.omega ** 2
+        assert after <= before * (1 + 1e-12)

@@ -24,6 +24,18 @@ def test_constant_restitution_and_full_tangential_impulse_is_the_routh_impact():
         assert real_rim_impact(vb, vn, omega, RADIUS, effects) == pytest.approx(expected[:3], abs=1e-12)
 
 
+@pytest.mark.parametrize("scale", [0.3, 0.75])
+def test_a_scaled_tangential_impulse_is_the_models_tangential_restitution(scale):
+    """The test bed scales Routh's stick impulse and Coulomb's bound alike; the model's impact reaches the
+    same with beta = scale - 1 and scale x mu_rim (written apart: a check of both)."""
+    rng = np.random.default_rng(5)
+    effects = TableEffects(restitution_slow=0.8, restitution_fast=0.8, friction_rim=0.15, tangential_scale=scale)
+    for _ in range(500):
+        vb, vn, omega = rng.uniform(-3, 3), -rng.uniform(0.01, 4), rng.uniform(-60, 60)
+        expected = rim_impact(vb, vn, omega, RADIUS, 0.8, scale * 0.15, tangential=scale - 1.0)
+        assert real_rim_impact(vb, vn, omega, RADIUS, effects) == pytest.approx(expected[:3], abs=1e-12)
+
+
 def test_restitution_falls_linearly_between_its_speeds():
     effects = TableEffects(restitution_slow=0.96, restitution_fast=0.67, restitution_speed_low=0.5,
                            restitution_speed_high=2.0)

@@ -11,10 +11,12 @@ import numpy as np
 import pytest
 
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
-from air_hockey_agent.core.identification.impact_fit import fit_restitution, restitution_law
+from air_hockey_agent.core.identification.impact_fit import (fit_restitution, fit_tangential, restitution_law,
+                                                            tangential_residuals)
 from air_hockey_agent.core.identification.local_fit import fit_angle_rate, fit_positions
 from air_hockey_agent.core.identification.preprocess import preprocess
 from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split
+from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams
 from air_hockey_agent.core.puck import real_table
 from air_hockey_agent.core.puck.real_table import GRAVITY, TableEffects
@@ -26,11 +28,12 @@ from air_hockey_agent.tracker_params import load_tracker_params
 
 EXE = Path(sys.executable).parent / "air-hockey"
 # Every effect in the model's family: no air film or random acceleration; restitution falling linearly
-# from 0.95 at rest by 0.15 per m/s to a floor of 0.65 (reached at 2 m/s); the full Routh tangential impulse.
+# from 0.95 at rest by 0.15 per m/s to a floor of 0.65 (reached at 2 m/s); half the Routh/Coulomb tangential
+# impulse, which is the model's tangential restitution -0.5 with half the rim friction.
 IN_FAMILY = {"testbed.air_film_amplitude": 0.0, "testbed.random_acceleration": 0.0,
              "testbed.restitution_slow": 0.95, "testbed.restitution_fast": 0.65,
              "testbed.restitution_speed_low": 0.0, "testbed.restitution_speed_high": 2.0,
-             "testbed.tangential_scale": 1.0}
+             "testbed.tangential_scale": 0.5}
 
 
 def session_on_testbed(shots: int, seed: int, overrides: dict):
@@ -51,7 +54,7 @@ def session_on_testbed(shots: int, seed: int, overrides: dict):
         if i == len(frames) or frames[i].stamp - frames[i - 1].stamp > 1.0:
             chunk = frames[start:i]
             out += preprocess([f.stamp for f in chunk], [f.measurement for f in chunk], 1.0 / tracker["frequency"],
-                              prep).trajectories
+                              prep, tracker["glitch_speed"]).trajectories
             start = i
     return out, effects
 
@@ -90,7 +93,8 @@ def test_split_identification_recovers_the_test_beds_truth(in_family):
     found = result.identified
     truth = {"damping": effects.damping, "friction_surface": effects.friction_surface,
              "restitution": 0.95, "restitution_slope": 0.15, "restitution_min": 0.65,
-             "friction_rim": effects.friction_rim}
+             "friction_rim": effects.tangential_scale * effects.friction_rim,
+             "tangential_restitution": effects.tangential_scale - 1.0}
     for name, value in truth.items():
         assert found[name] == pytest.approx(value, rel=0.1), name
     g = tilt_acceleration(effects)
@@ -122,7 +126,48 @@ def test_flight_parameters_survive_effects_the_model_lacks():
     assert found["friction_surface"] == pytest.approx(effects.friction_surface, rel=0.25)
     g = tilt_acceleration(effects)
     assert np.linalg.norm(np.array(found["table_acceleration"]) - g) < 0.1 * np.linalg.norm(g)
-    assert found["friction_rim"] < effects.friction_rim  # the softer impulse reads as less rim friction
+    # the softer impulse (a scaled Routh/Coulomb one) is the model's tangential restitution and rim friction
+    assert found["friction_rim"] == pytest.approx(effects.tangential_scale * effects.friction_rim, rel=0.1)
+    assert found["tangential_restitution"] == pytest.approx(effects.tangential_scale - 1.0, abs=0.05)
+
+
+def _impacts(rng, n, slip):
+    """Incoming (vb, vn, omega) with slips of size in ``slip`` [m/s] (what fit_tangential reads)."""
+    class Obs:
+        def __init__(self, before, after):
+            self.before, self.after = before, after
+    out = []
+    for _ in range(n):
+        vn, c = -rng.uniform(0.5, 3.0), rng.choice([-1.0, 1.0]) * rng.uniform(*slip)
+        omega = rng.uniform(-20.0, 20.0)
+        out.append(((c - RADIUS * omega, vn, omega)))
+    return out, Obs
+
+
+LAW = {"restitution": 0.9, "restitution_slope": 0.0, "restitution_min": 0.0}
+RADIUS = 0.03165
+BOX = {"friction_rim": (0.0, 0.6), "tangential_restitution": (-1.0, 1.0)}
+
+
+def test_rim_friction_and_tangential_restitution_are_recovered_from_exact_impacts():
+    rng = np.random.default_rng(7)
+    before, Obs = _impacts(rng, 60, (0.0, 1.0))  # sticking and sliding impacts
+    truth = {"friction_rim": 0.05, "tangential_restitution": -0.6}
+    impacts = [Obs(b, rim_impact(*b, RADIUS, 0.9, 0.05, tangential=-0.6)[:3]) for b in before]
+    found = fit_tangential(impacts, RADIUS, LAW, {}, BOX, {"friction_rim": 0.1, "tangential_restitution": 0.0})
+    assert found == pytest.approx(truth, abs=1e-4)
+    assert np.all(tangential_residuals(impacts, RADIUS, LAW, 0.05, -0.6) < 1e-12)
+
+
+def test_a_tangential_restitution_no_impact_sees_keeps_its_starting_value():
+    rng = np.random.default_rng(8)
+    before, Obs = _impacts(rng, 40, (2.0, 3.0))  # fast slips: every impact slides whatever beta
+    impacts = [Obs(b, rim_impact(*b, RADIUS, 0.9, 0.05)[:3]) for b in before]
+    start = {"friction_rim": 0.1, "tangential_restitution": 0.2}
+    found = fit_tangential(impacts, RADIUS, LAW, {}, BOX, start)
+    assert found["friction_rim"] == pytest.approx(0.05, abs=1e-4) and found["tangential_restitution"] == 0.2
+    fixed = fit_tangential(impacts, RADIUS, LAW, {"tangential_restitution": -0.3}, BOX, start)
+    assert fixed["tangential_restitution"] == -0.3 and fixed["friction_rim"] == pytest.approx(0.05, abs=1e-4)
 
 
 def cli(*args, timeout=300):

@@ -11,9 +11,13 @@ core.puck.impact`: ``b`` along the rim, ``n`` into the table).
 * Restitution (speed-dependent, eq. 3.2-3.3 with ``e(vn) = max(e0 - slope |vn|, e_min)``): least
   squares of the outgoing normal speed ``e(vn) |vn|``, which is linear in ``(e0, slope)`` once the
   speed where the line meets its floor is chosen (a grid of speeds, then a scalar search).
-* Rim friction: the Routh impact (:func:`~air_hockey_agent.core.puck.impact.rim_impact`) with the
-  fitted restitution predicts the outgoing ``vb`` and ``r omega`` from the incoming state; ``mu_rim``
-  minimises their squared error [m^2/s^2] over all impacts (a bounded scalar search).
+* Rim friction and tangential restitution: the Routh impact
+  (:func:`~air_hockey_agent.core.puck.impact.rim_impact`) with the fitted restitution predicts the
+  outgoing ``vb`` and ``r omega`` from the incoming state; ``mu_rim`` (the sliding impacts' Coulomb
+  bound) and ``beta`` (how much of the slip a sticking impact removes) minimise their squared error
+  [m^2/s^2] over all impacts: a grid over both bounds, then a bounded simplex from the best grid point
+  (one of them alone: a grid and a bounded scalar search). Where the cost does not depend on a parameter
+  (no sticking impact says anything about beta) it keeps its starting value.
 
 Impacts whose fits are poor (another impact or a hit inside a window) or whose residual is an outlier
 are dropped.
@@ -33,8 +37,11 @@ from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
 
 RESTITUTION_NAMES = ("restitution", "restitution_slope", "restitution_min")
-IMPACT_NAMES = RESTITUTION_NAMES + ("friction_rim",)
+TANGENTIAL_NAMES = ("friction_rim", "tangential_restitution")
+IMPACT_NAMES = RESTITUTION_NAMES + TANGENTIAL_NAMES
 FRICTION_GRID = 201  # scalar search: grid points over the bounds before the local refinement
+PAIR_GRID = 41       # both tangential parameters: grid points per parameter before the simplex
+FLAT = 1e-9          # [-] grid costs within this share of the best are ties (the parameter is not seen)
 KINK_GRID = 201     # the same for the speed where the restitution meets its floor
 
 
@@ -68,7 +75,7 @@ class ImpactFit:
     impacts: int           # impacts in the final fits
     dropped: int           # impacts dropped (poor fit or outlier)
     rms_normal: float      # [m/s] residual RMS of the outgoing normal speed (the restitution fit's objective)
-    rms_tangential: float  # [m/s] residual RMS of vb and r omega (the friction fit's objective)
+    rms_tangential: float  # [m/s] residual RMS of vb and r omega (the tangential fit's objective)
     used: list = field(default_factory=list)  # the impacts (ImpactObservation) of the final fits, for plots
 
 
@@ -239,38 +246,85 @@ def fit_restitution(impacts: Sequence[ImpactObservation], fixed: Mapping[str, fl
 
 
 def tangential_residuals(impacts: Sequence[ImpactObservation], radius: float, law: Mapping[str, float],
-                         friction: float) -> np.ndarray:
+                         friction: float, tangential: float = 0.0) -> np.ndarray:
     """Per impact: the Routh impact's error in outgoing (vb, r omega) [m/s], as a norm, with the
-    restitution law ``law`` (RESTITUTION_NAMES)."""
+    restitution law ``law`` (RESTITUTION_NAMES), rim friction ``friction`` and tangential restitution
+    ``tangential``."""
     out = np.empty(len(impacts))
     for i, o in enumerate(impacts):
         vb, vn, omega = o.before
         res = rim_impact(vb, vn, omega, radius, law["restitution"], friction, law["restitution_slope"],
-                         law["restitution_min"])
+                         law["restitution_min"], tangential)
         out[i] = math.hypot(res.vb - o.after[0], radius * (res.omega - o.after[2]))
     return out
 
 
-def fit_rim_friction(impacts: Sequence[ImpactObservation], radius: float, law: Mapping[str, float],
-                     bounds: Sequence[float]) -> float:
-    """mu_rim minimising the squared tangential residuals: a grid over ``bounds``, then a bounded search
-    between the best grid point's neighbours."""
+def _best_on_grid(costs: np.ndarray, points: np.ndarray, start: np.ndarray) -> int:
+    """Index of the cheapest grid point; among ties (a parameter the cost does not see) the nearest to
+    ``start``."""
+    best = float(np.min(costs))
+    ties = np.flatnonzero(costs <= best + FLAT * abs(best) + 1e-30)
+    return int(ties[np.argmin(np.sum((points[ties] - start) ** 2, axis=-1))])
+
+
+def _scalar_fit(cost, bounds: Sequence[float], start: float) -> float:
+    """A grid over ``bounds``, then a bounded search between the best grid point's neighbours."""
     from scipy.optimize import minimize_scalar
 
-    def cost(mu: float) -> float:
-        return float(np.sum(tangential_residuals(impacts, radius, law, mu) ** 2))
-
     grid = np.linspace(bounds[0], bounds[1], FRICTION_GRID)
-    best = int(np.argmin([cost(mu) for mu in grid]))
+    costs = np.array([cost(x) for x in grid])
+    best = _best_on_grid(costs, grid[:, None], np.array([start]))
     lo, hi = grid[max(0, best - 1)], grid[min(len(grid) - 1, best + 1)]
     refined = minimize_scalar(cost, bounds=(lo, hi), method="bounded", options={"xatol": 1e-6})
-    return float(refined.x) if refined.fun <= cost(grid[best]) else float(grid[best])
+    return float(refined.x) if refined.fun < costs[best] else float(grid[best])
+
+
+def _pair_fit(cost, bounds: Sequence[Sequence[float]], start: Sequence[float]) -> tuple[float, float]:
+    """A PAIR_GRID x PAIR_GRID grid over both ``bounds``, then a bounded Nelder-Mead from the best point."""
+    from scipy.optimize import minimize
+
+    axes = [np.linspace(b[0], b[1], PAIR_GRID) for b in bounds]
+    points = np.array([(a, b) for a in axes[0] for b in axes[1]])
+    costs = np.array([cost(p) for p in points])
+    best = _best_on_grid(costs, points, np.clip(start, [b[0] for b in bounds], [b[1] for b in bounds]))
+    steps = [(b[1] - b[0]) / (PAIR_GRID - 1) for b in bounds]
+    simplex = np.array([points[best], points[best] + [steps[0], 0.0], points[best] + [0.0, steps[1]]])
+    refined = minimize(cost, points[best], method="Nelder-Mead", bounds=bounds,
+                       options={"initial_simplex": np.clip(simplex, [b[0] for b in bounds], [b[1] for b in bounds]),
+                                "xatol": 1e-6, "fatol": 1e-12})
+    x = refined.x if refined.fun < costs[best] else points[best]
+    return float(x[0]), float(x[1])
+
+
+def fit_tangential(impacts: Sequence[ImpactObservation], radius: float, law: Mapping[str, float],
+                   fixed: Mapping[str, float], bounds: Mapping[str, Sequence[float]],
+                   start: Mapping[str, float]) -> dict:
+    """mu_rim and the tangential restitution (those not in ``fixed``) minimising the squared tangential
+    residuals; returns both (TANGENTIAL_NAMES)."""
+    free = [n for n in TANGENTIAL_NAMES if n not in fixed]
+    values = {n: fixed.get(n, start[n]) for n in TANGENTIAL_NAMES}
+
+    def cost_of(x: Sequence[float]) -> float:
+        trial = {**values, **dict(zip(free, map(float, np.atleast_1d(x))))}
+        return float(np.sum(tangential_residuals(impacts, radius, law, trial["friction_rim"],
+                                                 trial["tangential_restitution"]) ** 2))
+
+    if len(free) == 1:
+        values[free[0]] = _scalar_fit(cost_of, bounds[free[0]], start[free[0]])
+    elif free:
+        values.update(zip(free, _pair_fit(cost_of, [bounds[n] for n in free], [start[n] for n in free])))
+    best = cost_of([values[n] for n in free])
+    for i, name in enumerate(free):  # a parameter the impacts do not see keeps its starting value
+        at_start = [start[n] if j == i else values[n] for j, n in enumerate(free)]
+        if cost_of(at_start) <= best + FLAT * abs(best) + 1e-30:
+            values[name] = start[name]
+    return values
 
 
 def fit_impacts(impacts: Sequence[ImpactObservation], radius: float, fixed: Mapping[str, float],
                 bounds: Mapping[str, Sequence[float]], settings: ImpactSettings,
                 start: Mapping[str, float]) -> ImpactFit:
-    """Restitution law, then rim friction, over the impacts whose fits are good; ``fixed`` names keep
+    """Restitution law, then rim friction and tangential restitution, over the impacts whose fits are good; ``fixed`` names keep
     their values, ``start`` (all IMPACT_NAMES) seeds the nonlinear fits."""
     smooth = smooth_fits([o.fit_quality for o in impacts], settings.outlier_factor)
     good = [o for o, ok in zip(impacts, smooth) if ok]
@@ -280,14 +334,13 @@ def fit_impacts(impacts: Sequence[ImpactObservation], radius: float, fixed: Mapp
                          + ", ".join(n for n in IMPACT_NAMES if n not in fixed))
     values, keep, rms_normal = fit_restitution(good, fixed, bounds, settings.outlier_factor, start)
     kept = [o for o, k in zip(good, keep) if k]
-    if "friction_rim" in fixed:
-        values["friction_rim"] = fixed["friction_rim"]
-    else:
-        mu = fit_rim_friction(kept, radius, values, bounds["friction_rim"])
-        keep_t = _robust_keep(tangential_residuals(kept, radius, values, mu), settings.outlier_factor)
+    values.update(fit_tangential(kept, radius, values, fixed, bounds, start))
+    if any(n not in fixed for n in TANGENTIAL_NAMES):
+        residuals = tangential_residuals(kept, radius, values, *(values[n] for n in TANGENTIAL_NAMES))
+        keep_t = _robust_keep(residuals, settings.outlier_factor)
         if not keep_t.all() and keep_t.sum() >= 2:
             kept = [o for o, k in zip(kept, keep_t) if k]
-            mu = fit_rim_friction(kept, radius, values, bounds["friction_rim"])
-        values["friction_rim"] = mu
-    rms_t = float(math.sqrt(np.mean(tangential_residuals(kept, radius, values, values["friction_rim"]) ** 2)))
+            values.update(fit_tangential(kept, radius, values, fixed, bounds, start))
+    residuals = tangential_residuals(kept, radius, values, *(values[n] for n in TANGENTIAL_NAMES))
+    rms_t = float(math.sqrt(np.mean(residuals ** 2)))
     return ImpactFit(values, len(kept), len(impacts) - len(kept), rms_normal, rms_t, kept)

@@ -4,8 +4,13 @@ Impact frame: ``b`` along the rim, ``n`` the inward normal (into the table), rig
 (``n = Rz(+90 deg) b``). A puck approaching the rim has ``vn < 0``. The puck is a uniform disc
 (I = m r^2 / 2); its contact point slips along the rim with ``c = vb + r * omega``.
 
-* Sticking (eq. 3.2), when ``|c| <= 3 mu (1 + e) |vn|``: the tangential impulse stops the slip,
-  ``P_b = -m c / 3``.
+* Sticking (eq. 3.2), when ``(1 + beta) |c| <= 3 mu (1 + e) |vn|``: the tangential impulse stops the
+  slip, ``P_b = -m c / 3``, when the tangential restitution ``beta`` is 0 (the thesis). With ``beta`` in
+  [-1, 1] it leaves ``-beta c`` of it, ``P_b = -(1 + beta) m c / 3`` (Walton's three-parameter impact,
+  e.g. Brach, "Mechanical Impact Dynamics", 1991): -1 is a rim without tangential impulse, 1 reverses the
+  slip. Real rims push far less along themselves than Routh's impact does (issue #13: another engine's
+  tangential impulse stays far below Coulomb's; no constant (e, mu_rim) fits), and a small mu_rim alone
+  softens only the sliding impacts.
 * Sliding (eq. 3.3) otherwise: ``P_b = mu s (1 + e) m vn`` with ``s = sign(c)``, opposing the slip.
 * In both, ``P_n = -(1 + e) m vn`` and the post-impact velocities follow eq. 3.4:
   ``vb' = vb + P_b/m``, ``vn' = vn + P_n/m``, ``omega' = omega + 2 P_b / (m r)``.
@@ -31,11 +36,12 @@ class ImpactResult(NamedTuple):
     #                  for the caller, which only reads the nine entries)
 
 
-def is_sliding(vb: float, vn: float, omega: float, radius: float, restitution: float, friction: float) -> bool:
+def is_sliding(vb: float, vn: float, omega: float, radius: float, restitution: float, friction: float,
+               tangential: float = 0.0) -> bool:
     """Branch selection: True for the sliding impact (eq. 3.3), False for sticking (eq. 3.2); ``restitution``
-    is the impact's (speed-dependent) e."""
+    is the impact's (speed-dependent) e, ``tangential`` the tangential restitution beta."""
     slip = vb + radius * omega
-    return abs(slip) > 3.0 * friction * (1.0 + restitution) * abs(vn)
+    return (1.0 + tangential) * abs(slip) > 3.0 * friction * (1.0 + restitution) * abs(vn)
 
 
 def speed_restitution(restitution: float, slope: float, vn: float, floor: float = 0.0) -> tuple[float, float]:
@@ -50,13 +56,14 @@ def speed_restitution(restitution: float, slope: float, vn: float, floor: float 
 
 
 def rim_impact(vb: float, vn: float, omega: float, radius: float, restitution: float,
-               friction: float, slope: float = 0.0, floor: float = 0.0) -> ImpactResult:
+               friction: float, slope: float = 0.0, floor: float = 0.0, tangential: float = 0.0) -> ImpactResult:
     """Post-impact (vb, vn, omega) [m/s, m/s, rad/s] and the branch's Jacobian S_j (thesis sec. 4.2);
-    ``restitution`` falls by ``slope`` [s/m] per m/s of normal speed down to ``floor`` (module docstring)."""
+    ``restitution`` falls by ``slope`` [s/m] per m/s of normal speed down to ``floor``, ``tangential`` is
+    the tangential restitution beta [-] of a sticking impact (module docstring)."""
     mu, r = friction, radius
     e, de = speed_restitution(restitution, slope, vn, floor)
     dvn = -e - vn * de  # d vn' / d vn
-    if is_sliding(vb, vn, omega, r, e, mu):
+    if is_sliding(vb, vn, omega, r, e, mu, tangential):
         s = 1.0 if vb + r * omega > 0.0 else -1.0
         k = mu * s * (1.0 + e)  # P_b / (m vn)
         dk = mu * s * de * vn   # vn * d k / d vn
@@ -64,7 +71,9 @@ def rim_impact(vb: float, vn: float, omega: float, radius: float, restitution: f
                (0.0, dvn, 0.0),
                (0.0, 2.0 * (k + dk) / r, 1.0))
         return ImpactResult(vb + k * vn, -e * vn, omega + 2.0 * k * vn / r, True, jac)
-    jac = ((2.0 / 3.0, 0.0, -r / 3.0),
+    q = (1.0 + tangential) / 3.0  # -P_b / (m c): a third of the slip for Routh's full stick (beta = 0)
+    slip = vb + r * omega
+    jac = ((1.0 - q, 0.0, -q * r),
            (0.0, dvn, 0.0),
-           (-2.0 / (3.0 * r), 0.0, 1.0 / 3.0))
-    return ImpactResult(2.0 / 3.0 * vb - r / 3.0 * omega, -e * vn, omega / 3.0 - 2.0 * vb / (3.0 * r), False, jac)
+           (-2.0 * q / r, 0.0, 1.0 - 2.0 * q))
+    return ImpactResult(vb - q * slip, -e * vn, omega - 2.0 * q * slip / r, False, jac)
