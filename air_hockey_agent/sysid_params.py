@@ -15,6 +15,7 @@ SYSID_PARAMS = (
     ParamSpec("bounds.damping", list, "[1/s] search bounds (thesis table 4.1)", 0.0, 10.0, 2),
     ParamSpec("bounds.restitution_slope", list, "[s/m] search bounds (--identify restitution_slope)", 0.0, 10.0, 2),
     ParamSpec("bounds.restitution_min", list, "[-] search bounds (--identify restitution_min)", 0.0, 1.0, 2),
+    ParamSpec("bounds.restitution_knee", list, "[m/s] search bounds (--identify restitution_knee)", 0.0, 10.0, 2),
     ParamSpec("bounds.tangential_restitution", list, "[-] search bounds (--method split)", -1.0, 1.0, 2),
     ParamSpec("bounds.table_acceleration", list, "[m/s^2] bounds per axis (--method split)", -10.0, 10.0, 2),
     ParamSpec("split.window", float, "[s] free-flight window of the split identification", 0.05, 5.0),

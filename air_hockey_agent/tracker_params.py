@@ -33,6 +33,8 @@ TRACKER_PARAMS = (
     ParamSpec("friction_rim", float, "[-] rim friction mu_rim", 0.0, 2.0),
     ParamSpec("restitution_slope", float, "[s/m] fall of the rim restitution per m/s of normal speed", 0.0, 10.0),
     ParamSpec("restitution_min", float, "[-] the rim restitution does not fall below this", 0.0, 1.0),
+    ParamSpec("restitution_knee", float, "[m/s] the rim restitution falls only beyond this normal speed",
+              0.0, 10.0),
     ParamSpec("tangential_restitution", float, "[-] tangential restitution beta of a sticking rim impact "
               "(0: Routh's, -1: no tangential impulse)", -1.0, 1.0),
     ParamSpec("table_acceleration", list, "[m/s^2] constant acceleration of a free puck (x, y), table frame: "

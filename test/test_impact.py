@@ -131,3 +131,27 @@ def test_energy_never_increases_with_a_tangential_restitution_up_to_one():
         before = vb ** 2 + vn ** 2 + 0.5 * R ** 2 * om ** 2
         after = res.vb ** 2 + res.vn ** 2 + 0.5 * R ** 2 * res.omega ** 2
         assert after <= before * (1 + 1e-12)
+
+
+def test_restitution_holds_below_its_knee_then_falls_to_its_floor():
+    # another engine's rims (issue #13): 0.96 below 0.5 m/s, 0.67 above 2 m/s
+    slope = 0.29 / 1.5
+    assert speed_restitution(0.96, slope, -0.3, 0.67, 0.5) == (0.96, 0.0)
+    assert speed_restitution(0.96, slope, -1.25, 0.67, 0.5) == pytest.approx(((0.96 + 0.67) / 2, slope))
+    assert speed_restitution(0.96, slope, -2.5, 0.67, 0.5) == (0.67, 0.0)
+    assert rim_impact(0.0, -1.25, 0.0, R, 0.96, MU, slope, 0.67, knee=0.5).vn == pytest.approx(0.815 * 1.25)
+
+
+@pytest.mark.parametrize("vn", [-0.3, -1.2, -3.0], ids=["below the knee", "falling", "on the floor"])
+def test_branch_jacobian_with_a_knee_matches_finite_differences(vn):
+    h = 1e-7
+    state = (0.3, vn, 1.0)
+    args = (R, 0.96, MU, 0.2, 0.67, -0.4, 0.5)
+    res = rim_impact(*state, *args)
+    fd = np.zeros((3, 3))
+    for i in range(3):
+        d = np.zeros(3)
+        d[i] = h
+        fd[:, i] = (np.array(rim_impact(*np.add(state, d), *args)[:3])
+                    - np.array(rim_impact(*np.subtract(state, d), *args)[:3])) / (2 * h)
+    assert np.allclose(res.jacobian, fd, atol=1e-6)

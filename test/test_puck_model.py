@@ -93,16 +93,18 @@ def test_impact_on_each_rim_with_each_branch(name):
     assert nx * res.state[2] + ny * res.state[3] > 0  # moving away from the rim afterwards
 
 
-@pytest.mark.parametrize("slope,accel,beta", [(0.0, (0.0, 0.0), 0.0), (0.15, (0.0, 0.0), 0.0),
-                                              (0.0, (0.03, -0.02), 0.0), (0.0, (0.0, 0.0), -0.6)],
-                         ids=["constant e", "e falls with speed", "tilted table", "soft tangential impulse"])
+@pytest.mark.parametrize("slope,accel,beta,knee", [(0.0, (0.0, 0.0), 0.0, 0.0), (0.15, (0.0, 0.0), 0.0, 0.0),
+                                                   (0.15, (0.0, 0.0), 0.0, 1.1), (0.0, (0.03, -0.02), 0.0, 0.0),
+                                                   (0.0, (0.0, 0.0), -0.6, 0.0)],
+                         ids=["constant e", "e falls with speed", "e falls beyond a knee", "tilted table",
+                              "soft tangential impulse"])
 @pytest.mark.parametrize("name", list(IMPACT_CASES) + ["free", "corner", "goal"])
-def test_step_jacobian_matches_central_finite_differences(name, slope, accel, beta):
+def test_step_jacobian_matches_central_finite_differences(name, slope, accel, beta, knee):
     states = {"free": np.array([0.1, 0.2, 1.0, 0.5, 0.3, 2.0]),
               "corner": np.array([X - 0.004, Y - 0.007, 1.0, 1.3, 0.1, 5.0]),
               "goal": np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0])}
     state = states.get(name, IMPACT_CASES.get(name, (None,))[0])
-    m = model(restitution_slope=slope, table_acceleration=accel, tangential_restitution=beta)
+    m = model(restitution_slope=slope, table_acceleration=accel, tangential_restitution=beta, restitution_knee=knee)
     assert np.allclose(m.step(state, DT).jacobian, finite_difference_jacobian(m, state, DT), atol=2e-6)
 
 
@@ -128,5 +130,7 @@ def test_invalid_parameters_are_refused_with_the_name():
         model(friction_rim=-0.1)
     with pytest.raises(ValueError, match="table_acceleration must be two finite numbers"):
         model(table_acceleration=(0.0, math.nan))
+    with pytest.raises(ValueError, match="restitution_knee must be >= 0"):
+        model(restitution_knee=-0.5)
     with pytest.raises(ValueError, match=r"tangential_restitution must be in \[-1, 1\]"):
         model(tangential_restitution=-1.5)

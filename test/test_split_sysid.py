@@ -27,12 +27,12 @@ from air_hockey_agent.tools.synth_bag import SESSION_PARAMS
 from air_hockey_agent.tracker_params import load_tracker_params
 
 EXE = Path(sys.executable).parent / "air-hockey"
-# Every effect in the model's family: no air film or random acceleration; restitution falling linearly
-# from 0.95 at rest by 0.15 per m/s to a floor of 0.65 (reached at 2 m/s); half the Routh/Coulomb tangential
-# impulse, which is the model's tangential restitution -0.5 with half the rim friction.
+# Every effect in the model's family: no air film or random acceleration; restitution 0.95 up to 0.5 m/s,
+# then falling linearly to a floor of 0.65 at 2 m/s; half the Routh/Coulomb tangential impulse, which is the
+# model's tangential restitution -0.5 with half the rim friction.
 IN_FAMILY = {"testbed.air_film_amplitude": 0.0, "testbed.random_acceleration": 0.0,
              "testbed.restitution_slow": 0.95, "testbed.restitution_fast": 0.65,
-             "testbed.restitution_speed_low": 0.0, "testbed.restitution_speed_high": 2.0,
+             "testbed.restitution_speed_low": 0.5, "testbed.restitution_speed_high": 2.0,
              "testbed.tangential_scale": 0.5}
 
 
@@ -92,7 +92,7 @@ def test_split_identification_recovers_the_test_beds_truth(in_family):
     result = identify_all(trajectories)
     found = result.identified
     truth = {"damping": effects.damping, "friction_surface": effects.friction_surface,
-             "restitution": 0.95, "restitution_slope": 0.15, "restitution_min": 0.65,
+             "restitution": 0.95, "restitution_slope": 0.3 / 1.5, "restitution_min": 0.65, "restitution_knee": 0.5,
              "friction_rim": effects.tangential_scale * effects.friction_rim,
              "tangential_restitution": effects.tangential_scale - 1.0}
     for name, value in truth.items():
@@ -106,26 +106,53 @@ def test_split_identification_recovers_the_test_beds_truth(in_family):
 def test_the_restitution_floor_is_found_between_measured_speeds():
     # no impact near the kink speed (2 m/s): the law's kink must still land there
     vn = np.concatenate([np.linspace(0.2, 1.2, 20), np.linspace(3.0, 4.0, 10)])
-    truth = {"restitution": 0.95, "restitution_slope": 0.15, "restitution_min": 0.65}
+    truth = {"restitution": 0.95, "restitution_slope": 0.15, "restitution_min": 0.65, "restitution_knee": 0.0}
     out = vn * restitution_law(vn, truth)
 
     class Obs:  # what fit_restitution reads of an ImpactObservation
         def __init__(self, v, o):
             self.before, self.after = (0.0, -v, 0.0), (0.0, o, 0.0)
-    box = {"restitution": (0.5, 1.0), "restitution_slope": (0.0, 0.4), "restitution_min": (0.0, 1.0)}
-    values, keep, rms = fit_restitution([Obs(v, o) for v, o in zip(vn, out)], {}, box, 4.0, {})
+    values, keep, rms = fit_restitution([Obs(v, o) for v, o in zip(vn, out)], {}, RESTITUTION_BOX, 4.0, {})
     assert values == pytest.approx(truth, abs=1e-6) and keep.all() and rms < 1e-8
 
 
+RESTITUTION_BOX = {"restitution": (0.5, 1.0), "restitution_slope": (0.0, 0.4), "restitution_min": (0.0, 1.0),
+                   "restitution_knee": (0.0, 3.0)}
+
+
+def test_a_restitution_plateau_below_a_knee_is_found():
+    # another engine's rims (issue #13): 0.96 below 0.5 m/s, falling to 0.67 at 2 m/s
+    vn = np.linspace(0.15, 4.0, 60)
+    truth = {"restitution": 0.96, "restitution_slope": 0.29 / 1.5, "restitution_min": 0.67, "restitution_knee": 0.5}
+    out = vn * restitution_law(vn, truth)
+
+    class Obs:
+        def __init__(self, v, o):
+            self.before, self.after = (0.0, -v, 0.0), (0.0, o, 0.0)
+    values, keep, rms = fit_restitution([Obs(v, o) for v, o in zip(vn, out)], {}, RESTITUTION_BOX, 4.0, {})
+    assert values == pytest.approx(truth, abs=1e-5) and rms < 1e-8
+    # the same impacts with the knee fixed at 0: the line the model had before cannot follow the plateau
+    line, _, _ = fit_restitution([Obs(v, o) for v, o in zip(vn, out)], {"restitution_knee": 0.0},
+                                 RESTITUTION_BOX, 4.0, {**truth, "restitution_knee": 0.0})
+    assert np.max(np.abs(out - vn * restitution_law(vn, line))) > 0.01  # [m/s]
+
+
 def test_flight_parameters_survive_effects_the_model_lacks():
-    """The full test bed (an uneven air film and random accelerations the flight law lacks, restitution
-    the law cannot follow, a softer tangential impulse): the flight fit stays near the truth."""
+    """The full test bed (an uneven air film and random accelerations the flight law lacks): the flight
+    fit stays near the truth, and so do the rims' parameters."""
     trajectories, effects = session_on_testbed(30, 6, {})
     found = identify_all(trajectories).identified
     assert found["damping"] == pytest.approx(effects.damping, rel=0.1)
     assert found["friction_surface"] == pytest.approx(effects.friction_surface, rel=0.25)
     g = tilt_acceleration(effects)
     assert np.linalg.norm(np.array(found["table_acceleration"]) - g) < 0.1 * np.linalg.norm(g)
+    # the restitution ramp (a plateau, a linear fall, a floor) is the model's law with a knee
+    law = {"restitution": effects.restitution_slow, "restitution_min": effects.restitution_fast,
+           "restitution_knee": effects.restitution_speed_low,
+           "restitution_slope": (effects.restitution_slow - effects.restitution_fast)
+           / (effects.restitution_speed_high - effects.restitution_speed_low)}
+    for name, value in law.items():
+        assert found[name] == pytest.approx(value, rel=0.1), name
     # the softer impulse (a scaled Routh/Coulomb one) is the model's tangential restitution and rim friction
     assert found["friction_rim"] == pytest.approx(effects.tangential_scale * effects.friction_rim, rel=0.1)
     assert found["tangential_restitution"] == pytest.approx(effects.tangential_scale - 1.0, abs=0.05)

@@ -54,8 +54,8 @@ def _impacts(out: Path, impacts) -> Path:
     fig, ax = plt.subplots(figsize=(7, 4.5))
     ax.plot(vn, e, ".", ms=4, alpha=0.6, label=f"{len(vn)} rim impacts")
     ax.plot(grid, restitution_law(grid, law), "k-",
-            label=f"fit: max({law['restitution']:.3g} - {law['restitution_slope']:.3g} vn, "
-                  f"{law['restitution_min']:.3g})")
+            label=f"fit: {law['restitution']:.3g} up to {law['restitution_knee']:.3g} m/s, then falling by "
+                  f"{law['restitution_slope']:.3g} s/m to {law['restitution_min']:.3g}")
     ax.set(xlabel="incoming normal speed [m/s]", ylabel="restitution [-]", ylim=(0.0, 1.1),
            title="Rim restitution (split identification)")
     return _finish(fig, ax, out / "split_impacts.png")

@@ -58,7 +58,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
     parser.add_argument("--identify", nargs="+", choices=SPLIT_IDENTIFIABLE, metavar="NAME",
-                        help="parameters to identify (default: hebo the thesis's four, split all eight; "
+                        help="parameters to identify (default: hebo the thesis's four, split all nine; "
                              "table_acceleration only with --method split; also restitution_slope, "
                              "the rims' loss with impact speed); choices: " + ", ".join(IDENTIFIABLE))
     parser.add_argument("--polish", type=count(0), default=0, metavar="EVALUATIONS",

@@ -8,9 +8,9 @@ lines' distances from the rim meet, so it does not depend on where the table's g
 Both velocities and spins (angle lines) are read there, in the rim's frame (:mod:`~air_hockey_agent.
 core.puck.impact`: ``b`` along the rim, ``n`` into the table).
 
-* Restitution (speed-dependent, eq. 3.2-3.3 with ``e(vn) = max(e0 - slope |vn|, e_min)``): least
-  squares of the outgoing normal speed ``e(vn) |vn|``, which is linear in ``(e0, slope)`` once the
-  speed where the line meets its floor is chosen (a grid of speeds, then a scalar search).
+* Restitution (speed-dependent, eq. 3.2-3.3 with ``e(vn) = max(e0 - slope max(|vn| - knee, 0), e_min)``):
+  least squares of the outgoing normal speed ``e(vn) |vn|``, which is linear in ``(e0, slope)`` once the
+  knee and the speed where the line meets its floor are chosen (a grid of both, then a simplex).
 * Rim friction and tangential restitution: the Routh impact
   (:func:`~air_hockey_agent.core.puck.impact.rim_impact`) with the fitted restitution predicts the
   outgoing ``vb`` and ``r omega`` from the incoming state; ``mu_rim`` (the sliding impacts' Coulomb
@@ -36,13 +36,13 @@ from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
 
-RESTITUTION_NAMES = ("restitution", "restitution_slope", "restitution_min")
+RESTITUTION_NAMES = ("restitution", "restitution_slope", "restitution_min", "restitution_knee")
 TANGENTIAL_NAMES = ("friction_rim", "tangential_restitution")
 IMPACT_NAMES = RESTITUTION_NAMES + TANGENTIAL_NAMES
 FRICTION_GRID = 201  # scalar search: grid points over the bounds before the local refinement
 PAIR_GRID = 41       # both tangential parameters: grid points per parameter before the simplex
 FLAT = 1e-9          # [-] grid costs within this share of the best are ties (the parameter is not seen)
-KINK_GRID = 201     # the same for the speed where the restitution meets its floor
+KINK_GRID = 41      # the restitution's knee and floor speeds: grid points each before the simplex
 
 
 @dataclass(frozen=True)
@@ -164,42 +164,62 @@ def _robust_keep(residuals: np.ndarray, factor: float) -> np.ndarray:
 
 
 def restitution_law(vn: np.ndarray, values: Mapping[str, float]) -> np.ndarray:
-    """e(|vn|) = max(e0 - slope |vn|, e_min) [-] (:func:`~air_hockey_agent.core.puck.impact.speed_restitution`)."""
-    line = values["restitution"] - values["restitution_slope"] * vn
+    """e(|vn|) = max(e0 - slope max(|vn| - knee, 0), e_min) [-], never above e0
+    (:func:`~air_hockey_agent.core.puck.impact.speed_restitution`)."""
+    line = values["restitution"] - values["restitution_slope"] * np.maximum(vn - values["restitution_knee"], 0.0)
     return np.minimum(values["restitution"], np.maximum(line, values["restitution_min"]))
 
 
-def _fit_all_three(vn: np.ndarray, out: np.ndarray, bounds: Mapping[str, Sequence[float]]) -> dict:
-    """The three together. Where the line meets its floor (the kink speed k) the law is continuous, so
-    ``out = e0 vn - slope vn min(vn, k)`` is linear in (e0, slope) for each k, with ``e_min = e0 - slope k``:
-    bounded linear least squares for k on a grid over the measured speeds (and no kink), then a bounded
-    scalar search for k between the best grid point's neighbours."""
-    from scipy.optimize import lsq_linear, minimize_scalar
+def _fit_all(vn: np.ndarray, out: np.ndarray, bounds: Mapping[str, Sequence[float]]) -> dict:
+    """All four. For a knee speed k and a speed f >= k where the line meets its floor the law is continuous,
+    so ``out = e0 vn - slope vn clip(vn - k, 0, f - k)`` is linear in (e0, slope), with
+    ``e_min = e0 - slope (f - k)``: bounded linear least squares for (k, f) on a grid over the measured
+    speeds (and f infinite: no floor), then a bounded simplex from the best grid point."""
+    from scipy.optimize import lsq_linear, minimize
 
     names = ("restitution", "restitution_slope")
     low, high = [bounds[n][0] for n in names], [bounds[n][1] for n in names]
+    knee_low, knee_high = bounds["restitution_knee"]
 
-    def fit_at(kink: float) -> tuple[float, dict | None]:
-        design = np.column_stack([vn, -vn * np.minimum(vn, kink)])
+    def fit_at(knee: float, floor_speed: float) -> tuple[float, dict | None]:
+        if not (knee_low <= knee <= knee_high and floor_speed >= knee):
+            return math.inf, None
+        design = np.column_stack([vn, -vn * np.clip(vn - knee, 0.0, floor_speed - knee)])
         e0, slope = map(float, lsq_linear(design, out, bounds=(low, high), method="bvls").x)
-        floor = e0 - slope * kink if math.isfinite(kink) else 0.0
+        floor = e0 - slope * (floor_speed - knee) if math.isfinite(floor_speed) else 0.0
         if not bounds["restitution_min"][0] <= floor <= min(e0, bounds["restitution_min"][1]):
             return math.inf, None
-        values = {"restitution": e0, "restitution_slope": slope, "restitution_min": floor}
+        values = {"restitution": e0, "restitution_slope": slope, "restitution_min": floor, "restitution_knee": knee}
         return float(np.sum((out - vn * restitution_law(vn, values)) ** 2)), values
 
-    grid = np.unique(np.concatenate([vn, np.linspace(0.0, float(np.max(vn)), KINK_GRID)]))
-    costs = [fit_at(k)[0] for k in grid]
-    best = int(np.argmin(costs))
-    candidates = [fit_at(math.inf), fit_at(float(grid[best]))]
-    lo, hi = grid[max(0, best - 1)], grid[min(len(grid) - 1, best + 1)]
-    if hi > lo:
-        refined = minimize_scalar(lambda k: fit_at(k)[0], bounds=(lo, hi), method="bounded",
-                                  options={"xatol": 1e-6})
-        candidates.append(fit_at(float(refined.x)))
+    top = float(np.max(vn))
+    knees = np.linspace(knee_low, max(knee_low, min(knee_high, top)), KINK_GRID)
+    floors = [*np.linspace(0.0, top, KINK_GRID), math.inf]
+    grid = [(k, f) for k in knees for f in floors if f >= k]
+    costs = [fit_at(k, f)[0] for k, f in grid]
+    knee, floor_speed = grid[int(np.argmin(costs))]  # ties: the lowest knee, the lowest floor speed
+    candidates = [fit_at(knee, floor_speed)]
+    if math.isfinite(floor_speed):
+        step = top / (KINK_GRID - 1)
+        refined = minimize(lambda x: fit_at(float(x[0]), float(x[1]))[0], [knee, floor_speed],
+                           method="Nelder-Mead", options={"initial_simplex": [[knee, floor_speed],
+                                                                              [knee + step, floor_speed],
+                                                                              [knee, floor_speed + step]],
+                                                          "xatol": 1e-10, "fatol": 1e-24})
+        candidates.append(fit_at(float(refined.x[0]), float(refined.x[1])))
     cost, values = min(candidates, key=lambda c: c[0])
     if values is None:
         raise ValueError("no restitution law within the sysid bounds fits the impacts")
+    return _unseen_knee_at_zero(values, float(np.min(vn)), bounds)
+
+
+def _unseen_knee_at_zero(values: dict, slowest: float, bounds: Mapping[str, Sequence[float]]) -> dict:
+    """A knee below the slowest impact's normal speed [m/s] is not seen: the same line from a knee at the
+    lowest bound (if the line's start stays within its bounds)."""
+    knee = bounds["restitution_knee"][0]
+    start = values["restitution"] + values["restitution_slope"] * (values["restitution_knee"] - knee)
+    if values["restitution_knee"] < slowest and start <= bounds["restitution"][1]:
+        return {**values, "restitution": start, "restitution_knee": knee}
     return values
 
 
@@ -236,7 +256,7 @@ def fit_restitution(impacts: Sequence[ImpactObservation], fixed: Mapping[str, fl
         if any(n in fixed for n in RESTITUTION_NAMES):
             values = _fit_some(vn[keep], out[keep], fixed, bounds, start)
         else:
-            values = _fit_all_three(vn[keep], out[keep], bounds)
+            values = _fit_all(vn[keep], out[keep], bounds)
         residual = out - vn * restitution_law(vn, values)
         new_keep = _robust_keep(residual, factor)
         if np.array_equal(new_keep, keep) or new_keep.sum() < 3:

@@ -21,7 +21,8 @@ from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.table import TableGeometry
 
 FLIGHT = ("damping", "friction_surface", "table_acceleration")
-IMPACT = ("restitution", "restitution_slope", "restitution_min", "friction_rim", "tangential_restitution")
+IMPACT = ("restitution", "restitution_slope", "restitution_min", "restitution_knee", "friction_rim",
+          "tangential_restitution")
 SPLIT_IDENTIFIABLE = FLIGHT + IMPACT
 AXES = ("table_acceleration_x", "table_acceleration_y")
 

@@ -24,7 +24,8 @@ from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evalua
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 
 PHYSICAL = ("friction_surface", "damping", "restitution", "friction_rim")  # identified by default (thesis)
-IDENTIFIABLE = PHYSICAL + ("restitution_slope", "restitution_min", "tangential_restitution")  # HEBO's choices
+IDENTIFIABLE = PHYSICAL + ("restitution_slope", "restitution_min", "restitution_knee",
+                           "tangential_restitution")  # HEBO's choices
 LOSSES = ("position", "loglik")
 
 

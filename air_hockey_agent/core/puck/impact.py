@@ -17,10 +17,11 @@ Impact frame: ``b`` along the rim, ``n`` the inward normal (into the table), rig
 
 The mass cancels. The two branches agree on the switching boundary (tested).
 
-Real rims lose more at faster impacts (issue #13: another engine's restitution falls from 0.96 below
-0.5 m/s normal speed to 0.67 above 2 m/s). With ``slope`` > 0 the restitution is
-``e(vn) = max(e0 - slope |vn|, e_min)``: the thesis's constant e is ``slope = 0``; the floor ``e_min``
-is where the other engine's restitution levels off; the Jacobians include how e changes with vn.
+Real rims lose more at faster impacts (issue #13: another engine's restitution is about 0.96 below
+0.5 m/s normal speed and 0.67 above 2 m/s). With ``slope`` > 0 the restitution is
+``e(vn) = max(e0 - slope max(|vn| - knee, 0), e_min)``: constant ``e0`` up to the ``knee`` speed, then
+falling linearly to the floor ``e_min`` where it levels off. The thesis's constant e is ``slope = 0``;
+the Jacobians include how e changes with vn.
 """
 from __future__ import annotations
 
@@ -44,10 +45,12 @@ def is_sliding(vb: float, vn: float, omega: float, radius: float, restitution: f
     return (1.0 + tangential) * abs(slip) > 3.0 * friction * (1.0 + restitution) * abs(vn)
 
 
-def speed_restitution(restitution: float, slope: float, vn: float, floor: float = 0.0) -> tuple[float, float]:
-    """Restitution of an impact at normal velocity ``vn`` [m/s] (< 0), never below ``floor`` (nor above
-    ``restitution``: a floor above it makes e constant), and its derivative d e / d vn."""
-    e = restitution - slope * abs(vn)
+def speed_restitution(restitution: float, slope: float, vn: float, floor: float = 0.0,
+                      knee: float = 0.0) -> tuple[float, float]:
+    """Restitution of an impact at normal velocity ``vn`` [m/s] (< 0): ``restitution`` up to the normal
+    speed ``knee`` [m/s], then falling by ``slope`` [s/m], never below ``floor`` (nor above
+    ``restitution``: a floor above it makes e constant); and its derivative d e / d vn."""
+    e = restitution - slope * (abs(vn) - knee)
     if slope == 0.0 or e >= restitution:
         return restitution, 0.0
     if e <= floor:
@@ -56,12 +59,14 @@ def speed_restitution(restitution: float, slope: float, vn: float, floor: float 
 
 
 def rim_impact(vb: float, vn: float, omega: float, radius: float, restitution: float,
-               friction: float, slope: float = 0.0, floor: float = 0.0, tangential: float = 0.0) -> ImpactResult:
+               friction: float, slope: float = 0.0, floor: float = 0.0, tangential: float = 0.0,
+               knee: float = 0.0) -> ImpactResult:
     """Post-impact (vb, vn, omega) [m/s, m/s, rad/s] and the branch's Jacobian S_j (thesis sec. 4.2);
-    ``restitution`` falls by ``slope`` [s/m] per m/s of normal speed down to ``floor``, ``tangential`` is
-    the tangential restitution beta [-] of a sticking impact (module docstring)."""
+    ``restitution`` falls by ``slope`` [s/m] per m/s of normal speed beyond ``knee`` [m/s] down to
+    ``floor``, ``tangential`` is the tangential restitution beta [-] of a sticking impact (module
+    docstring)."""
     mu, r = friction, radius
-    e, de = speed_restitution(restitution, slope, vn, floor)
+    e, de = speed_restitution(restitution, slope, vn, floor, knee)
     dvn = -e - vn * de  # d vn' / d vn
     if is_sliding(vb, vn, omega, r, e, mu, tangential):
         s = 1.0 if vb + r * omega > 0.0 else -1.0

@@ -55,6 +55,7 @@ class PuckParams:
     friction_rim: float      # mu_rim [-]
     restitution_slope: float = 0.0  # [s/m] e falls by this per m/s of normal impact speed (0: the thesis's e)
     restitution_min: float = 0.0    # [-] ... but not below this (nor above restitution)
+    restitution_knee: float = 0.0   # [m/s] ... and only beyond this normal speed (below it e is restitution)
     table_acceleration: tuple[float, float] = (0.0, 0.0)  # g [m/s^2], table frame: tilt / air film (issue #13)
     tangential_restitution: float = 0.0  # beta [-] in [-1, 1] of a sticking rim impact (0: Routh's, the thesis's)
 
@@ -62,7 +63,8 @@ class PuckParams:
     def from_params(cls, params: Mapping[str, Any]) -> "PuckParams":
         return cls(params["friction_surface"], params["damping"], params["restitution"], params["friction_rim"],
                    params["restitution_slope"], params["restitution_min"],
-                   tuple(float(g) for g in params["table_acceleration"]), params["tangential_restitution"])
+                   params["restitution_knee"], tuple(float(g) for g in params["table_acceleration"]),
+                   params["tangential_restitution"])
 
     @property
     def accelerated(self) -> bool:
@@ -77,6 +79,7 @@ class PuckParams:
                   ("friction_rim", self.friction_rim >= 0.0, ">= 0"),
                   ("restitution_slope", self.restitution_slope >= 0.0, ">= 0"),
                   ("restitution_min", 0.0 <= self.restitution_min <= 1.0, "in [0, 1]"),
+                  ("restitution_knee", self.restitution_knee >= 0.0, ">= 0"),
                   ("tangential_restitution", -1.0 <= self.tangential_restitution <= 1.0, "in [-1, 1]"))
         for name, ok, rule in checks:
             value = getattr(self, name)
@@ -144,7 +147,7 @@ class PuckModel:
         vb, vn = bx * vx + by * vy, nx * vx + ny * vy
         p = self.params
         res = rim_impact(vb, vn, om, self.table.puck_radius, p.restitution, p.friction_rim, p.restitution_slope,
-                         p.restitution_min, p.tangential_restitution)
+                         p.restitution_min, p.tangential_restitution, p.restitution_knee)
         xc, yc = x + tau * vx, y + tau * vy
         new_z = [xc, yc, bx * res.vb + nx * res.vn, by * res.vb + ny * res.vn, th + tau * om, res.omega, h - tau]
         if jac is not None:
