@@ -210,9 +210,9 @@ def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     run = cli("sysid", bag, "--method", "split", "--out", out, "--plot", plots, "--json")
     assert run.returncode == 0, run.stderr[-3000:]
     report = json.loads(run.stdout)
-    assert sorted(Path(p).name for p in report["plots"]) == ["split_flight.png", "split_impacts.png"]
-    assert all((plots / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for name in ("split_flight.png",
-                                                                                   "split_impacts.png"))
+    names = ["split_flight.png", "split_impacts.png", "split_tangential.png"]
+    assert sorted(Path(p).name for p in report["plots"]) == names
+    assert all((plots / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for name in names)
     assert report["method"] == "split" and set(report["identified"]) == set(SPLIT_IDENTIFIABLE)
     assert report["objective"]["flight"]["windows"] > 0 and report["objective"]["impacts"]["impacts"] > 0
     assert report["after"]["validation"]["loss_m"] < report["before"]["validation"]["loss_m"]

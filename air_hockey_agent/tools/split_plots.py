@@ -3,7 +3,11 @@
 * ``split_flight.png``: each free-flight window's acceleration along its motion, with the table
   acceleration's share removed, against its speed, and the fitted flight law ``-d v - mu_s`` (eq. 3.1).
 * ``split_impacts.png``: each rim impact's restitution (outgoing over incoming normal speed) against the
-  incoming normal speed, and the fitted ``e(vn) = max(e - slope |vn|, e_min)``.
+  incoming normal speed, and the fitted ``e(vn) = max(e - slope max(|vn| - knee, 0), e_min)``.
+* ``split_tangential.png``: each rim impact's tangential impulse against the incoming slip of the contact
+  point ``c = vb + r omega``, both per unit normal impulse ``(1 + e) |vn|`` (the impact's measured e), so
+  the law is one curve for all impacts: ``(1 + beta) c / 3`` while sticking, capped at ``mu_rim``
+  (sliding; Routh's impact is beta = 0). The impulse is read from the change of the slip, ``-dc / 3``.
 """
 from __future__ import annotations
 
@@ -26,6 +30,7 @@ def write_split_plots(out: Path, result: SplitResult) -> list[Path]:
         written.append(_flight(out, result.flight))
     if result.impacts is not None and result.impacts.used:
         written.append(_impacts(out, result.impacts))
+        written.append(_tangential(out, result.impacts))
     return written
 
 
@@ -61,11 +66,31 @@ def _impacts(out: Path, impacts) -> Path:
     return _finish(fig, ax, out / "split_impacts.png")
 
 
-def _finish(fig, ax, path: Path) -> Path:
-    """Grid, legend and layout, then the PNG written atomically and the figure closed."""
+def _tangential(out: Path, impacts) -> Path:
+    import matplotlib.pyplot as plt
+    r = impacts.radius
+    before, after = np.array([o.before for o in impacts.used]), np.array([o.after for o in impacts.used])
+    normal = after[:, 1] - before[:, 1]  # (1 + e) |vn| [m/s]
+    slip_in, slip_out = before[:, 0] + r * before[:, 2], after[:, 0] + r * after[:, 2]
+    x, y = slip_in / normal, -(slip_out - slip_in) / 3.0 / normal
+    mu, beta = impacts.values["friction_rim"], impacts.values["tangential_restitution"]
+    top = float(np.max(np.abs(x)))
+    grid = np.linspace(-top, top, 401)
+    fig, ax = plt.subplots(figsize=(7, 4.5))
+    ax.plot(x, y, ".", ms=4, alpha=0.6, label=f"{len(x)} rim impacts")
+    ax.plot(grid, np.sign(grid) * np.minimum((1.0 + beta) * np.abs(grid) / 3.0, mu), "k-",
+            label=f"fit: tangential restitution {beta:.3g}, rim friction {mu:.3g}")
+    ax.plot(grid, np.sign(grid) * np.minimum(np.abs(grid) / 3.0, mu), "k:", lw=1, label="Routh's impact (beta 0), same friction")
+    ax.set(xlabel="incoming slip / normal impulse, c / ((1 + e) |vn|) [-]",
+           ylabel="tangential impulse / normal impulse [-]", title="Rim tangential impulse (split identification)")
+    return _finish(fig, ax, out / "split_tangential.png", legend="lower right")
+
+
+def _finish(fig, ax, path: Path, legend: str = "best") -> Path:
+    """Grid, legend (at ``legend``) and layout, then the PNG written atomically and the figure closed."""
     import matplotlib.pyplot as plt
     ax.grid(alpha=0.3)
-    ax.legend()
+    ax.legend(loc=legend)
     fig.tight_layout()
     _save(fig, path)
     plt.close(fig)

@@ -65,7 +65,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="--method split: then a Nelder-Mead polish of the scalar parameters on the "
                              "prediction loss at --horizon, this many evaluations (default 0: none)")
     parser.add_argument("--plot", type=Path, metavar="DIR",
-                        help="--method split: write split_flight.png and split_impacts.png (the fits) to DIR")
+                        help="--method split: write split_flight.png, split_impacts.png and split_tangential.png "
+                             "(the fits) to DIR")
     parser.add_argument("--out", type=Path, help="write the identified parameters to this parameter YAML")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)

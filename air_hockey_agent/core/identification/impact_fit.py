@@ -76,6 +76,7 @@ class ImpactFit:
     dropped: int           # impacts dropped (poor fit or outlier)
     rms_normal: float      # [m/s] residual RMS of the outgoing normal speed (the restitution fit's objective)
     rms_tangential: float  # [m/s] residual RMS of vb and r omega (the tangential fit's objective)
+    radius: float          # [m] the puck's, with which the impacts were fitted
     used: list = field(default_factory=list)  # the impacts (ImpactObservation) of the final fits, for plots
 
 
@@ -363,4 +364,4 @@ def fit_impacts(impacts: Sequence[ImpactObservation], radius: float, fixed: Mapp
             values.update(fit_tangential(kept, radius, values, fixed, bounds, start))
     residuals = tangential_residuals(kept, radius, values, *(values[n] for n in TANGENTIAL_NAMES))
     rms_t = float(math.sqrt(np.mean(residuals ** 2)))
-    return ImpactFit(values, len(kept), len(impacts) - len(kept), rms_normal, rms_t, kept)
+    return ImpactFit(values, len(kept), len(impacts) - len(kept), rms_normal, rms_t, radius, kept)
