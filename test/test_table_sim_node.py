@@ -86,9 +86,15 @@ def test_joint_trajectory_is_executed_and_bad_ones_are_refused(sim, rclpy_node):
     assert reset is not None and reset.success
     home = np.array(load_sim_params()["home_joint_positions"])
     assert spin_until(rclpy_node, lambda: np.abs(np.array(states[-1].position[:7]) - home).max() < 2e-3, 30.0)
+    late = JointTrajectory(joint_names=good.joint_names, points=good.points)  # its point is at 0.5 s, now passed
+    late.header.stamp.nanosec = 1  # (a zero stamp means now)
+    pub.publish(late)
+    assert spin_until(rclpy_node, lambda: any("first point is" in line and "in the past" in line
+                                              for line in sim.processes["table_sim"].lines), 30.0)
     assert sim.processes["table_sim"].returncode is None
     assert any("trajectory ignored: joint_names must be the 7 arm joints" in line
                for line in sim.processes["table_sim"].lines)
+    assert sum("in the past" in line for line in sim.processes["table_sim"].lines) == 1  # only the late one
 
 
 def test_record_writes_a_bag_that_eval_prediction_reads(sim, ros_env, tmp_path):

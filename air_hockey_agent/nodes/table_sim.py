@@ -73,6 +73,7 @@ class TableSimNode(AirHockeyNode):
             self.create_subscription(Clock, topic, lambda msg, t=topic: self.on_agent_clock(t, msg), 10)
         self.create_service(SetPuckState, "set_puck_state", self.on_set_puck_state)
         self.create_service(Trigger, "reset_robots", self.on_reset_robots)
+        self.steps_per_round = max(1, round(p["callback_period"] / self.world.dt))  # physics steps between callbacks
         self.started = time.monotonic()
         self.get_logger().info(f"table simulation: physics {p['physics_rate']:.0f} Hz, real-time factor "
                                f"{p['real_time_factor']:g} (0 = as fast as possible), gui {p['gui']}")
@@ -80,7 +81,6 @@ class TableSimNode(AirHockeyNode):
     # --- main loop ----------------------------------------------------------------------------
     def spin(self) -> None:
         executor = self.executor_
-        steps_per_round = max(1, round(self.params["callback_period"] / self.world.dt))
         wall0, sim0 = time.monotonic(), self.world.time
         report = Every(1.0 / self.params["status_period"])
         while rclpy.ok(context=self.context):
@@ -89,7 +89,7 @@ class TableSimNode(AirHockeyNode):
                 if self.waiting_for_agents():
                     executor.spin_once(timeout_sec=0.001)
                     continue
-                for _ in range(steps_per_round):
+                for _ in range(self.steps_per_round):
                     self.publish(self.runner.step())
             except (RCLError, RuntimeError, ExternalShutdownException):
                 if rclpy.ok(context=self.context):
@@ -175,8 +175,18 @@ class TableSimNode(AirHockeyNode):
                 [list(pt.velocities) for pt in msg.points] if has_velocities else None,
                 q, dq)
             self.world.follow(robot, traj)
+            self.warn_if_late(topic, start + times[0])
         except ValueError as exc:  # TrajectoryError included
             self.get_logger().error(f"{topic}: trajectory ignored: {exc}")
+
+    def warn_if_late(self, topic: str, first_point: float) -> None:
+        """Warn when a trajectory's first point [s, sim time] passed more than one callback round before it
+        was served: the arm skips that part of the motion (an agent fell behind; lockstep prevents it)."""
+        late_steps = round((self.world.time - first_point) / self.world.dt)
+        if late_steps > self.steps_per_round:
+            self.get_logger().warn(f"{topic}: the trajectory's first point is {late_steps * self.world.dt * 1000:.0f} "
+                                   "ms in the past (an agent fell behind the simulation); the arm skips ahead",
+                                   throttle_duration_sec=1.0)
 
     def on_set_puck_state(self, request, response):
         state = [request.x, request.y, request.vx, request.vy, request.theta, request.omega]
