@@ -4,10 +4,11 @@ Subscribes ``hit_command`` (air_hockey_msgs/HitCommand, the robot's own table fr
 opponent) and ``joint_states``; publishes ``joint_trajectory`` (trajectory_msgs/JointTrajectory with a
 start stamp, the seven arm joints with positions and velocities) and ``trajectory_status``
 (air_hockey_msgs/TrajectoryStatus: accepted, or refused and why, with the planned hit time and speed).
-A hit velocity of zero asks to reach the point and stop there by the hit time. A new command replaces
-the running motion from its planned state ``planning_delay`` ahead, so the arm never jumps. A refused
-command moves nothing. When the measured joints leave the running plan by more than
-``max_tracking_error`` (the arm was reset), the next motion starts from the measured state. Publishes its
+A hit velocity of zero asks to reach the point and stop there by the hit time. Every motion starts
+``planning_delay`` after now: from the running motion's planned state then, or from rest, so its first
+point is still ahead when the controller gets it and the arm never jumps. A refused command moves
+nothing. When the measured joints leave the running plan by more than ``max_tracking_error`` (the arm
+was reset), the next motion starts from the measured state. Publishes its
 clock on ``~/sim_sync`` with every joint state (``table_sim`` waits for it when it runs as fast as
 possible). The planning lives in :mod:`air_hockey_agent.core.motion.planner`; run with
 ``use_sim_time`` under the simulation.
@@ -81,15 +82,15 @@ class TrajectoryGeneratorNode(AirHockeyNode):
             self.running = None
 
     def start_state(self, now: float) -> ArmState | None:
-        """Where the new motion starts: the running plan's state ``planning_delay`` ahead, or the measured
-        state when nothing runs."""
+        """Where the new motion starts, ``planning_delay`` ahead of now (so its first point is still ahead
+        when the controller gets it): the running plan's state then, or the measured one at rest."""
+        t = now + self.params["planning_delay"]
         if self.running is not None and now < self.running.start + self.running.duration:
-            t = now + self.params["planning_delay"]
             q, dq = self.running.sample(t)
             return ArmState(t, q, dq)
         if self.measured is None:
             return None
-        return ArmState(now, self.measured.q, np.zeros(7))
+        return ArmState(t, self.measured.q, np.zeros(7))
 
     def on_command(self, msg: HitCommand) -> None:
         wall = time.perf_counter()
