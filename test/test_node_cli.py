@@ -68,6 +68,7 @@ def test_strategy_test_small_run_reports_real_hits(ros_env, tmp_path):
     trials = [json.loads(line) for line in lines_file.read_text().splitlines()]
     assert len(trials) == 4
     assert all(t["hit"] for t in trials if t["success"])
+    assert all(t["tactic"].startswith(("smash: ", "repel: ")) for t in trials)  # the forced tactic and why
     assert sum(t["hit"] for t in trials) >= 2  # the robot played, not only the clock
     leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|strategy_test|tactics|puck_tracker|trajectory_generator)"])
     assert leftovers.stdout.strip() == ""

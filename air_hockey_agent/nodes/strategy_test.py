@@ -6,7 +6,8 @@ lets the robot wait at its ready point for ``settle`` (Ready forced, as in a gam
 tactic through ``/iiwa_front/force_tactic`` (the agent's only test hook), sets the puck
 through ``/set_puck_state`` and follows ``/sim/puck_true_state`` and ``/sim/contacts`` until the trial
 ends (:class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher`). Each result is printed as
-one line ``TRIAL_RESULT {json}``; at the end ``STRATEGY_DONE`` and the node exits. It publishes a
+one line ``TRIAL_RESULT {json}``, with the tested robot's tactic and its reason when the trial ended
+(``<robot>/tactic``); at the end ``STRATEGY_DONE`` and the node exits. It publishes a
 running ``/game_status`` (latched) so the tactics play; the opponent runs no agent and holds its home pose.
 
 The node runs on events, not on a clock: its simulated time is the stamp of the latest true puck state
@@ -24,7 +25,7 @@ import rclpy
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from std_srvs.srv import Trigger
 
-from air_hockey_msgs.msg import GameStatus, MalletContact, PuckState
+from air_hockey_msgs.msg import GameStatus, MalletContact, PuckState, TacticState
 from air_hockey_msgs.srv import ForceTactic, SetPuckState
 from air_hockey_agent.core.game.strategy.scoring import TrialResult, TrialWatcher
 from air_hockey_agent.core.game.strategy.trials import TrialSettings, make_trial
@@ -73,6 +74,8 @@ class StrategyTestNode(AirHockeyNode):
         self.force_client = self.create_client(ForceTactic, f"/{ROBOT}/force_tactic")
         self.create_subscription(PuckState, "/sim/puck_true_state", self.on_truth, 100)
         self.create_subscription(MalletContact, "/sim/contacts", self.on_contact, 100)
+        self.create_subscription(TacticState, f"/{ROBOT}/tactic", self.on_tactic, latched)
+        self.tactic = ""  # the tested robot's latest tactic and why ("smash: forced: waiting until it applies")
         self.watcher: TrialWatcher | None = None
         self.phase, self.pending, self.phase_start, self.wall_start = "next", None, 0.0, time.monotonic()
         self.sim_time = 0.0  # [s] stamp of the latest true puck state: the simulation's clock
@@ -84,6 +87,9 @@ class StrategyTestNode(AirHockeyNode):
         if self.watcher is not None and self.phase == "run":
             self.watcher.state(self.sim_time, msg.x, msg.y, msg.vx, msg.vy)
         self.advance()
+
+    def on_tactic(self, msg: TacticState) -> None:
+        self.tactic = f"{msg.name}: {msg.reason}"
 
     def on_contact(self, msg: MalletContact) -> None:
         if self.watcher is not None and self.phase == "run" and msg.robot == ROBOT:
@@ -147,6 +153,7 @@ class StrategyTestNode(AirHockeyNode):
             result = TrialResult(self.trial.strategy, self.trial.index, reason=failure)
         record = result.as_dict()
         record["error"] = failure is not None
+        record["tactic"] = self.tactic  # what the agent was doing when the trial ended (why no hit, say)
         print("TRIAL_RESULT " + json.dumps(record), flush=True)
         self.watcher, self.phase = None, "release"
         self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS["ready"]))

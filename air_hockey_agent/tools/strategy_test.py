@@ -151,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
         results[(strategy, index)] = {"strategy": strategy, "index": index, "success": False, "partial": False,
                                       "hit": False, "goal": False, "conceded": False, "offset": None,
                                       "defend_speed": None, "rest": None, "error": True,
-                                      "reason": "not finished twice (worker failed)", "duration": 0.0}
+                                      "reason": "not finished twice (worker failed)", "duration": 0.0, "tactic": ""}
     seconds = time.monotonic() - start
     summary = summarise(results[t] for t in trials)
     if args.results is not None:
