@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from air_hockey_agent.core.game.strategy.report import summarise
-from air_hockey_agent.core.game.strategy.scoring import TrialWatcher
+from air_hockey_agent.core.game.strategy.scoring import TrialResult, TrialWatcher
 from air_hockey_agent.core.game.strategy.trials import STRATEGIES, TrialSettings, make_trial
 from air_hockey_agent.strategy_params import load_strategy_params
 
@@ -152,3 +152,13 @@ def test_a_slow_slide_is_decided_once_its_remaining_travel_cannot_change_the_out
     undecided.contact(0.0, 0.01)
     undecided.state(0.5, inside_x, 0.0, 0.06, 0.0)
     assert not undecided.done
+
+
+def test_a_trial_record_is_the_result_with_error_and_tactic():
+    """The --results line of a trial (the node's and a failed worker's): every result field as it is,
+    then whether it ended on an error and the tested robot's tactic with its reason."""
+    result = TrialResult("smash_left", 3, hit=True, reason="timeout after 5 s without a hit", duration=5.0)
+    record = result.record(error=False, tactic="smash: smash forced: waiting until it applies")
+    assert record == {**result.as_dict(), "error": False, "tactic": "smash: smash forced: waiting until it applies"}
+    failed = TrialResult("cut", 7, reason="not finished twice (worker failed)").record(error=True, tactic="")
+    assert failed["error"] and failed["tactic"] == "" and not failed["success"] and failed["rest"] is None

@@ -75,7 +75,7 @@ class StrategyTestNode(AirHockeyNode):
         self.create_subscription(PuckState, "/sim/puck_true_state", self.on_truth, 100)
         self.create_subscription(MalletContact, "/sim/contacts", self.on_contact, 100)
         self.create_subscription(TacticState, f"/{ROBOT}/tactic", self.on_tactic, latched)
-        self.tactic = ""  # the tested robot's latest tactic and why ("smash: forced: waiting until it applies")
+        self.tactic = ""  # the tested robot's latest tactic and why ("smash: smash forced: waiting until it applies")
         self.watcher: TrialWatcher | None = None
         self.phase, self.pending, self.phase_start, self.wall_start = "next", None, 0.0, time.monotonic()
         self.sim_time = 0.0  # [s] stamp of the latest true puck state: the simulation's clock
@@ -151,9 +151,7 @@ class StrategyTestNode(AirHockeyNode):
             result = self.watcher.result()
         else:
             result = TrialResult(self.trial.strategy, self.trial.index, reason=failure)
-        record = result.as_dict()
-        record["error"] = failure is not None
-        record["tactic"] = self.tactic  # what the agent was doing when the trial ended (why no hit, say)
+        record = result.record(failure is not None, self.tactic)  # the tactic says why no hit, say
         print("TRIAL_RESULT " + json.dumps(record), flush=True)
         self.watcher, self.phase = None, "release"
         self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS["ready"]))

@@ -21,6 +21,7 @@ import time
 from pathlib import Path
 
 from air_hockey_agent.core.game.strategy.report import summarise, table
+from air_hockey_agent.core.game.strategy.scoring import TrialResult
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.game import PER_ROBOT_NODES, prepare_speed_map, robot_node
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
@@ -148,10 +149,8 @@ def run(args: argparse.Namespace) -> int:
         if log is not None:
             log.close()
     for strategy, index in (t for t in trials if t not in results):
-        results[(strategy, index)] = {"strategy": strategy, "index": index, "success": False, "partial": False,
-                                      "hit": False, "goal": False, "conceded": False, "offset": None,
-                                      "defend_speed": None, "rest": None, "error": True,
-                                      "reason": "not finished twice (worker failed)", "duration": 0.0, "tactic": ""}
+        results[(strategy, index)] = TrialResult(strategy, index, reason="not finished twice (worker failed)").record(
+            error=True, tactic="")
     seconds = time.monotonic() - start
     summary = summarise(results[t] for t in trials)
     if args.results is not None:

@@ -39,6 +39,11 @@ class TrialResult:
     def as_dict(self) -> dict:
         return asdict(self)
 
+    def record(self, error: bool, tactic: str) -> dict:
+        """The trial's line of ``strategy-test --results``: these fields, whether it ended on an error
+        (no outcome), and the tested robot's tactic and its reason when it ended."""
+        return {**self.as_dict(), "error": error, "tactic": tactic}
+
 
 @dataclass
 class TrialWatcher:
