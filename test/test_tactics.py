@@ -177,6 +177,26 @@ def test_static_puck_in_the_smash_area_is_smashed_at_the_goal(selector, model, s
     np.testing.assert_allclose(c.point + direction * settings.contact_distance, [-0.5, 0.1], atol=1e-6)
 
 
+@pytest.mark.parametrize("puck", [(-0.25, 0.0), (-0.24, -0.2)])
+def test_a_static_puck_beyond_the_smash_area_is_smashed_from_where_it_lies(selector, model, settings, puck):
+    """Between the smash area's far edge and the centre line the arm can only push the puck forward, so it
+    is shot at the goal from there (a Prepare pushed it toward the line, out of reach); by the stepwise
+    model the shot enters the opponent's goal. Moving, it is not smashed there."""
+    assert not settings.in_smash_area(*puck) and settings.beyond_smash_area(puck[0])
+    d = selector.step(0.0, RUNNING, situation(model, [*puck, 0, 0, 0, 0]))
+    assert d.tactic == SMASH and d.command is not None, d.reason
+    v = d.command.velocity
+    n = v / np.linalg.norm(v)
+    np.testing.assert_allclose(d.command.point + n * settings.contact_distance, puck, atol=1e-6)
+    vp = puck_after_hit(np.zeros(2), v, n, settings.mallet_restitution)
+    line = settings.table.length / 2 - settings.table.puck_radius
+    pred = predict_stepwise(model, np.array([*puck, *vp, 0.0, 0.0]), np.eye(6), 3.0, DT, np.zeros((6, 6)),
+                            lines=(line,))
+    assert line in pred.crossings and abs(pred.crossings[line].y) < settings.table.goal_mouth
+    moving = selector.step(1.0, RUNNING, situation(model, [*puck, 0.2, 0.0, 0, 0], t0=1.0))
+    assert moving.tactic != SMASH
+
+
 @pytest.mark.parametrize("puck", [(-0.76, 0.25), (-0.5, -0.45), (-0.82, 0.0)])
 def test_a_static_puck_outside_the_smash_area_is_pushed_to_stop_inside_it(selector, model, settings, puck):
     """In front of the goal, against a long rim, and behind the region's back edge: the pushed puck,

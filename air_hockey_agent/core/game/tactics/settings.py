@@ -91,3 +91,7 @@ class TacticsSettings:
         depth = x + self.table.length / 2
         return (self.smash_depth[0] <= depth <= self.smash_depth[1]
                 and abs(y) <= self.table.y_limit - self.smash_rim_margin)
+
+    def beyond_smash_area(self, x: float) -> bool:
+        """Own-frame ``x`` [m] lies between the smash area's far edge and the centre line."""
+        return self.smash_depth[1] < x + self.table.length / 2 and x < 0.0

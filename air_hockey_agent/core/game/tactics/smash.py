@@ -5,6 +5,13 @@ Beyond the thesis and S (REFERENCE_FACTS 2.2: a variant drawn at random, banks a
 law, a static puck only): the puck is taken where the tracker predicts it at the hit time, each variant
 is aimed with the puck model and the fastest speed the arm allows along its direction
 (:class:`~air_hockey_agent.core.game.shots.ShotPredictor`), and the most likely goal is played.
+
+A puck at rest beyond the smash area's far edge (between it and the centre line) is shot from where it
+lies. The arm's reach ends there (0.7 m deep at y = 0, ``config/motion.yaml`` max_reach), so it can
+mostly push such a puck only forward: of the strategy test's 29 Prepare positions there (seed 0), 5 had
+a push that stops in the area, and the others were pushed toward the line, out of reach, until the
+referee's possession limit gave the puck away. Where no shot reaches the goal line (no room ahead of
+the hit point), Smash does not apply and Prepare does what it can.
 """
 from __future__ import annotations
 
@@ -33,7 +40,10 @@ class Smash(Tactic):
             return None
         t_hit = ctx.now + st.smash_lead_time + ctx.lead_extra
         puck = situation.expected(t_hit, st.static_speed)
-        if not st.in_smash_area(puck[0], puck[1]) or math.hypot(puck[2], puck[3]) > st.smash_puck_speed:
+        speed = math.hypot(puck[2], puck[3])
+        if speed > st.smash_puck_speed:
+            return None
+        if not (st.in_smash_area(puck[0], puck[1]) or (speed <= st.static_speed and st.beyond_smash_area(puck[0]))):
             return None
         shot = ctx.shots.pick([s for s in self._shots(puck, ctx) if approach_clear(puck, s.hit_point, s.mallet_speed * s.direction, ctx)])
         if shot is None:
