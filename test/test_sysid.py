@@ -78,7 +78,7 @@ def test_cli_writes_params_that_eval_prediction_accepts(tmp_path):
     (bags / "junk").mkdir()
     (bags / "junk" / "metadata.yaml").write_text("not: a bag\n")
     out = tmp_path / "identified.yaml"
-    run = subprocess.run([str(EXE), "sysid", str(bags), "--iterations", "3", "--batch", "2", "--out", str(out),
+    run = subprocess.run([str(EXE), "sysid", str(bags), "--method", "hebo", "--iterations", "3", "--batch", "2", "--out", str(out),
                           "--json"], capture_output=True, text=True, timeout=600)
     assert run.returncode == 2  # the junk bag is reported ...
     assert "junk: cannot read" in run.stderr
@@ -185,7 +185,7 @@ def test_cross_validation_table(tmp_path):
     assert cli("synth-bag", tmp_path / "a", "--shots", 4).returncode == 0
     fast = tmp_path / "fast.yaml"
     fast.write_text("/**:\n  ros__parameters:\n    polish_evaluations: 0\n    random_samples: 1\n")
-    run = cli("sysid", tmp_path / "a", "--iterations", 1, "--batch", 1, "--cross-validate", "--params-file", fast,
+    run = cli("sysid", tmp_path / "a", "--method", "hebo", "--iterations", 1, "--batch", 1, "--cross-validate", "--params-file", fast,
               "--json", timeout=600)
     assert run.returncode == 0, run.stderr
     report = json.loads(run.stdout)
@@ -222,7 +222,7 @@ def test_identify_chooses_the_parameters_and_the_yaml_holds_only_those(tmp_path)
     made = cli("synth-bag", bag, "--source", "testbed", "--shots", "4", "--seed", "2")
     assert made.returncode == 0, made.stderr
     out = tmp_path / "identified.yaml"
-    run = cli("sysid", bag, "--identify", "damping", "restitution_slope", "--iterations", "2", "--batch", "2",
+    run = cli("sysid", bag, "--method", "hebo", "--identify", "damping", "restitution_slope", "--iterations", "2", "--batch", "2",
                "--out", out, "--json", timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
     report = json.loads(run.stdout)

@@ -99,6 +99,8 @@ def rest_bag(path):
     (lambda d: ["sysid", d, "--batch", "0"], ["--batch"]),
     (lambda d: ["sysid", d, "--iterations", "0"], ["--iterations"]),
     (lambda d: ["sysid", d, "--split", "1.5"], ["--split", "< 1"]),
+    (lambda d: ["sysid", d, "--iterations", "3"], ["--iterations", "only with --method hebo"]),
+    (lambda d: ["sysid", d, "--loss", "loglik"], ["--loss", "only with --method hebo"]),
     (lambda d: ["noise-estimate", d, "--horizon", "-1"], ["--horizon", "> 0"]),
     (lambda d: ["record", d / "rec", "--duration", "-5"], ["--duration", ">= 0"]),
     (lambda d: ["strategy-test", "--workers", "0"], ["--workers"]),

@@ -1,19 +1,21 @@
 """``air-hockey sysid BAG_DIR...``: identify the puck model's physical parameters from recordings.
 
-Bags (or directories holding bags) are preprocessed into trajectories (thesis sec. 4.5.1), split into
-training and validation sets by trajectory, and HEBO (thesis sec. 3.3, 4.3) minimises the prediction
-loss at ``--horizon`` on the training set over the table 4.1 bounds (``config/sysid.yaml``), starting
-from the tracker's current parameters and finishing with a local polish. Printed: the loss before and
-after on both sets (thesis table 5.2/5.3 columns: loss, min, median); with ``--cross-validate`` the
-identification is repeated at 0.5, 1.0 and 1.5 s and each result validated at every horizon (table
-5.4). ``--out`` writes the winning parameters as a parameter YAML that ``puck_tracker --ros-args
---params-file`` and ``air-hockey eval-prediction --params-file`` accept.
+Bags (or directories holding bags) are preprocessed into trajectories (thesis sec. 4.5.1) and split
+into training and validation sets by trajectory. Printed: the prediction loss at ``--horizon`` before
+and after on both sets (thesis table 5.2/5.3 columns: loss, min, median) and the objective that was
+minimised. ``--out`` writes the identified parameters as a parameter YAML that ``puck_tracker
+--ros-args --params-file`` and ``air-hockey eval-prediction --params-file`` accept.
 
-``--method split`` (issue #13) fits each part of the model where it alone acts, without the filter and
-in about a second: damping, surface friction and the table acceleration by least squares on local
-fits of the free flight, then restitution (and its fall with speed) and rim friction on the velocities
-before and after each rim impact (core/identification/split.py). The loss before and after is reported
-the same way; the objectives printed are the fits' own.
+``--method split`` (the default, issue #13) fits each part of the model where it alone acts, without
+the filter and in about a second: damping, surface friction and the table acceleration by least
+squares on local fits of the free flight, then the restitution law and the rim's tangential law on the
+velocities before and after each rim impact (core/identification/split.py); its objectives are the
+fits' own.
+
+``--method hebo`` is the thesis's identification (sec. 3.3, 4.3): HEBO minimises the prediction loss
+at ``--horizon`` on the training set over the table 4.1 bounds (``config/sysid.yaml``), starting from
+the tracker's current parameters and finishing with a local polish; with ``--cross-validate`` it is
+repeated at 0.5, 1.0 and 1.5 s and each result validated at every horizon (table 5.4).
 """
 from __future__ import annotations
 
@@ -41,19 +43,21 @@ from air_hockey_agent.tools.argtypes import count, number
 PROG = "air-hockey sysid"
 HORIZONS = (0.5, 1.0, 1.5)
 METHODS = ("hebo", "split")
+HEBO_DEFAULTS = {"loss": "position", "iterations": 50, "batch": 5}  # the thesis's runs (sec. 4.3: 50 iterations of 5 suggestions)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("sysid", help="identify the puck model's physical parameters (HEBO)",
+    parser = subparsers.add_parser("sysid", help="identify the puck model's physical parameters (split fits; HEBO)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     add_recording_arguments(parser)
-    parser.add_argument("--method", choices=METHODS, default="hebo",
-                        help="hebo: the thesis's search on the filter's prediction loss (default); split: least "
-                             "squares on free flight and on rim impacts, no filter (seconds)")
-    parser.add_argument("--loss", choices=LOSSES, default="position", help="hebo's objective (thesis sec. 4.3.1)")
+    parser.add_argument("--method", choices=METHODS, default="split",
+                        help="split: least squares on free flight and on rim impacts, no filter, seconds "
+                             "(default); hebo: the thesis's search on the filter's prediction loss (minutes)")
+    parser.add_argument("--loss", choices=LOSSES, help="--method hebo: its objective (thesis sec. 4.3.1; default "
+                        "position)")
     parser.add_argument("--horizon", type=float, choices=HORIZONS, default=1.0, help="prediction horizon [s]")
-    parser.add_argument("--iterations", type=count(1), default=50, help="HEBO iterations (default 50)")
-    parser.add_argument("--batch", type=count(1), default=5, help="suggestions per iteration (default 5)")
+    parser.add_argument("--iterations", type=count(1), help=f"--method hebo: iterations (default {HEBO_DEFAULTS['iterations']})")
+    parser.add_argument("--batch", type=count(1), help=f"--method hebo: suggestions per iteration (default {HEBO_DEFAULTS['batch']})")
     parser.add_argument("--split", type=number(0.0, 1.0, low_open=True, high_open=True), default=0.9, help="training fraction of the trajectories")
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
@@ -123,8 +127,14 @@ def _chosen_names(args: argparse.Namespace) -> tuple[list[str], str]:
 
 def run(args: argparse.Namespace) -> int:
     names, problem = _chosen_names(args)
+    hebo_only = [f"--{n}" for n in HEBO_DEFAULTS if getattr(args, n) is not None]
+    if not problem and args.method == "split" and hebo_only:
+        problem = f"{hebo_only[0]}: only with --method hebo (the default method, split, fits without a search)"
     if not problem and args.method == "split" and args.cross_validate:
         problem = "--cross-validate: only with --method hebo (split does not learn at a horizon)"
+    for name, value in HEBO_DEFAULTS.items():
+        if getattr(args, name) is None:
+            setattr(args, name, value)
     if not problem and args.method == "hebo" and args.polish:
         problem = "--polish: only with --method split (hebo polishes by itself: polish_evaluations in config/sysid.yaml)"
     if not problem and args.plot is not None and args.method != "split":
@@ -301,7 +311,7 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
         result["cross_validation"] = {
             str(v): {str(h): loss_report({**tracker, **r.best}, validation, v).as_dict() for h, r in runs.items()}
             for v in HORIZONS}
-    result["summary_line"] = (f"identified by `air-hockey sysid` ({args.loss} loss, horizon {args.horizon} s, "
+    result["summary_line"] = (f"identified by `air-hockey sysid --method hebo` ({args.loss} loss, horizon {args.horizon} s, "
                               f"{len(train)} training trajectories) on "
                               f"{datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}")
     return result
