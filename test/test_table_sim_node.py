@@ -86,15 +86,18 @@ def test_joint_trajectory_is_executed_and_bad_ones_are_refused(sim, rclpy_node):
     assert reset is not None and reset.success
     home = np.array(load_sim_params()["home_joint_positions"])
     assert spin_until(rclpy_node, lambda: np.abs(np.array(states[-1].position[:7]) - home).max() < 2e-3, 30.0)
+    lines = sim.processes["table_sim"].lines
+    assert not any("in the past" in line for line in lines)  # the trajectories so far were served in time
     late = JointTrajectory(joint_names=good.joint_names, points=good.points)  # its point is at 0.5 s, now passed
     late.header.stamp.nanosec = 1  # (a zero stamp means now)
-    pub.publish(late)
-    assert spin_until(rclpy_node, lambda: any("first point is" in line and "in the past" in line
-                                              for line in sim.processes["table_sim"].lines), 30.0)
+    for _ in range(3):  # (once, in CI under load, no warning came within 30 s of a single message)
+        pub.publish(late)
+        if spin_until(rclpy_node, lambda: any("first point is" in line and "in the past" in line for line in lines),
+                      10.0):
+            break
+    assert any("first point is" in line and "in the past" in line for line in lines)
     assert sim.processes["table_sim"].returncode is None
-    assert any("trajectory ignored: joint_names must be the 7 arm joints" in line
-               for line in sim.processes["table_sim"].lines)
-    assert sum("in the past" in line for line in sim.processes["table_sim"].lines) == 1  # only the late one
+    assert any("trajectory ignored: joint_names must be the 7 arm joints" in line for line in lines)
 
 
 def test_record_writes_a_bag_that_eval_prediction_reads(sim, ros_env, tmp_path):
