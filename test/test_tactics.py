@@ -41,9 +41,9 @@ def flat_reach(settings) -> ArmReach:
     t = settings.table
     region = Region.for_table(t.length, t.width, settings.mallet_radius, 0.02, BASE, 1.30)
     xs, ys, angles = np.linspace(-1.0, 0.0, 5), np.linspace(-0.6, 0.6, 5), np.linspace(-math.pi, math.pi, 5)
-    # run-up 0.06-0.30 m, at most 0.4 s; follow-through 0.06-0.30 m (config/motion.yaml)
+    # run-up 0.06-0.30 m, at most 0.4 s; follow-through 0.06-0.30 m; planning delay 0.03 s (config/motion.yaml)
     return ArmReach(region, 0.06, 0.30, 0.4, 0.06, 0.30, 5.0, 0.26, 1.25,
-                    SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)))
+                    SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)), 0.03, DT)
 
 
 @pytest.fixture
@@ -116,6 +116,31 @@ def test_speed_map_agrees_with_the_planners_search():
         assert looked_up == pytest.approx(exact, rel=0.2)
         checked += 1
     assert checked >= 10
+
+
+def test_a_reach_timed_with_the_mallets_velocity_is_one_the_planner_accepts(settings):
+    """Right after a hit the follow-through still carries the mallet away: the reach back to the ready
+    point, timed from the mallet's position and velocity, is accepted by the motion planner itself; timed
+    as from rest (the estimate before) the planner answers too late."""
+    from air_hockey_agent.agent_params import build_selector, load_agent_params
+    from air_hockey_agent.core.motion.planner import ACCEPTED, ArmState, Command, TOO_LATE
+    from air_hockey_agent.motion_params import build_planner, load_motion_params
+    from air_hockey_agent.tools.bench_planner import ready_state
+    planner = build_planner(load_motion_params(), "iiwa_front")
+    reach = build_selector(load_agent_params(), "iiwa_front")[0].reach
+    ready = settings.point(settings.ready_point)
+    hit = planner.plan(Command(np.array([-0.6, 0.1]), np.array([1.3, 0.0]), 1.0), ready_state(planner, ready))
+    assert hit.outcome == ACCEPTED, hit.message
+    k = int(np.searchsorted(hit.times, hit.hit_time)) + 2  # in the follow-through, still moving away
+    start = ArmState(float(hit.times[k]), hit.q[k], hit.dq[k])
+    p, jac = planner.kin.position_and_jacobian(start.q)
+    v = (jac @ start.dq)[:2]
+    assert v[0] > 0.5
+    now = start.t - reach.planning_delay  # the generator plans from its state this long ahead
+    timed = planner.plan(Command(ready, np.zeros(2), now + reach.reach_time(p[:2], ready, v)), start)
+    assert timed.outcome == ACCEPTED, timed.message
+    from_rest = planner.plan(Command(ready, np.zeros(2), now + reach.reach_time(p[:2], ready)), start)
+    assert from_rest.outcome == TOO_LATE, from_rest.message
 
 
 # --- shots -----------------------------------------------------------------------------------------
@@ -326,6 +351,25 @@ def test_planner_answers_steer_the_next_command(selector, model):
     assert later.time - 0.04 > first.time - 0.0 + 0.1
     selector.on_status(0.04, 4, math.nan, 0.05)  # unreachable: smash blocked for retry_delay
     assert selector.step(0.06, RUNNING, sit).tactic != SMASH
+
+
+def test_a_cut_refused_as_too_late_meets_the_puck_later_on_its_path(selector, model, settings):
+    """"Too late" for a Cut (its time is the puck's, not its own) asks for a contact at least
+    lead_time_step later instead of blocking the Cut and asking for the same contact again."""
+    sit = situation(model, [0.3, 0.2, -1.8, 1.2, 0, 0])
+    selector.force(CUT)
+    first = selector.step(0.0, RUNNING, sit)
+    assert first.tactic == CUT and first.command is not None, first.reason
+    selector.on_status(0.0, TOO_LATE, math.nan, 0.01)
+    later = selector.step(0.02, RUNNING, sit)
+    assert later.tactic == CUT and later.command is not None, later.reason
+    early = settings.cut_arrive_early
+    def contact(c):
+        return c.time + (0.0 if c.is_hit else early)
+    assert contact(later.command) - 0.02 >= settings.min_plan_time + settings.lead_time_step - 1e-9
+    assert contact(later.command) > contact(first.command)
+    selector.on_status(0.02, 4, math.nan, 0.03)  # unreachable: the Cut is blocked for retry_delay
+    assert selector.step(0.04, RUNNING, sit).command is None
 
 
 def test_smash_is_not_played_when_the_approach_would_knock_the_puck(selector, model, settings):

@@ -2,7 +2,7 @@
 
 Subscribes ``puck/prediction`` (the robot's puck tracker, table frame: the estimate it starts from and
 its prediction, published together with ``puck/state`` for every frame, so the state topic is not read),
-``joint_states`` (mallet position by forward kinematics), ``/game_status`` (the referee: stopped -> Init,
+``joint_states`` (mallet position and velocity: forward kinematics and its Jacobian), ``/game_status`` (the referee: stopped -> Init,
 paused -> Home, running -> play) and ``trajectory_status`` (the trajectory generator's answers).
 Publishes ``hit_command`` (air_hockey_msgs/HitCommand, the robot's own frame) and ``tactic``
 (air_hockey_msgs/TacticState: the current tactic and why, on every change and every ``status_period``)
@@ -55,6 +55,7 @@ class TacticsNode(AirHockeyNode):
         self.last_estimate = -math.inf
         self.status = STOPPED
         self.mallet: np.ndarray | None = None
+        self.mallet_velocity: np.ndarray | None = None
         self._published: tuple | None = None
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.command_pub = self.create_publisher(HitCommand, "hit_command", 10)
@@ -87,7 +88,11 @@ class TacticsNode(AirHockeyNode):
         try:
             q = in_order(msg.name, msg.position, self.kin.joint_names)
             if q is not None and np.all(np.isfinite(q)):
-                self.mallet = self.kin.position(q)[:2]
+                position, jacobian = self.kin.position_and_jacobian(q)
+                self.mallet = position[:2].copy()
+                dq = in_order(msg.name, msg.velocity, self.kin.joint_names) if len(msg.velocity) else None
+                finite = dq is not None and np.all(np.isfinite(dq))
+                self.mallet_velocity = (jacobian @ dq)[:2] if finite else None
         except (TypeError, ValueError) as exc:
             self.get_logger().error(f"joint_states: message ignored ({exc})", throttle_duration_sec=5.0)
 
@@ -112,7 +117,7 @@ class TacticsNode(AirHockeyNode):
     def on_tick(self) -> None:
         now = self.now_seconds()
         situation = self.situation if now - self.last_estimate <= self.params["stale_estimate"] else None
-        decision = self.selector.step(now, self.status, situation, self.mallet)
+        decision = self.selector.step(now, self.status, situation, self.mallet, self.mallet_velocity)
         if decision.command is not None:
             self.publish_command(decision.command, now)
         self.publish_tactic(decision)

@@ -32,6 +32,7 @@ class Proposal:
     puck: np.ndarray | None = None    # [m] predicted puck position at ``time`` the command was planned for
     target: np.ndarray = field(default_factory=lambda: np.zeros(2))  # [m] where the puck should go
     flexible_time: bool = False       # the tactic chose the time itself (it may slide while nothing else changes)
+    later_ok: bool = False            # after "too late" the tactic can pick a later moment (Context.lead_extra)
 
     @property
     def is_hit(self) -> bool:
@@ -47,7 +48,9 @@ class Context:
     reach: ArmReach
     shots: ShotPredictor
     mallet: np.ndarray | None = None  # [m] current mallet position (own frame), if known
-    lead_extra: float = 0.0           # [s] added to flexible hit times after the planner said "too late"
+    mallet_velocity: np.ndarray | None = None  # [m/s] and its velocity (own frame), if known
+    lead_extra: float = 0.0           # [s] added to flexible hit times (and to a Cut's earliest contact) after
+                                      #     the planner said "too late"
     speed_cap: float = float("inf")   # [m/s] after the planner said "faster than the arm allows"
     variant: str = ""                 # a forced Smash variant (strategy test); empty: the tactic chooses
 
@@ -82,5 +85,5 @@ def approach_clear(puck: np.ndarray, hit_point: np.ndarray, velocity: np.ndarray
 def reach_proposal(tactic: int, point: np.ndarray, ctx: Context, reason: str) -> Proposal:
     """Reach ``point`` and stop, with the time the arm needs (plus any "too late" extra)."""
     p = ctx.reach.clamp(point)
-    t = ctx.now + ctx.reach.reach_time(ctx.mallet, p) + ctx.lead_extra
+    t = ctx.now + ctx.reach.reach_time(ctx.mallet, p, ctx.mallet_velocity) + ctx.lead_extra
     return Proposal(tactic, p, np.zeros(2), t, reason, flexible_time=True)

@@ -11,7 +11,11 @@ came to rest outside the smash area. Here the mallet may also give way: moving a
 ``cut_normal_steps`` normals within ``cut_normal_range`` of head-on and the ``cut_catch`` fractions k is
 predicted with the puck model (:meth:`ShotPredictor.contact`); the one that stops deepest inside the
 smash area, also with the normal off by the aim noise, is played. A contact that sends the puck into
-the own goal or back into the mallet is never played.
+the own goal or back into the mallet is never played. When the planner answers "too late" (the arm
+cannot be there by then), the next proposal meets the puck at least ``lead_time_step`` later on its path
+(``Context.lead_extra``), so the best contact the arm can still make is played. Before, the Cut was
+blocked for ``retry_delay`` and then asked for the same contact again, nearer in time: in ten games a
+third of its commands (95 of 301) were refused as too late.
 """
 from __future__ import annotations
 
@@ -53,7 +57,7 @@ class Cut(Tactic):
                 self._cache.clear()
             self._cache[key] = Ranked(self._ranked(situation, ctx, c.time))
         best = self._cache[key].first(
-            lambda t, push, run_on: t - ctx.now >= st.min_plan_time,
+            lambda t, push, run_on: t - ctx.now >= st.min_plan_time + ctx.lead_extra,
             lambda t, push, run_on: not ctx.shots.rebounds_into_mallet(push, run_on, st.recontact_watch))
         if best is None:
             return None
@@ -64,8 +68,9 @@ class Cut(Tactic):
                   f"{push.mallet_speed:.2f} m/s, to stop at ({push.rest[0]:.2f}, {push.rest[1]:.2f})")
         if push.mallet_speed == 0.0:  # parked on the path, arriving just before the puck
             return Proposal(CUT, push.hit_point, np.zeros(2), t - st.cut_arrive_early, reason, puck=puck[:2],
-                            target=push.rest)
-        return Proposal(CUT, push.hit_point, push.mallet_velocity, t, reason, puck=puck[:2], target=push.rest)
+                            target=push.rest, later_ok=True)
+        return Proposal(CUT, push.hit_point, push.mallet_velocity, t, reason, puck=puck[:2], target=push.rest,
+                        later_ok=True)
 
     def _ranked(self, situation: Situation, ctx: Context, crossing_time: float) -> list[tuple[float, Push, float]]:
         """(contact time, contact, mallet follow-through [m]) the arm can make, best first: by how deep inside the smash area the puck

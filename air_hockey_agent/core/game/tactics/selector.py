@@ -13,7 +13,8 @@ Every decision period the selector looks at the referee's status and the tracker
   rest outside the smash area), else **Ready**.
 * The trajectory generator's answer steers the next try: "faster than the arm allows" caps the speed
   at the reported maximum, "beyond the joint limits" slows a self-timed hit down by ``limits_slowdown``,
-  "too late" adds lead time to tactics that choose their own hit time, and
+  "too late" adds lead time to tactics that choose their own hit time (and makes a Cut meet the puck
+  at least that much later on its path), and
   any other refusal (or "too late" for a puck that will not wait) blocks that tactic for
   ``retry_delay`` so the next one is tried. A hit is only committed to once the planner accepted it.
 * A forced tactic (strategy test) is the only one tried until released.
@@ -113,14 +114,18 @@ class TacticsSelector:
             speed = float(np.linalg.norm(proposal.velocity))
             self.speed_cap = (max_speed * self.s.speed_cap_fraction if known and max_speed < speed
                               else self.s.limits_slowdown * speed)
-        elif outcome == TOO_LATE and proposal.flexible_time and self.lead_extra < self.s.max_lead_extra:
+        elif (outcome == TOO_LATE and (proposal.flexible_time or proposal.later_ok)
+              and self.lead_extra < self.s.max_lead_extra):
             self.lead_extra = min(self.lead_extra + self.s.lead_time_step, self.s.max_lead_extra)
         else:
             self.blocked[proposal.tactic] = now + self.s.retry_delay
         self.sent = None
 
     # --- decision ----------------------------------------------------------------------------------
-    def step(self, now: float, status: int, situation: Situation | None, mallet: np.ndarray | None = None) -> Decision:
+    def step(self, now: float, status: int, situation: Situation | None, mallet: np.ndarray | None = None,
+             mallet_velocity: np.ndarray | None = None) -> Decision:
+        """The decision at ``now`` [s] for the referee's ``status``, the puck's ``situation`` and the mallet's
+        position [m] and velocity [m/s] (own frame; None when unknown)."""
         if status == STOPPED:
             self.sent, self.blocked = None, {}
             return self._decide(INIT, "game stopped: holding", None)
@@ -132,7 +137,8 @@ class TacticsSelector:
             wanted = [self.forced]
         else:
             wanted = self.candidates(situation)
-        ctx = Context(now, self.s, self.reach, self.shots, mallet, self.lead_extra, self.speed_cap, self.variant)
+        ctx = Context(now, self.s, self.reach, self.shots, mallet, mallet_velocity, self.lead_extra, self.speed_cap,
+                      self.variant)
         for tactic in wanted:
             if self.blocked.get(tactic, -math.inf) > now:
                 continue
