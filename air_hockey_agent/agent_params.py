@@ -113,8 +113,7 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
     s = planner.s
     reach = ArmReach(planner.region, s.run_up[0], s.run_up[1], s.run_up_time, s.follow_through[0],
                      s.follow_through[1], s.reach_acceleration,
-                     s.planning_delay + s.height_transition, params["reach_time_margin"], speeds,
-                     s.planning_delay, s.dt)
+                     s.height_transition, params["reach_time_margin"], speeds, s.planning_delay, s.dt)
     settings = TacticsSettings.from_params(params)
     tracker = _tracker_params(params["puck_params_file"])
     shots = ShotPredictor(_puck_model(tracker), settings, 1.0 / tracker["frequency"], reach.max_speed)

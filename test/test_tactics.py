@@ -41,8 +41,9 @@ def flat_reach(settings) -> ArmReach:
     t = settings.table
     region = Region.for_table(t.length, t.width, settings.mallet_radius, 0.02, BASE, 1.30)
     xs, ys, angles = np.linspace(-1.0, 0.0, 5), np.linspace(-0.6, 0.6, 5), np.linspace(-math.pi, math.pi, 5)
-    # run-up 0.06-0.30 m, at most 0.4 s; follow-through 0.06-0.30 m; planning delay 0.03 s (config/motion.yaml)
-    return ArmReach(region, 0.06, 0.30, 0.4, 0.06, 0.30, 5.0, 0.26, 1.25,
+    # run-up 0.06-0.30 m, at most 0.4 s; follow-through 0.06-0.30 m (config/motion.yaml); shortest reach
+    # 0.26 s: a planning delay of 0.03 s and a height transition of 0.23 s
+    return ArmReach(region, 0.06, 0.30, 0.4, 0.06, 0.30, 5.0, 0.23, 1.25,
                     SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)), 0.03, DT)
 
 
@@ -133,13 +134,12 @@ def test_a_reach_timed_with_the_mallets_velocity_is_one_the_planner_accepts(sett
     assert hit.outcome == ACCEPTED, hit.message
     k = int(np.searchsorted(hit.times, hit.hit_time)) + 2  # in the follow-through, still moving away
     start = ArmState(float(hit.times[k]), hit.q[k], hit.dq[k])
-    p, jac = planner.kin.position_and_jacobian(start.q)
-    v = (jac @ start.dq)[:2]
+    p, v = planner.kin.planar_motion(start.q, start.dq)
     assert v[0] > 0.5
     now = start.t - reach.planning_delay  # the generator plans from its state this long ahead
-    timed = planner.plan(Command(ready, np.zeros(2), now + reach.reach_time(p[:2], ready, v)), start)
+    timed = planner.plan(Command(ready, np.zeros(2), now + reach.reach_time(p, ready, v)), start)
     assert timed.outcome == ACCEPTED, timed.message
-    from_rest = planner.plan(Command(ready, np.zeros(2), now + reach.reach_time(p[:2], ready)), start)
+    from_rest = planner.plan(Command(ready, np.zeros(2), now + reach.reach_time(p, ready)), start)
     assert from_rest.outcome == TOO_LATE, from_rest.message
 
 

@@ -88,11 +88,11 @@ class TacticsNode(AirHockeyNode):
         try:
             q = in_order(msg.name, msg.position, self.kin.joint_names)
             if q is not None and np.all(np.isfinite(q)):
-                position, jacobian = self.kin.position_and_jacobian(q)
-                self.mallet = position[:2].copy()
-                dq = in_order(msg.name, msg.velocity, self.kin.joint_names) if len(msg.velocity) else None
-                finite = dq is not None and np.all(np.isfinite(dq))
-                self.mallet_velocity = (jacobian @ dq)[:2] if finite else None
+                dq = in_order(msg.name, msg.velocity, self.kin.joint_names)  # None when velocities are missing
+                if dq is not None and np.all(np.isfinite(dq)):
+                    self.mallet, self.mallet_velocity = self.kin.planar_motion(q, dq)
+                else:
+                    self.mallet, self.mallet_velocity = self.kin.position(q)[:2], None
         except (TypeError, ValueError) as exc:
             self.get_logger().error(f"joint_states: message ignored ({exc})", throttle_duration_sec=5.0)
 

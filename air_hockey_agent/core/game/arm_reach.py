@@ -24,11 +24,16 @@ class ArmReach:
     follow_through: float     # [m] shortest follow-through it needs ahead of it
     follow_through_max: float  # [m] longest follow-through it takes when there is room
     reach_acceleration: float  # [m/s^2] task acceleration of reach-and-stop motions
-    min_reach_time: float     # [s] shortest time a reach is given: the planner's delay plus its height transition
+    height_transition: float  # [s] the planner's descent from a raised start to the playing height
     reach_time_margin: float  # [-] multiple of the shortest cubic time given to a reach
     speeds: SpeedMap
     planning_delay: float     # [s] the planner starts a motion this long after it is asked
     dt: float                 # [s] the planner's step
+
+    @property
+    def min_reach_time(self) -> float:
+        """Shortest time [s] a reach is given: the planner's delay plus its height transition."""
+        return self.planning_delay + self.height_transition
 
     def can_hit(self, point: np.ndarray, direction: np.ndarray) -> bool:
         """The hit point is in the region with room for the run-up behind it and the follow-through ahead."""

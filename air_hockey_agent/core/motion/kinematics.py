@@ -99,3 +99,9 @@ class MalletKinematics:
             return self._placements[self.frame].translation + self._offset, jac
         p = self._rotation @ self._placements[self.frame].translation + self._offset
         return p, self._rotation @ jac
+
+    def planar_motion(self, q: np.ndarray, dq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Mallet position (x, y) [m] and velocity (vx, vy) [m/s] in the own table frame at joint positions
+        ``q`` [rad] and velocities ``dq`` [rad/s]."""
+        p, jac = self.position_and_jacobian(q)
+        return p[:2].copy(), (jac @ dq)[:2]

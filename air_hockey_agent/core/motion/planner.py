@@ -325,8 +325,7 @@ class MotionPlanner:
 
     # --- helpers -------------------------------------------------------------------------------
     def _mallet(self, state: ArmState) -> tuple[np.ndarray, np.ndarray]:
-        p, jac = self.kin.position_and_jacobian(state.q)
-        return p[:2].copy(), (jac @ state.dq)[:2]
+        return self.kin.planar_motion(state.q, state.dq)
 
     def _from_start(self, xy: np.ndarray, start: ArmState) -> np.ndarray:
         """Targets (n, 3) for planar points ``xy`` (n, 2) that leave the start's height for the playing
