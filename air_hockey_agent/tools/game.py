@@ -35,7 +35,8 @@ RECORDED_TOPICS = {
     **{f"/{r}/{t}": m for r in ROBOTS for t, m in (
         ("joint_states", "sensor_msgs/msg/JointState"), ("puck/state", "air_hockey_msgs/msg/PuckState"),
         ("tactic", "air_hockey_msgs/msg/TacticState"), ("hit_command", "air_hockey_msgs/msg/HitCommand"),
-        ("trajectory_status", "air_hockey_msgs/msg/TrajectoryStatus"))},
+        ("trajectory_status", "air_hockey_msgs/msg/TrajectoryStatus"),
+        ("joint_trajectory", "trajectory_msgs/msg/JointTrajectory"))},
 }
 
 GAME_PARAMS = (
