@@ -13,7 +13,7 @@ import pytest
 from air_hockey_agent.core.frames import table_to_robot
 from air_hockey_agent.core.motion.hit_config import (best_hit_configuration, max_speed_along, max_speed_along_highs,
                                                     max_speed_closed_form)
-from air_hockey_agent.core.motion.ik import solve_ik
+from air_hockey_agent.core.motion.ik import solve_ik, weighted_pinv
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
 from air_hockey_agent.core.linalg3 import inverse_sym3, solve_sym3
 from air_hockey_agent.core.motion.planner import (ACCEPTED, INVALID, LIMITS, OUTSIDE_REGION, TOO_FAST, TOO_LATE,
@@ -241,6 +241,47 @@ def test_a_new_command_continues_from_the_running_plan_without_a_jump(front):
     step = second.q[0] - q
     assert np.max(np.abs(step) / (second.times[0] - 0.3)) <= front.limits.dq_max_real.max()
     assert np.max(np.abs((second.q[0] - q) / (second.times[0] - 0.3) - dq)) < 0.5
+
+
+def _moving(planner, point, velocity):
+    """Arm state with the mallet at ``point`` moving at ``velocity`` (own frame, playing height, at rest in z)."""
+    s = planner.s
+    ik = solve_ik(planner.kin, planner.limits, np.array([*point, s.height]), s.reference, s.reference,
+                  s.ik_iterations, s.ik_tolerance)
+    assert ik.ok
+    _, jac = planner.kin.position_and_jacobian(ik.q)
+    return ArmState(0.0, ik.q, weighted_pinv(jac) @ np.array([*velocity, 0.0]))
+
+
+def test_motions_from_a_mallet_moving_toward_a_rim_stay_in_the_region_or_are_refused(planner):
+    """A cubic from a moving mallet bulges along its velocity before it turns: a reach or a staged hit's
+    approach taken over from a fast mallet near a rim would drive it into the rim, so such a plan is refused
+    (the running plan, which stops inside, goes on). The first case is the game's (seed 25): the back arm at
+    (-0.729, -0.140) m, 2.1 m/s toward the long rim, told to go to its ready point; the plan went 0.15 m
+    beyond the region and the referee stopped the game for a mallet in the rim. Accepted plans are checked
+    as the controller executes them (region within 5 mm, joint limits)."""
+    rng = np.random.default_rng(21)
+    game = _moving(planner, (-0.729, -0.140), (0.29, -2.06))
+    plan = planner.plan(Command(np.array([-0.818, 0.0]), np.zeros(2), 2.5), game)
+    assert plan.outcome == OUTSIDE_REGION and "|y|" in plan.message and "2.08 m/s" in plan.message, plan.message
+    refused_ = accepted = 0
+    x_min, y_max = planner.region.x_min, planner.region.y_max
+    for _ in range(100):
+        corner = (rng.uniform(x_min + 0.05, x_min + 0.3), rng.choice([-1.0, 1.0]) * rng.uniform(y_max - 0.3, y_max - 0.05))
+        heading = np.array([-rng.uniform(0.0, 1.0), np.sign(corner[1]) * rng.uniform(0.0, 1.0)])
+        start = _moving(planner, corner, rng.uniform(0.5, 2.0) * heading / np.linalg.norm(heading))
+        if planner.limits.velocity_use(start.dq[None]) > 90.0:
+            continue  # not a state a plan leaves the arm in
+        target = planner.region.random_point(rng)
+        velocity = np.zeros(2) if rng.random() < 0.5 else rng.uniform(0.3, 1.0) * np.array([1.0, rng.uniform(-0.5, 0.5)])
+        plan = planner.plan(Command(target, velocity, int(rng.integers(40, 76)) * planner.s.dt), start)
+        if plan.ok:
+            accepted += 1
+            _check_limits_and_plane(planner, plan, start)
+        elif plan.outcome == OUTSIDE_REGION:
+            refused_ += 1
+            assert "from the mallet's motion" in plan.message
+    assert accepted >= 10 and refused_ >= 3, (accepted, refused_)
 
 
 def test_a_strike_refused_for_a_joint_limit_names_a_slower_speed_that_helps(front):

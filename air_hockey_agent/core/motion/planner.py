@@ -38,6 +38,9 @@ AT_REST = 1e-6  # [m/s] a hit velocity below this is a reach-and-stop command
 REACH_RETRIES = 6
 REACH_SLOWDOWN = 1.25  # duration factor per retry of a reach motion that broke a joint limit
 SETTLE_TIME = 0.3      # [s] longest hold at a reach target while the arm comes to rest in its posture
+# [m] a planned path may leave the region by this much between checks: its samples are a grid step apart,
+# and the region's own margin (config/motion.yaml region_margin, 0.02 m) keeps such a graze off the rims
+PATH_TOLERANCE = 1e-3
 
 
 @dataclass(frozen=True)
@@ -165,6 +168,9 @@ class MotionPlanner:
                                          f"{available:.2f} s are left" + (f" ({reason})" if reason else ""))
             steps = tm.steps_for(duration, dt)
             pos, _ = tm.hermite(p0, v0, target, np.zeros(2), steps, dt)
+            leaves = self._leaves_region(pos, v0, "the reach")
+            if leaves is not None:
+                return leaves
             # then hold the target until the arm is at rest in the IK posture (the cubic ends decelerating)
             hold = min(tm.steps_for(SETTLE_TIME, dt), max(0, int((available - steps * dt) / dt)))
             pos = np.vstack([pos, np.repeat(target[None], hold, axis=0)])
@@ -272,6 +278,9 @@ class MotionPlanner:
             return strike_q
         n_move = tm.steps_for(reach, dt)
         pos, _ = tm.hermite(p0, v0, run_start, np.zeros(2), n_move, dt)
+        leaves = self._leaves_region(pos, v0, "the approach")
+        if leaves is not None:
+            return leaves
         targets = np.vstack([pos, np.repeat(run_start[None], n_approach - n_move, axis=0)])
         approach = track(self.kin, self.limits, self.qp, start.q, start.dq, self._from_start(targets, start), dt,
                          strike_q[0], s.posture_gain, settle=s.posture_tolerance, must_settle=True)
@@ -296,7 +305,7 @@ class MotionPlanner:
         p0, v0 = self._mallet(start)
         velocity = speed * direction
         pos, _ = tm.hermite(p0, v0, hit, velocity, steps, dt)
-        if not self.region.contains(pos, tol=1e-3):
+        if not self.region.contains(pos, tol=PATH_TOLERANCE):
             return refused(TOO_LATE, "no time to stage the hit, and a direct path leaves the region")
         approach = track(self.kin, self.limits, self.qp, start.q, start.dq, self._from_start(pos, start), dt,
                          config.q, s.posture_gain)
@@ -324,6 +333,17 @@ class MotionPlanner:
         return dq if np.all(np.abs(dq) <= self.limits.dq_max) else config.dq_unit * speed
 
     # --- helpers -------------------------------------------------------------------------------
+    def _leaves_region(self, pos: np.ndarray, v0: np.ndarray, what: str) -> Plan | None:
+        """A refusal when the planar path ``pos`` (n, 2) [m] leaves the region: a cubic from a moving mallet
+        bulges along its start velocity ``v0`` [m/s] before it turns (a mallet at 2 m/s toward a rim
+        overshoots about 0.5 m at the reach acceleration of 5 m/s^2), so the running plan, which stops
+        inside, is kept instead."""
+        i = self.region.first_outside(pos, PATH_TOLERANCE)
+        if i is None:
+            return None
+        return refused(OUTSIDE_REGION, f"{what} from the mallet's motion ({float(np.linalg.norm(v0)):.2f} m/s) "
+                                       f"leaves the region: {self.region.why_outside(pos[i])}")
+
     def _mallet(self, state: ArmState) -> tuple[np.ndarray, np.ndarray]:
         return self.kin.planar_motion(state.q, state.dq)
 

@@ -32,11 +32,20 @@ class Region:
 
     def contains(self, p: np.ndarray, tol: float = 1e-9) -> bool:
         """True when the point(s) ``p`` (..., 2) are all inside the region (up to ``tol`` [m])."""
+        return bool(np.all(self._inside(p, tol)))
+
+    def _inside(self, p: np.ndarray, tol: float) -> np.ndarray:
+        """Per point of ``p`` (n, 2) or (2,): inside the region up to ``tol`` [m]."""
         p = np.atleast_2d(p)
         inside_box = ((p[:, 0] >= self.x_min - tol) & (p[:, 0] <= self.x_max + tol)
                       & (np.abs(p[:, 1]) <= self.y_max + tol))
         inside_disc = np.hypot(p[:, 0] - self.base_xy[0], p[:, 1] - self.base_xy[1]) <= self.reach + tol
-        return bool(np.all(inside_box & inside_disc))
+        return inside_box & inside_disc
+
+    def first_outside(self, p: np.ndarray, tol: float = 1e-9) -> int | None:
+        """Index of the first of the points ``p`` (n, 2) outside the region (by more than ``tol`` [m]), or None."""
+        outside = np.flatnonzero(~self._inside(p, tol))
+        return int(outside[0]) if outside.size else None
 
     def random_point(self, rng: np.random.Generator) -> np.ndarray:
         """A point drawn uniformly from the region [m] (rejection sampling in its bounding box)."""
