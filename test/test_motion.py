@@ -148,16 +148,22 @@ def test_hit_posture_is_at_least_as_fast_as_the_ik_posture_and_on_the_point(fron
         assert np.linalg.norm(front.kin.position(config.q) - point) <= s.ik_tolerance
 
 
-def _dense(plan, start):
-    """The plan as the robot's controller executes it (cubic Hermite between knots), every millisecond."""
-    traj = JointTrajectory.from_points(JOINTS, start.t, plan.times - start.t, plan.q, plan.dq, start.q, start.dq)
-    t = np.arange(start.t, plan.times[-1] + 1e-9, 1e-3)
+def _dense(plan, start, delay):
+    """The plan as the trajectory generator sends it and the robot's controller executes it (cubic Hermite
+    between knots), every millisecond: sent ``delay`` [s] (the planning delay) before the ``start`` state,
+    from the arm moving on toward it along its velocity, with the plan's own start as the first point."""
+    now = start.t - delay
+    times = np.concatenate([[plan.start.t], plan.times]) - now
+    q = np.vstack([plan.start.q, plan.q])
+    dq = np.vstack([plan.start.dq, plan.dq])
+    traj = JointTrajectory.from_points(JOINTS, now, times, q, dq, start.q - delay * start.dq, start.dq)
+    t = np.arange(now, plan.times[-1] + 1e-9, 1e-3)
     samples = [traj.sample(ti) for ti in t]
     return t, np.array([q for q, _ in samples]), np.array([dq for _, dq in samples])
 
 
 def _check_limits_and_plane(planner, plan, start):
-    t, q, dq = _dense(plan, start)
+    t, q, dq = _dense(plan, start, planner.s.planning_delay)
     limits, s = planner.limits, planner.s
     assert limits.position_use(q) <= 100.0 and limits.velocity_use(dq) <= 100.0
     knot_acc = np.diff(np.vstack([start.dq, plan.dq]), axis=0) / s.dt
@@ -259,7 +265,9 @@ def test_motions_from_a_mallet_moving_toward_a_rim_stay_in_the_region_or_are_ref
     (the running plan, which stops inside, goes on). The first case is the game's (seed 25): the back arm at
     (-0.729, -0.140) m, 2.1 m/s toward the long rim, told to go to its ready point; the plan went 0.15 m
     beyond the region and the referee stopped the game for a mallet in the rim. Accepted plans are checked
-    as the controller executes them (region within 5 mm, joint limits)."""
+    as the controller executes them (region within 5 mm, joint limits). The hit times lie off the plans'
+    time grid, as in games: a plan's first step used to be shorter than the grid step the tracking
+    assumed, which took a moving arm to 123 % of a joint's velocity limit here (166 % in a game)."""
     rng = np.random.default_rng(21)
     game = _moving(planner, (-0.729, -0.140), (0.29, -2.06))
     plan = planner.plan(Command(np.array([-0.818, 0.0]), np.zeros(2), 2.5), game)
@@ -274,7 +282,7 @@ def test_motions_from_a_mallet_moving_toward_a_rim_stay_in_the_region_or_are_ref
             continue  # not a state a plan leaves the arm in
         target = planner.region.random_point(rng)
         velocity = np.zeros(2) if rng.random() < 0.5 else rng.uniform(0.3, 1.0) * np.array([1.0, rng.uniform(-0.5, 0.5)])
-        plan = planner.plan(Command(target, velocity, int(rng.integers(40, 76)) * planner.s.dt), start)
+        plan = planner.plan(Command(target, velocity, rng.uniform(0.8, 1.5)), start)  # off the grid too
         if plan.ok:
             accepted += 1
             _check_limits_and_plane(planner, plan, start)

@@ -200,20 +200,29 @@ class MotionPlanner:
             return refused(TOO_FAST, f"{speed:.2f} m/s asked, the arm reaches at most {config.max_speed:.2f} m/s "
                                      f"along ({direction[0]:.2f}, {direction[1]:.2f}) at this point",
                            max_speed=config.max_speed)
-        grid = self._hit_grid(command.time, start.t)
-        plan = self._staged_hit(hit, direction, speed, config, start, grid)
+        start, steps = self._on_hit_grid(command.time, start)
+        plan = self._staged_hit(hit, direction, speed, config, start, steps)
         if not plan.ok:
-            direct = self._direct_hit(hit, direction, speed, config, start, grid)
+            direct = self._direct_hit(hit, direction, speed, config, start, steps)
             plan = direct if direct.ok else plan
         # a strike or follow-through refused for a limit keeps the speed that would have kept it
         plan.max_speed = min(config.max_speed, plan.max_speed) if math.isfinite(plan.max_speed) else config.max_speed
         return plan
 
-    def _hit_grid(self, hit_time: float, now: float) -> tuple[float, int]:
-        """Grid origin [s] and number of steps to the hit: knots fall exactly on the hit time, and the
-        origin is within half a step of the start."""
-        steps = max(1, int(round((hit_time - now) / self.s.dt)))
-        return hit_time - steps * self.s.dt, steps
+    def _on_hit_grid(self, hit_time: float, start: ArmState) -> tuple[ArmState, int]:
+        """The start moved onto the hit's time grid (knots fall exactly on the hit time), and the number of
+        grid steps from there to the hit. The grid origin lies within half a step of the start, and after
+        the start's own ``now`` (``start.t - planning_delay``: the trajectory's first point must still be
+        ahead); the start state is carried there along its velocity (half a step at most: about 1 mrad
+        off the running motion at the arm's accelerations), so every step of the plan, the first
+        included, lasts the grid step the tracking assumes (a first step half as long doubled its joint
+        velocities: up to 166 % of a limit in a game)."""
+        dt = self.s.dt
+        steps = max(1, int(round((hit_time - start.t) / dt)))
+        if steps > 1 and hit_time - steps * dt <= start.t - self.s.planning_delay:
+            steps -= 1
+        origin = hit_time - steps * dt
+        return ArmState(origin, start.q + (origin - start.t) * start.dq, start.dq), steps
 
     def _run_up(self, hit, direction, speed) -> tuple[int, Plan | None]:
         """Grid steps of the strike (the longest run-up that fits behind the hit point), and a refusal
@@ -256,9 +265,8 @@ class MotionPlanner:
             return refused(LIMITS, f"the follow-through {fwd.reason}", max_speed=fwd.slower_speed(speed))
         return fwd.q
 
-    def _staged_hit(self, hit, direction, speed, config, start: ArmState, grid) -> Plan:
+    def _staged_hit(self, hit, direction, speed, config, start: ArmState, steps: int) -> Plan:
         s, dt = self.s, self.s.dt
-        origin, steps = grid
         p0, v0 = self._mallet(start)
         n_strike, no_room = self._run_up(hit, direction, speed)
         run_start = hit - speed * n_strike * dt / 2 * direction
@@ -296,12 +304,11 @@ class MotionPlanner:
         if isinstance(stop_q, Plan):
             return stop_q
         q = np.vstack([approach.q[:-1], strike_q, [config.q], stop_q])
-        times = origin + np.arange(1, len(q) + 1) * dt
-        return self._finish(start, times, q, origin + steps * dt, speed, "staged", steps - 1, dq_hit)
+        times = start.t + np.arange(1, len(q) + 1) * dt
+        return self._finish(start, times, q, start.t + steps * dt, speed, "staged", steps - 1, dq_hit)
 
-    def _direct_hit(self, hit, direction, speed, config, start: ArmState, grid) -> Plan:
+    def _direct_hit(self, hit, direction, speed, config, start: ArmState, steps: int) -> Plan:
         s, dt = self.s, self.s.dt
-        origin, steps = grid
         p0, v0 = self._mallet(start)
         velocity = speed * direction
         pos, _ = tm.hermite(p0, v0, hit, velocity, steps, dt)
@@ -322,8 +329,8 @@ class MotionPlanner:
         if isinstance(fwd, Plan):
             return fwd
         q = np.vstack([approach.q, fwd])
-        times = origin + np.arange(1, len(q) + 1) * dt
-        return self._finish(start, times, q, origin + steps * dt, speed, "direct", steps - 1, dq_hit)
+        times = start.t + np.arange(1, len(q) + 1) * dt
+        return self._finish(start, times, q, start.t + steps * dt, speed, "direct", steps - 1, dq_hit)
 
     def _hit_joint_velocity(self, config, direction, speed) -> np.ndarray:
         """Joint velocities at the hit: the smallest that give the hit velocity, or the LP's when those
