@@ -1,7 +1,10 @@
 """Console scripts: `air-hockey --help`, node --help, honest not-implemented nodes, the game launcher."""
 import json
+import os
+import signal
 import subprocess
 import sys
+import time
 from pathlib import Path
 
 import pytest
@@ -50,6 +53,50 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
     assert "Traceback" not in result.stderr
     leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|referee|tactics|puck_tracker|trajectory_generator)"])
     assert leftovers.stdout.strip() == ""
+
+
+def _children(pid: int) -> list[int]:
+    found = run(["pgrep", "-P", str(pid)])
+    return [int(p) for p in found.stdout.split()]
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return Path(f"/proc/{pid}").is_dir() and "Z" not in Path(f"/proc/{pid}/stat").read_text().split()[2]
+
+
+@pytest.mark.integration
+def test_game_stopped_by_sigterm_while_starting_stops_every_node(ros_env):
+    """`kill`, `timeout` or a CI runner stop a tool with SIGTERM: the game then stops its nodes as on Ctrl-C
+    (they run in their own process groups, so before, all eight were left running) and exits 143."""
+    proc = subprocess.Popen([str(BIN / "air-hockey"), "game", "--duration", "600", "--domain-id",
+                             ros_env["ROS_DOMAIN_ID"]], env=ros_env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    nodes: list[int] = []
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and len(nodes) < 8 and proc.poll() is None:
+            time.sleep(0.2)
+            nodes = _children(proc.pid)
+        assert len(nodes) == 8, f"the game started {len(nodes)} nodes"
+        proc.send_signal(signal.SIGTERM)
+        _, err = proc.communicate(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        for pid in nodes:  # never leave a node behind, whatever the outcome
+            if _alive(pid):
+                os.killpg(pid, signal.SIGKILL)
+    assert proc.returncode in (0, 143), err[-2000:]  # 0: the game had begun, ended early and was reported
+    assert "Traceback" not in err, err[-2000:]
+    deadline = time.monotonic() + 20
+    while time.monotonic() < deadline and any(_alive(pid) for pid in nodes):
+        time.sleep(0.2)
+    assert not any(_alive(pid) for pid in nodes)
 
 
 @pytest.mark.integration

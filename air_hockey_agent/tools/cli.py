@@ -6,6 +6,7 @@ import importlib
 import sys
 from importlib import metadata
 
+from air_hockey_agent.tools import interrupt
 from air_hockey_agent.tools.argtypes import OneLineParser
 
 # Subcommand modules; each provides add_parser(subparsers) that sets `run` as the handler.
@@ -49,10 +50,11 @@ def main(argv: list[str] | None = None) -> int:
     if not hasattr(args, "run"):
         parser.print_help()
         return 2
+    interrupt.install()
     try:
         return int(args.run(args) or 0)
-    except KeyboardInterrupt:
-        return 130
+    except KeyboardInterrupt as exc:
+        return interrupt.exit_code(exc)
 
 
 if __name__ == "__main__":

@@ -20,6 +20,7 @@ from pathlib import Path
 
 from air_hockey_agent.params import ParamSpec, load_defaults
 from air_hockey_agent.paths import config_file
+from air_hockey_agent.tools import interrupt
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.ros_env import display_available, node_executable, ros_environment
 from air_hockey_agent.tools.argtypes import count
@@ -146,9 +147,9 @@ def run(args: argparse.Namespace) -> int:
     except GameError as exc:
         print(f"air-hockey game: error: {exc}", file=sys.stderr)
         return exc.code
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         print("\n[game] interrupted", file=sys.stderr)
-        return 130
+        return interrupt.exit_code(exc)
     if args.json:
         print(json.dumps(result))
     return 0
