@@ -332,6 +332,24 @@ def test_accepted_hit_is_kept_until_the_prediction_moves(selector, model):
     assert not np.allclose(new.command.point, first.command.point)
 
 
+def test_a_smash_re_aimed_at_a_drifting_puck_keeps_its_hit_time(selector, model, settings):
+    """A slow puck's prediction drifts: the accepted smash is re-aimed (more than hit_replan_distance off)
+    at the same hit time while min_plan_time is left, instead of being pushed smash_lead_time ahead at
+    every re-plan (in a game: 17 re-plans over 7 s before the hit); closer to the hit, from now again."""
+    first = selector.step(0.0, RUNNING, situation(model, [-0.55, -0.2, 0.15, 0.1, 0, 0])).command
+    assert first is not None and first.tactic == SMASH and first.time == pytest.approx(settings.smash_lead_time)
+    selector.on_status(0.0, 0, 3.0, 0.01)
+    drifted = situation(model, [-0.52, -0.19, 0.12, 0.11, 0, 0], t0=0.2)
+    again = selector.step(0.2, RUNNING, drifted).command
+    assert again is not None and again.tactic == SMASH and again.time == first.time
+    assert not np.allclose(again.point, first.point)
+    selector.on_status(0.2, 0, 3.0, 0.21)
+    late = first.time - settings.min_plan_time + 0.05
+    moved = situation(model, [-0.45, -0.15, 0.1, 0.1, 0, 0], t0=late)
+    last = selector.step(late, RUNNING, moved).command
+    assert last is not None and last.time == pytest.approx(late + settings.smash_lead_time)
+
+
 def test_switches_as_soon_as_the_situation_changes(selector, model):
     sit = situation(model, [-0.5, 0.1, 0, 0, 0, 0])
     selector.step(0.0, RUNNING, sit)

@@ -53,6 +53,7 @@ class Context:
                                       #     the planner said "too late"
     speed_cap: float = float("inf")   # [m/s] after the planner said "faster than the arm allows"
     variant: str = ""                 # a forced Smash variant (strategy test); empty: the tactic chooses
+    running: Proposal | None = None   # the accepted command the arm is executing (None: none, or not known yet)
 
 
 class Tactic:

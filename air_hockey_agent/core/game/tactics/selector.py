@@ -137,8 +137,9 @@ class TacticsSelector:
             wanted = [self.forced]
         else:
             wanted = self.candidates(situation)
+        running = self.sent.proposal if self.sent is not None and self.sent.accepted else None
         ctx = Context(now, self.s, self.reach, self.shots, mallet, mallet_velocity, self.lead_extra, self.speed_cap,
-                      self.variant)
+                      self.variant, running)
         for tactic in wanted:
             if self.blocked.get(tactic, -math.inf) > now:
                 continue
@@ -194,8 +195,12 @@ class TacticsSelector:
         return proposal
 
     def _similar(self, a: Proposal, b: Proposal) -> bool:
+        """``b`` says what ``a`` said: a hit's point within hit_replan_distance (the accuracy a shot needs),
+        a reach's within resend_distance; velocities within resend_speed; times within resend_time unless
+        the tactic chose its time."""
         st = self.s
-        return (float(np.linalg.norm(a.point - b.point)) <= st.resend_distance
+        distance = st.hit_replan_distance if b.is_hit else st.resend_distance
+        return (float(np.linalg.norm(a.point - b.point)) <= distance
                 and float(np.linalg.norm(a.velocity - b.velocity)) <= st.resend_speed
                 and (b.flexible_time or abs(a.time - b.time) <= st.resend_time))
 
