@@ -31,7 +31,7 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from air_hockey_agent.core.frames import quaternion_from_yaw
-from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.motion.joint_trajectory import received_at
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.nodes.messages import state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
@@ -170,10 +170,10 @@ class TableSimNode(AirHockeyNode):
             start = self.world.time if start <= 0.0 else start
             times = [pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9 for pt in msg.points]
             has_velocities = all(len(pt.velocities) for pt in msg.points) and msg.points
-            traj = JointTrajectory.from_points(
+            traj = received_at(
                 names, start, times, [list(pt.positions) for pt in msg.points],
                 [list(pt.velocities) for pt in msg.points] if has_velocities else None,
-                q, dq)
+                self.world.time, q, dq)
             self.world.follow(robot, traj)
             self.warn_if_late(topic, start + times[0])
         except ValueError as exc:  # TrajectoryError included

@@ -2,8 +2,8 @@
 
 A trajectory is what ``trajectory_msgs/JointTrajectory`` carries: joint names and points with
 ``time_from_start`` [s], positions [rad] and optionally velocities [rad/s]. Like ros2_control's
-joint trajectory controller, execution starts at the message's start time from the robot's current
-state (an implicit first point at t = 0), interpolates each segment with a cubic Hermite polynomial
+joint trajectory controller (:func:`received_at`), execution starts from the robot's state when the
+message arrives (an implicit first point), interpolates each segment with a cubic Hermite polynomial
 (linear velocities between points when the message has none), and holds the last point afterwards.
 """
 from __future__ import annotations
@@ -12,6 +12,9 @@ from dataclasses import dataclass
 from typing import Sequence
 
 import numpy as np
+
+
+HOLD_STEP = 1e-6  # [s] the one segment of a trajectory that only holds a passed trajectory's last point
 
 
 class TrajectoryError(ValueError):
@@ -75,6 +78,29 @@ class JointTrajectory:
         q = (2 * s3 - 3 * s2 + 1) * p0 + (s3 - 2 * s2 + s) * m0 + (-2 * s3 + 3 * s2) * p1 + (s3 - s2) * m1
         dq = ((6 * s2 - 6 * s) * p0 + (3 * s2 - 4 * s + 1) * m0 + (-6 * s2 + 6 * s) * p1 + (3 * s2 - 2 * s) * m1) / h
         return q, dq
+
+
+def received_at(joint_names: Sequence[str], start: float, times: Sequence[float], positions: Sequence[Sequence[float]],
+                velocities: Sequence[Sequence[float]] | None, now: float, current_q: Sequence[float],
+                current_dq: Sequence[float]) -> JointTrajectory:
+    """A trajectory message (points at ``start + times`` [s]) as a controller that receives it at ``now`` [s]
+    executes it, the way ros2_control's joint trajectory controller does: from the current state at ``now``
+    to the first point still ahead (also when ``start`` lies in the future: no hold before it); when points
+    have already passed, the arm goes on from the segment in progress, between the message's own points,
+    and after the last point it holds that. Raises :class:`TrajectoryError` for a malformed message."""
+    full = JointTrajectory.from_points(joint_names, start, times, positions, velocities, current_q, current_dq)
+    t_abs = full.start + full.times[1:]
+    ahead = int(np.searchsorted(t_abs, now, side="right"))  # first message point after now
+    if ahead == 0:
+        return JointTrajectory(full.joint_names, now, np.concatenate([[0.0], t_abs - now]), full.positions.copy(),
+                               full.velocities.copy())
+    last = ahead  # index in full's arrays of the latest passed point (full has the implicit point at 0)
+    if ahead == len(t_abs):
+        q = full.positions[-1]
+        return JointTrajectory(full.joint_names, now, np.array([0.0, HOLD_STEP]), np.vstack([q, q]),
+                               np.zeros((2, len(full.joint_names))))
+    return JointTrajectory(full.joint_names, float(t_abs[ahead - 1]), np.concatenate([[0.0], t_abs[ahead:] - t_abs[ahead - 1]]),
+                           full.positions[last:].copy(), full.velocities[last:].copy())
 
 
 def _slopes(t: np.ndarray, q: np.ndarray) -> np.ndarray:
