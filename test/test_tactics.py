@@ -41,7 +41,8 @@ def flat_reach(settings) -> ArmReach:
     t = settings.table
     region = Region.for_table(t.length, t.width, settings.mallet_radius, 0.02, BASE, 1.30)
     xs, ys, angles = np.linspace(-1.0, 0.0, 5), np.linspace(-0.6, 0.6, 5), np.linspace(-math.pi, math.pi, 5)
-    # run-up 0.06-0.30 m, at most 0.4 s; follow-through 0.06-0.30 m (config/motion.yaml); shortest reach
+    # run-up 0.06-0.30 m, at most 0.4 s; follow-through 0.06-0.30 m (a test arm: config/motion.yaml's floors
+    # are 0.04 and 0.02 m); shortest reach
     # 0.26 s: a planning delay of 0.03 s and a height transition of 0.23 s
     return ArmReach(region, 0.06, 0.30, 0.4, 0.06, 0.30, 5.0, 0.23, 1.25,
                     SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)), 0.03, DT)
@@ -92,8 +93,16 @@ def test_speed_map_interpolates_and_marks_unreachable_cells():
     m = SpeedMap(xs, ys, angles, table)
     # trilinear: value = 1 + 4 x + 2 y + (a + 1) / 2
     assert m.max_speed((0.5, 0.25), (math.cos(0.0), math.sin(0.0))) == pytest.approx(1 + 2 + 0.5 + 0.5)
-    table[1, 1, 1] = 0.0
+    table[1, 1, 1] = 0.0  # a direction the arm cannot hit in at a reachable grid point: 0 along it nearby
     assert SpeedMap(xs, ys, angles, table).max_speed((0.9, 0.9), (math.cos(0.9), math.sin(0.9))) == 0.0
+    table[1, 1, :] = 0.0  # a grid point the arm cannot reach at all (outside its region) is left out
+    edge = SpeedMap(xs, ys, angles, table)
+    w = {(0, 0): 0.5 * 0.75, (0, 1): 0.5 * 0.25, (1, 0): 0.5 * 0.75}  # bilinear weights at (0.5, 0.25)
+    expected = sum(wt * table[i, j].mean() for (i, j), wt in w.items()) / sum(w.values())  # at angle 0
+    assert edge.max_speed((0.5, 0.25), (1.0, 0.0)) == pytest.approx(expected)
+    table[:, :, :] = 0.0
+    table[0, 0, :] = 1.0
+    assert SpeedMap(xs, ys, angles, table).max_speed((1.0, 1.0), (1.0, 0.0)) == 0.0  # no reachable neighbour
 
 
 def test_speed_map_agrees_with_the_planners_search():

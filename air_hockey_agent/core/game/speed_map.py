@@ -4,8 +4,9 @@ The motion layer finds the fastest mallet speed along a direction at a point by 
 search and an LP (:func:`air_hockey_agent.core.motion.hit_config.best_hit_configuration`, about 3 ms).
 Tactics need that speed for several candidate shots every frame (thesis sec. 4.6 smash variants), so
 :class:`SpeedMap` samples it once on a grid of (depth, y, direction angle) in the robot's own frame and
-interpolates trilinearly; cells the arm cannot reach hold 0. The table depends only on the motion
-parameters, so it is cached on disk under a hash of them and built once per machine.
+interpolates trilinearly; grid points the arm cannot reach hold 0 and are left out of the interpolation.
+The table depends only on the motion parameters, so it is cached on disk under a hash of them and built
+once per machine.
 """
 from __future__ import annotations
 
@@ -49,22 +50,30 @@ class SpeedMap:
         if self.speeds.shape != (len(self.xs), len(self.ys), len(self.angles)):
             raise ValueError(f"speed table shape {self.speeds.shape} does not match the grid")
         self._table = self.speeds.tolist()  # nested lists: scalar look-ups without numpy overhead
+        self._reachable = np.any(self.speeds > 0.0, axis=2).tolist()  # grid points with some hit direction
 
     def max_speed(self, point: Sequence[float], direction: Sequence[float]) -> float:
-        """Interpolated fastest hit [m/s] at ``point`` along the unit ``direction`` (0 where unreachable:
-        any of the 8 surrounding samples unreachable makes the point unreachable)."""
+        """Interpolated fastest hit [m/s] at ``point`` along the unit ``direction``. Grid points the arm cannot
+        reach at all (outside its region: every direction 0) are left out and the others' weights rescaled, so
+        a point inside the region next to its edge keeps the speed of its reachable neighbours (the 8-corner
+        rule left a band of about one grid cell, 5-7 cm, unplayable along the reach limit: pucks at rest 0.2 m
+        from the centre line that the arm can push); a direction the arm cannot hit in at a reachable
+        neighbour still makes the point 0 along it, and a point with no reachable neighbour is 0."""
         angle = math.atan2(direction[1], direction[0])
         (i, wi), (j, wj), (k, wk) = _cell(self.xs, point[0]), _cell(self.ys, point[1]), _cell(self.angles, angle)
         t = self._table
-        total = 0.0
+        total = weight = 0.0
         for di, a in ((0, 1.0 - wi), (1, wi)):
             for dj, b in ((0, 1.0 - wj), (1, wj)):
+                if a * b <= 0.0 or not self._reachable[i + di][j + dj]:
+                    continue
                 for dk, c in ((0, 1.0 - wk), (1, wk)):
                     v = t[i + di][j + dj][k + dk]
-                    if v <= 0.0 and a * b * c > 0.0:
+                    if v <= 0.0 and c > 0.0:
                         return 0.0
                     total += a * b * c * v
-        return total
+                weight += a * b
+        return total / weight if weight > 0.0 else 0.0
 
     # --- building and caching ----------------------------------------------------------------------
     @classmethod
