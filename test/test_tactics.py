@@ -359,6 +359,17 @@ def test_a_smash_re_aimed_at_a_drifting_puck_keeps_its_hit_time(selector, model,
     assert last is not None and last.time == pytest.approx(late + settings.smash_lead_time)
 
 
+def test_a_prepare_re_aimed_at_a_creeping_puck_keeps_its_hit_time(selector, model, settings):
+    """The same for Prepare: a puck slower than static_speed counts as at rest where it is, so while it
+    creeps its push is re-aimed (a game re-planned one 14 times in a row at 0.03 m/s) at the same time."""
+    first = selector.step(0.0, RUNNING, situation(model, [-0.85, 0.3, 0.0, 0.0, 0, 0])).command
+    assert first is not None and first.tactic == PREPARE and first.time == pytest.approx(settings.smash_lead_time)
+    selector.on_status(0.0, 0, 3.0, 0.01)
+    crept = situation(model, [-0.84, 0.3, 0.03, 0.0, 0, 0], t0=0.3)
+    again = selector.step(0.3, RUNNING, crept).command
+    assert again is not None and again.tactic == PREPARE and again.time == first.time
+
+
 def test_switches_as_soon_as_the_situation_changes(selector, model):
     sit = situation(model, [-0.5, 0.1, 0, 0, 0, 0])
     selector.step(0.0, RUNNING, sit)

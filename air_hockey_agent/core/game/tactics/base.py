@@ -83,6 +83,18 @@ def approach_clear(puck: np.ndarray, hit_point: np.ndarray, velocity: np.ndarray
     return gap >= ctx.settings.contact_distance + ctx.settings.approach_clearance
 
 
+def self_timed_hit_time(tactic: int, ctx: Context) -> float:
+    """When a hit whose time the tactic chooses itself (Smash, Prepare) is played [s]: a hit of ``tactic``
+    already under way keeps its time while at least ``min_plan_time`` is left (re-aimed at a slow puck whose
+    estimate drifted, it would otherwise be pushed ``smash_lead_time`` ahead at every re-plan and never
+    arrive: in a game a puck drifting at 0.1-0.2 m/s was re-planned 17 times over 7 s before it was hit);
+    else ``smash_lead_time`` (plus any "too late" extra) from now."""
+    st, running = ctx.settings, ctx.running
+    if running is not None and running.tactic == tactic and running.time - ctx.now >= st.min_plan_time:
+        return running.time
+    return ctx.now + st.smash_lead_time + ctx.lead_extra
+
+
 def reach_proposal(tactic: int, point: np.ndarray, ctx: Context, reason: str) -> Proposal:
     """Reach ``point`` and stop, with the time the arm needs (plus any "too late" extra)."""
     p = ctx.reach.clamp(point)

@@ -18,7 +18,8 @@ import numpy as np
 
 from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
-from air_hockey_agent.core.game.tactics.base import PREPARE, Context, Proposal, Tactic, approach_clear
+from air_hockey_agent.core.game.tactics.base import (PREPARE, Context, Proposal, Tactic, approach_clear,
+                                                    self_timed_hit_time)
 from air_hockey_agent.core.game.tactics.outcome import Ranked, worst_margin
 
 CACHE_SIZE = 64
@@ -41,7 +42,7 @@ class Prepare(Tactic):
         push = self._best(situation.puck, ctx)
         if push is None:
             return None
-        t = ctx.now + st.smash_lead_time + ctx.lead_extra
+        t = self_timed_hit_time(PREPARE, ctx)
         reason = (f"prepare: puck at rest at ({p[0]:.2f}, {p[1]:.2f}) outside the smash area, pushed "
                   f"{push.mallet_speed:.2f} m/s to stop at ({push.rest[0]:.2f}, {push.rest[1]:.2f})")
         return Proposal(PREPARE, push.hit_point, push.mallet_velocity, t, reason, puck=p.copy(),

@@ -21,7 +21,8 @@ import numpy as np
 
 from air_hockey_agent.core.game.shots import VARIANTS
 from air_hockey_agent.core.game.situation import Situation
-from air_hockey_agent.core.game.tactics.base import SMASH, Context, Proposal, Tactic, approach_clear
+from air_hockey_agent.core.game.tactics.base import (SMASH, Context, Proposal, Tactic, approach_clear,
+                                                    self_timed_hit_time)
 
 CACHE_SIZE = 64
 KEY_POSITION = 0.005  # [m] puck positions closer than this share an aimed shot
@@ -38,7 +39,7 @@ class Smash(Tactic):
         st = ctx.settings
         if situation is None:
             return None
-        t_hit = self._hit_time(ctx)
+        t_hit = self_timed_hit_time(SMASH, ctx)
         puck = situation.expected(t_hit, st.static_speed)
         speed = math.hypot(puck[2], puck[3])
         if speed > st.smash_puck_speed:
@@ -52,17 +53,6 @@ class Smash(Tactic):
                   f"predicted goal y {shot.goal_y:+.3f} m in {shot.arrival:.2f} s, p(goal) {shot.success:.2f}")
         return Proposal(SMASH, shot.hit_point, shot.mallet_speed * shot.direction, t_hit, reason, puck=puck[:2],
                         target=np.array([st.table.length / 2, 0.0]), flexible_time=True)
-
-    @staticmethod
-    def _hit_time(ctx: Context) -> float:
-        """When to hit [s]: a smash already under way keeps its hit time while at least ``min_plan_time`` is
-        left (re-aimed at a slow puck whose prediction drifted, it would otherwise be pushed ``smash_lead_time``
-        ahead at every re-plan and never arrive: in a game a puck drifting at 0.1-0.2 m/s was re-planned 17
-        times over 7 s before it was hit); else ``smash_lead_time`` (plus any "too late" extra) from now."""
-        st, running = ctx.settings, ctx.running
-        if running is not None and running.tactic == SMASH and running.time - ctx.now >= st.min_plan_time:
-            return running.time
-        return ctx.now + st.smash_lead_time + ctx.lead_extra
 
     def _shots(self, puck: np.ndarray, ctx: Context) -> list:
         cap = None if math.isinf(ctx.speed_cap) else ctx.speed_cap
