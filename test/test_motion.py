@@ -292,6 +292,26 @@ def test_motions_from_a_mallet_moving_toward_a_rim_stay_in_the_region_or_are_ref
     assert accepted >= 10 and refused_ >= 3, (accepted, refused_)
 
 
+def test_a_hit_starts_on_its_grid_after_now_with_a_full_first_step(params):
+    """The plan of a hit starts at a knot of its grid (the hit time less whole steps), within half a step of
+    the start but never before now (start - planning_delay): the trajectory's first point must still be
+    ahead when it is sent; the start state is carried there along its velocity."""
+    for delay in (0.03, 0.004):  # the default, and one shorter than half a grid step
+        planner = build_planner(dict(params, planning_delay=delay), "iiwa_front")
+        dt, start = planner.s.dt, _moving(planner, (-0.6, 0.1), (0.3, -0.2))
+        start = ArmState(10.0, start.q, start.dq)
+        for offset in (0.001, 0.009, 0.011, 0.019):  # hit times off the grid of the start
+            plan = planner.plan(Command(np.array([-0.5, 0.0]), np.array([1.0, 0.2]), 11.0 + offset), start)
+            assert plan.ok, plan.message
+            origin = plan.start.t
+            assert start.t - delay < origin < start.t + dt  # after now, within a step after the start
+            if delay >= dt / 2:
+                assert abs(origin - start.t) <= dt / 2 + 1e-9  # the nearest knot
+            steps = (plan.hit_time - origin) / dt
+            assert abs(steps - round(steps)) < 1e-6 and plan.times[0] - origin == pytest.approx(dt)
+            assert np.allclose(plan.start.q, start.q + (origin - start.t) * start.dq)
+
+
 def test_a_strike_refused_for_a_joint_limit_names_a_slower_speed_that_helps(front):
     """Near the region's back edge the run-up is short: the planner refuses for a joint's acceleration
     (or velocity) limit and reports the speed at which that limit would hold (acceleration ~ v^2 on the
