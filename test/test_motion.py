@@ -229,6 +229,18 @@ def test_bad_commands_are_refused_with_their_reason(front):
         assert len(plan.q) == 0
 
 
+def test_region_excess_is_the_distance_beyond_the_box_or_the_reach(front):
+    """0 inside; beyond the goal-side rim line, a long rim line, the centre line or the reach disc by the
+    distance past it (the disc ends before the centre line at y = 0: there the larger of the two)."""
+    r = front.region
+    disc_end = r.base_xy[0] + r.reach  # the reach's end along y = 0
+    points = np.array([[-0.5, 0.0], [r.x_min - 0.03, 0.0], [-0.5, -r.y_max - 0.02], [r.x_max + 0.01, 0.0],
+                       [disc_end + 0.004, 0.0]])
+    assert disc_end + 0.004 < r.x_max
+    assert np.allclose(r.excess(points), [0.0, 0.03, 0.02, r.x_max + 0.01 - disc_end, 0.004])
+    assert r.excess(np.array([-0.5, 0.0]))[0] == 0.0
+
+
 def test_a_point_the_arm_cannot_reach_is_refused(params):
     params = dict(params, max_reach=1.6)  # let the region include points beyond the arm's reach
     planner = build_planner(params, "iiwa_front")

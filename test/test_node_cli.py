@@ -51,6 +51,12 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
     assert not any(k.startswith("robot_fault") for k in game["faults"]), game
     assert Path(game["recording"]).is_dir() and any(Path(game["recording"]).glob("*.mcap"))
     assert "Traceback" not in result.stderr
+    checked = run([str(BIN / "air-hockey"), "game-check", game["recording"], "--json"])
+    assert checked.returncode == 0, checked.stderr[-2000:]
+    arms = json.loads(checked.stdout)[game["recording"]]
+    for robot in ("iiwa_front", "iiwa_back"):  # recorded joint states and plans of both arms, inside the region
+        assert arms[robot]["joint_states"] > 1000 and arms[robot]["trajectories"] >= 1, arms
+        assert arms[robot]["worst_outside_m"] < 0.005 and arms[robot]["trajectories_outside"] == 0, arms
     leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|referee|tactics|puck_tracker|trajectory_generator)"])
     assert leftovers.stdout.strip() == ""
 

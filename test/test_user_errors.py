@@ -138,6 +138,14 @@ def test_synth_bag_and_eval_prediction_count_the_same_lost_frames(tmp_path):
     assert json.loads(evaluated.stdout)["lost_frames"] == lost > 0
 
 
+def test_game_check_of_a_bag_without_joint_states_is_a_one_line_error(tmp_path):
+    made = run([BIN / "air-hockey", "synth-bag", tmp_path / "puck_only", "--shots", "1", "--seed", "4"])
+    assert made.returncode == 0, made.stderr
+    assert_one_line_error(run([BIN / "air-hockey", "game-check", tmp_path / "puck_only"]),
+                          "puck_only", "no /<robot>/joint_states", "air-hockey game --record")
+    assert_one_line_error(run([BIN / "air-hockey", "game-check", tmp_path / "missing"]), "missing", "does not exist")
+
+
 def test_prediction_optimizer_without_a_tracker_fails_in_one_line(ros_env, tmp_path):
     made = run([BIN / "air-hockey", "synth-bag", tmp_path / "bags" / "b", "--shots", "3", "--seed", "5"])
     assert made.returncode == 0, made.stderr

@@ -12,6 +12,7 @@ from air_hockey_agent.tools.argtypes import OneLineParser
 # Subcommand modules; each provides add_parser(subparsers) that sets `run` as the handler.
 TOOL_MODULES = (
     "air_hockey_agent.tools.game",
+    "air_hockey_agent.tools.game_check",
     "air_hockey_agent.tools.strategy_test",
     "air_hockey_agent.tools.bench",
     "air_hockey_agent.tools.eval_prediction",

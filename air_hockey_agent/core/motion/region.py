@@ -42,6 +42,16 @@ class Region:
         inside_disc = np.hypot(p[:, 0] - self.base_xy[0], p[:, 1] - self.base_xy[1]) <= self.reach + tol
         return inside_box & inside_disc
 
+    def excess(self, p: np.ndarray) -> np.ndarray:
+        """How far [m] each of the points ``p`` (n, 2) or (2,) lies outside the region: the larger of its
+        distances beyond the box and beyond the reach disc (0 inside; a lower bound of the distance to the
+        region)."""
+        p = np.atleast_2d(p)
+        box = np.maximum.reduce([self.x_min - p[:, 0], p[:, 0] - self.x_max, np.abs(p[:, 1]) - self.y_max,
+                                 np.zeros(len(p))])
+        disc = np.hypot(p[:, 0] - self.base_xy[0], p[:, 1] - self.base_xy[1]) - self.reach
+        return np.maximum(box, np.maximum(disc, 0.0))
+
     def first_outside(self, p: np.ndarray, tol: float = 1e-9) -> int | None:
         """Index of the first of the points ``p`` (n, 2) outside the region (by more than ``tol`` [m]), or None."""
         outside = np.flatnonzero(~self._inside(p, tol))

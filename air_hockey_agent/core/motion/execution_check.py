@@ -1,0 +1,59 @@
+"""How an arm executed its motions in a recorded game (ROS-free): did the mallet stay in its region, did
+the joints stay within their velocity limits, and did the planned knots stay in the region.
+
+Mallet positions come from the motion layer's own kinematics (the striker held vertical, as the planner
+sees it) in the robot's own frame (README "Frames and units"); the region and the limits are the
+planner's (``config/motion.yaml``). A diagnostic for `air-hockey game-check`: in a game the referee stops
+play for a mallet 2 cm into a rim, this shows every excursion and where the plan itself went.
+"""
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass
+from typing import Iterable
+
+import numpy as np
+
+from air_hockey_agent.core.motion.planner import MotionPlanner
+
+
+@dataclass
+class ArmExecution:
+    """One arm's record over a game; times [s] are the messages' stamps (None: no such sample)."""
+
+    joint_states: int = 0
+    worst_outside_m: float = 0.0          # mallet beyond the region, executed
+    worst_outside_time: float | None = None
+    worst_velocity_use: float = 0.0       # largest |dq| / real velocity limit over all joints, executed
+    worst_velocity_time: float | None = None
+    trajectories: int = 0
+    trajectories_outside: int = 0         # with a planned knot more than ``planned_tolerance`` outside
+    worst_planned_outside_m: float = 0.0
+
+    def as_dict(self) -> dict:
+        return asdict(self)
+
+
+class ExecutionCheck:
+    """Accumulates one arm's joint states and received trajectories (joint vectors in the planner's order)."""
+
+    def __init__(self, planner: MotionPlanner, planned_tolerance: float) -> None:
+        self.planner, self.tolerance = planner, planned_tolerance
+        self.result = ArmExecution()
+
+    def joint_state(self, t: float, q: np.ndarray, dq: np.ndarray) -> None:
+        r, p = self.result, self.planner
+        r.joint_states += 1
+        outside = float(p.region.excess(p.kin.position(q)[:2])[0])
+        if outside > r.worst_outside_m:
+            r.worst_outside_m, r.worst_outside_time = outside, t
+        use = float(np.max(np.abs(dq) / p.limits.dq_max_real))
+        if use > r.worst_velocity_use:
+            r.worst_velocity_use, r.worst_velocity_time = use, t
+
+    def trajectory(self, knots: Iterable[np.ndarray]) -> None:
+        r, p = self.result, self.planner
+        r.trajectories += 1
+        points = np.array([p.kin.position(q)[:2] for q in knots])
+        outside = float(np.max(p.region.excess(points))) if len(points) else 0.0
+        r.worst_planned_outside_m = max(r.worst_planned_outside_m, outside)
+        r.trajectories_outside += outside > self.tolerance

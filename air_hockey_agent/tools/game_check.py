@@ -1,0 +1,90 @@
+"""``air-hockey game-check BAG...``: how the arms executed their motions in a recorded game.
+
+Reads a recording of `air-hockey game --record` (or any bag with ``/<robot>/joint_states`` and, for the
+plans, ``/<robot>/joint_trajectory``; rosbags, no ROS needed) and reports per robot: how far the mallet
+went beyond the motion layer's allowed region (the referee stops play 2 cm into a rim), the largest joint
+velocity against the real limits, and how many received trajectories had a planned knot outside the
+region (:mod:`air_hockey_agent.core.motion.execution_check`). A bag that cannot be used gives a one-line
+error on stderr and exit code 2; the other bags are still checked.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+
+from air_hockey_agent.bags.reader import BagError, bag_topics, iter_raw
+
+PROG = "air-hockey game-check"
+ROBOTS = ("iiwa_front", "iiwa_back")
+JOINT_STATE = "sensor_msgs/msg/JointState"
+TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
+# [m] a planned knot this far outside the region counts: the planner's own path check allows 1 mm between
+# its samples (core/motion/planner.py PATH_TOLERANCE), so more is a plan that left the region
+PLANNED_TOLERANCE = 0.002
+
+
+def add_parser(subparsers: argparse._SubParsersAction) -> None:
+    parser = subparsers.add_parser("game-check", help="mallet excursions and joint velocities in a recorded game",
+                                   description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG", help="rosbag2 directories (sqlite3 or MCAP)")
+    parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
+    parser.set_defaults(run=run)
+
+
+def check_bag(bag: Path, planners: dict) -> dict:
+    """Per robot :class:`ArmExecution` as a dict; raises :class:`BagError` when the bag has no joint states."""
+    from air_hockey_agent.bags.types import typestore
+    from air_hockey_agent.core.motion.execution_check import ExecutionCheck
+    from air_hockey_agent.core.motion.kinematics import in_order
+    topics = bag_topics(bag)
+    robots = [r for r in ROBOTS if topics.get(f"/{r}/joint_states") == JOINT_STATE]
+    if not robots:
+        raise BagError(bag, "no /<robot>/joint_states (sensor_msgs/msg/JointState) of "
+                            f"{' or '.join(ROBOTS)}: record a game with `air-hockey game --record`")
+    checks = {r: ExecutionCheck(planners[r], PLANNED_TOLERANCE) for r in robots}
+    wanted = {f"/{r}/joint_states": r for r in robots}
+    wanted.update({f"/{r}/joint_trajectory": r for r in robots if topics.get(f"/{r}/joint_trajectory") == TRAJECTORY})
+    store = typestore()
+    for topic, _, raw in iter_raw(bag, wanted):
+        robot, msg = wanted[topic], store.deserialize_cdr(raw, topics[topic])
+        names = planners[robot].kin.joint_names
+        if topic.endswith("joint_states"):
+            q, dq = in_order(msg.name, msg.position, names), in_order(msg.name, msg.velocity, names)
+            if q is not None and dq is not None:
+                checks[robot].joint_state(msg.header.stamp.sec + msg.header.stamp.nanosec * 1e-9, q, dq)
+        else:
+            knots = (in_order(msg.joint_names, point.positions, names) for point in msg.points)
+            checks[robot].trajectory([q for q in knots if q is not None])
+    return {r: c.result.as_dict() for r, c in checks.items()}
+
+
+def _print(bag: Path, result: dict) -> None:
+    print(f"{bag}")
+    for robot, r in result.items():
+        when = f" at {r['worst_outside_time']:.2f} s" if r["worst_outside_time"] is not None else ""
+        vel_when = f" at {r['worst_velocity_time']:.2f} s" if r["worst_velocity_time"] is not None else ""
+        print(f"  {robot}: {r['joint_states']} joint states, mallet at most {r['worst_outside_m'] * 1000:.1f} mm "
+              f"outside its region{when}; joint velocity at most {r['worst_velocity_use'] * 100:.0f} % of a "
+              f"limit{vel_when}; {r['trajectories']} trajectories, {r['trajectories_outside']} with a planned "
+              f"knot outside (at most {r['worst_planned_outside_m'] * 1000:.1f} mm)")
+
+
+def run(args: argparse.Namespace) -> int:
+    from air_hockey_agent.motion_params import build_planner, load_motion_params
+    motion = load_motion_params()
+    planners = {r: build_planner(motion, r) for r in ROBOTS}
+    results, failed = {}, 0
+    for bag in args.bags:
+        try:
+            results[str(bag)] = check_bag(bag, planners)
+        except BagError as exc:
+            print(f"{PROG}: error: {exc}", file=sys.stderr)
+            failed += 1
+            continue
+        if not args.json:
+            _print(bag, results[str(bag)])
+    if args.json:
+        print(json.dumps(results))
+    return 2 if failed else 0
