@@ -94,13 +94,14 @@ def received_at(joint_names: Sequence[str], start: float, times: Sequence[float]
     if ahead == 0:
         return JointTrajectory(full.joint_names, now, np.concatenate([[0.0], t_abs - now]), full.positions.copy(),
                                full.velocities.copy())
-    last = ahead  # index in full's arrays of the latest passed point (full has the implicit point at 0)
     if ahead == len(t_abs):
         q = full.positions[-1]
         return JointTrajectory(full.joint_names, now, np.array([0.0, HOLD_STEP]), np.vstack([q, q]),
                                np.zeros((2, len(full.joint_names))))
-    return JointTrajectory(full.joint_names, float(t_abs[ahead - 1]), np.concatenate([[0.0], t_abs[ahead:] - t_abs[ahead - 1]]),
-                           full.positions[last:].copy(), full.velocities[last:].copy())
+    # from the latest passed point: message point ahead - 1, index ahead in full's arrays (implicit point first)
+    passed = float(t_abs[ahead - 1])
+    return JointTrajectory(full.joint_names, passed, np.concatenate([[0.0], t_abs[ahead:] - passed]),
+                           full.positions[ahead:].copy(), full.velocities[ahead:].copy())
 
 
 def _slopes(t: np.ndarray, q: np.ndarray) -> np.ndarray:

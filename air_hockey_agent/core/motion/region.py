@@ -32,29 +32,21 @@ class Region:
 
     def contains(self, p: np.ndarray, tol: float = 1e-9) -> bool:
         """True when the point(s) ``p`` (..., 2) are all inside the region (up to ``tol`` [m])."""
-        return bool(np.all(self._inside(p, tol)))
-
-    def _inside(self, p: np.ndarray, tol: float) -> np.ndarray:
-        """Per point of ``p`` (n, 2) or (2,): inside the region up to ``tol`` [m]."""
-        p = np.atleast_2d(p)
-        inside_box = ((p[:, 0] >= self.x_min - tol) & (p[:, 0] <= self.x_max + tol)
-                      & (np.abs(p[:, 1]) <= self.y_max + tol))
-        inside_disc = np.hypot(p[:, 0] - self.base_xy[0], p[:, 1] - self.base_xy[1]) <= self.reach + tol
-        return inside_box & inside_disc
+        return bool(np.all(self.excess(p) <= tol))
 
     def excess(self, p: np.ndarray) -> np.ndarray:
         """How far [m] each of the points ``p`` (n, 2) or (2,) lies outside the region: the larger of its
         distances beyond the box and beyond the reach disc (0 inside; a lower bound of the distance to the
         region)."""
         p = np.atleast_2d(p)
-        box = np.maximum.reduce([self.x_min - p[:, 0], p[:, 0] - self.x_max, np.abs(p[:, 1]) - self.y_max,
-                                 np.zeros(len(p))])
-        disc = np.hypot(p[:, 0] - self.base_xy[0], p[:, 1] - self.base_xy[1]) - self.reach
-        return np.maximum(box, np.maximum(disc, 0.0))
+        x, y = p[:, 0], p[:, 1]
+        box = np.maximum(np.maximum(self.x_min - x, x - self.x_max), np.abs(y) - self.y_max)
+        disc = np.hypot(x - self.base_xy[0], y - self.base_xy[1]) - self.reach
+        return np.maximum(np.maximum(box, disc), 0.0)
 
     def first_outside(self, p: np.ndarray, tol: float = 1e-9) -> int | None:
         """Index of the first of the points ``p`` (n, 2) outside the region (by more than ``tol`` [m]), or None."""
-        outside = np.flatnonzero(~self._inside(p, tol))
+        outside = np.flatnonzero(self.excess(p) > tol)
         return int(outside[0]) if outside.size else None
 
     def random_point(self, rng: np.random.Generator) -> np.ndarray:
