@@ -29,7 +29,7 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("smash_puck_speed", float, "[m/s] smash a puck slower than this", 0.0, 5.0),
     ParamSpec("approach_speed", float, "[m/s] puck approaches when vx < -this", 0.0, 1.0),
     ParamSpec("min_plan_time", float,
-              "[s] shortest time before a crossing a defence is planned for (or a running smash re-aimed for)", 0.0, 2.0),
+              "[s] shortest time before a crossing a defence is planned for (or a running smash or push re-aimed for)", 0.0, 2.0),
     ParamSpec("repel_time", list, "[s] crossing time range in which Repel is chosen", 0.0, 5.0, 2),
     ParamSpec("repel_line", float, "[m] depth at which a Repel meets the puck", 0.0, 1.0),
     ParamSpec("repel_width", float, "[m] Repel a puck crossing the defend line within |y| < this", 0.0, 1.0),
