@@ -81,6 +81,19 @@ def test_holding_the_puck_on_one_side_too_long_is_a_foul_and_the_puck_goes_to_th
     assert t == pytest.approx(settings.possession_limit, abs=0.02) and decision.reset_puck[0] < 0
 
 
+def test_no_possession_foul_while_the_puck_is_in_the_neutral_zone(referee, settings):
+    half = settings.neutral_zone_length / 2
+    # drifting (never at rest) inside the zone on iiwa_back's side past the limit: no foul
+    t, decision = run(referee, 0.0, settings.possession_limit + 5.0,
+                      lambda t: (0.5 * half + 0.2 * half * np.sin(t), 0.1 * np.sin(0.5 * t)))
+    assert decision is None
+    # the clock kept running: the foul comes as soon as the puck leaves the zone
+    t0 = settings.possession_limit + 5.0
+    t, decision = run(referee, t0, t0 + 2.0, lambda t: (0.6 * half + (t - t0), 0.0))
+    assert decision.event == EVENT_PUCK_STUCK and "iiwa_back kept the puck" in decision.reason
+    assert t == pytest.approx(t0 + 0.4 * half, abs=0.02)
+
+
 @pytest.mark.parametrize("mallet, what", [((0.1, 0.0), "centre line"), ((-0.5, 0.5), "in the rim")])
 def test_a_mallet_where_it_must_not_be_stops_the_game(referee, mallet, what):
     _, decision = run(referee, 0.0, 0.1, lambda t: (0.3, 0.0), mallets={FRONT: mallet, BACK: HOME[BACK]})

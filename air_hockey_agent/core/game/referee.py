@@ -8,9 +8,10 @@ the one at x = +L/2. The rules, after the ROS 1 referee (REFERENCE_FACTS 4) with
 * **Puck out**: the puck centre beyond the table's edge by ``out_margin`` anywhere else, or no puck
   pose for ``lost_timeout``. Pause; the puck goes back on a random side.
 * **Puck stuck**: the puck has stayed within ``stuck_radius`` for ``stuck_time`` in the neutral zone
-  (|x| < ``neutral_zone_length``/2, where neither robot may reach), or on one robot's side for
-  ``possession_limit`` (the time-limit rule the ROS 1 referee lacked). Pause; in the neutral zone the
-  puck goes to a random side, after a possession foul to the other robot.
+  (|x| < ``neutral_zone_length``/2, where neither robot can reach), or on one robot's side for
+  ``possession_limit`` (the time-limit rule the ROS 1 referee lacked) and outside the neutral zone (the
+  challenge's tournament rule: no foul for a puck its holder cannot reach). Pause; in the neutral zone
+  the puck goes to a random side, after a possession foul to the other robot.
 * **Robot fault**: a mallet outside its robot's half (beyond the centre line by ``centre_line_margin``)
   or closer to a rim than the mallet radius less ``rim_margin`` (ROS 1 Gazebo referee's box). The game
   stops (a real robot needs a person); with ``restart_after_fault`` it pauses, resets the robots and
@@ -165,7 +166,8 @@ class Referee:
         if self._anchor is not None and t - self._anchor[2] >= s.stuck_time and abs(x) < s.neutral_zone_length / 2:
             return Decision(EVENT_PUCK_STUCK, f"puck at rest in the neutral zone for {s.stuck_time:g} s",
                             self._reset_point(None))
-        if self._side_since is not None and self._side_since[0] != 0.0 and t - self._side_since[1] > s.possession_limit:
+        if (self._side_since is not None and self._side_since[0] != 0.0 and t - self._side_since[1] > s.possession_limit
+                and abs(x) >= s.neutral_zone_length / 2):
             holder = FRONT if self._side_since[0] < 0 else BACK
             return Decision(EVENT_PUCK_STUCK, f"{holder} kept the puck on its side for over {s.possession_limit:g} s",
                             self._reset_point(OTHER[holder]))
