@@ -93,6 +93,16 @@ def test_ik_reaches_random_region_points_within_a_millimetre(planner):
         assert np.all(result.q >= planner.limits.q_min - 1e-12) and np.all(result.q <= planner.limits.q_max + 1e-12)
 
 
+def test_ik_converges_next_to_the_stretched_arm(front):
+    # the posture pull toward the bent reference must not hold the mallet short of a far target (with a
+    # damped projector it leaked into the task and stalled 0.1 mm short from 1.32 m on)
+    s = front.s
+    for reach in (1.35, 1.40, 1.45):  # the stretched arm reaches 1.47 m at the playing height
+        target = np.array([front.kin.base_xy[0] + reach, 0.0, s.height])
+        result = solve_ik(front.kin, front.limits, target, s.reference, s.reference, s.ik_iterations, s.ik_tolerance)
+        assert result.ok, (reach, result.reason)
+
+
 def test_ik_refuses_a_point_out_of_reach_with_a_reason(front):
     s = front.s
     result = solve_ik(front.kin, front.limits, np.array([0.5, 0.0, s.height]), s.reference, s.reference,
@@ -244,7 +254,9 @@ def test_region_excess_is_the_distance_beyond_the_box_or_the_reach(front):
 def test_a_point_the_arm_cannot_reach_is_refused(params):
     params = dict(params, max_reach=1.6)  # let the region include points beyond the arm's reach
     planner = build_planner(params, "iiwa_front")
-    plan = planner.plan(Command(np.array([-0.08, 0.0]), np.zeros(2), 1.5), _ready(planner))
+    point = np.array([-0.07, 0.42])  # 1.49 m from the base axis: the stretched arm reaches 1.47 m
+    assert planner.region.contains(point)
+    plan = planner.plan(Command(point, np.zeros(2), 1.5), _ready(planner))
     assert plan.outcome == UNREACHABLE and "unreachable" in plan.message
 
 

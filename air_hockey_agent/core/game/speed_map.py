@@ -28,7 +28,7 @@ from air_hockey_agent.core.motion.planner import MotionPlanner
 # [rad] directions from -180 to +180 deg about the own +x axis: smashes go forward, but a Prepare pushes a
 # puck that lies beyond the smash area back toward the own goal (atan2's range: both ends are one direction)
 ANGLE_RANGE = math.pi
-FORMAT_VERSION = 2
+FORMAT_VERSION = 3  # 3: the IK projects its posture pull exactly (tables built before differ slightly)
 
 
 def _cell(axis: Sequence[float], value: float) -> tuple[int, float]:

@@ -50,7 +50,7 @@ def solve_ik(kin: MalletKinematics, limits: JointLimits, target: np.ndarray, see
         if error < tolerance:
             return IKResult(q, True, error)
         pinv = weighted_pinv(jac, DAMPING)
-        null = np.eye(7) - pinv @ jac
+        null = np.eye(7) - weighted_pinv(jac) @ jac  # exact projector: the posture pull leaves the mallet
         step = pinv @ e + null @ (NULL_SPACE_GAIN * (reference - q))
         norm = float(np.linalg.norm(step))
         if norm > MAX_STEP:
