@@ -70,3 +70,32 @@ def test_a_goal_scores_the_puck_is_put_back_and_play_resumes(game, rclpy_node):
     assert spin_until(rclpy_node, lambda: statuses[-1].status == GameStatus.STATUS_STOPPED
                       and statuses[-1].score_front == 0, 30.0)
     assert game.processes["referee"].returncode is None  # still running
+
+
+def test_the_game_does_not_start_before_table_sim_has_reset_the_robots(launcher, rclpy_node):
+    """table_sim drops the trajectories of the robots it resets: a game started before its answer let a
+    planner go on from a motion that never ran (a joint at 157 % of its velocity limit). Here no table_sim
+    answers the referee's reset, so start_game is refused and says why."""
+    from geometry_msgs.msg import PoseStamped
+    from std_srvs.srv import Trigger
+    launcher.start(ProcessSpec("referee", [str(BIN / "referee")]))
+    pose = PoseStamped()
+    pose.header.frame_id = "table"
+    pose.pose.orientation.w = 1.0
+    pose.pose.position.x = 0.3
+    poses = rclpy_node.create_publisher(PoseStamped, "/optitrack/puck", 10)
+    reset = rclpy_node.create_client(Trigger, "/referee/reset_robots")
+    start = rclpy_node.create_client(Trigger, "/referee/start_game")
+    answers = []
+
+    def seen_then_started():  # the referee sees the puck (else it refuses for that), resets, is asked to start
+        pose.header.stamp = rclpy_node.get_clock().now().to_msg()
+        poses.publish(pose)
+        answers.append(call_service(rclpy_node, start, Trigger.Request(), 10.0))
+        return answers[-1] is not None and answers[-1].success
+    assert spin_until(rclpy_node, seen_then_started, 30.0)  # no reset asked yet: it starts
+    assert call_service(rclpy_node, reset, Trigger.Request(), 10.0).success
+    pose.header.stamp = rclpy_node.get_clock().now().to_msg()
+    poses.publish(pose)
+    refused = call_service(rclpy_node, start, Trigger.Request(), 10.0)
+    assert refused is not None and not refused.success and refused.message.startswith("cannot start yet")

@@ -7,7 +7,9 @@ Output: ``/game_status`` (air_hockey_msgs/GameStatus, latched; on every change a
 ``status_period``). Services (std_srvs/Trigger): ``~/start_game``, ``~/pause_game``, ``~/stop_game``
 (clears the score), ``~/reset_robots`` (robots home, puck on a random side, game stopped). With ``sim`` the
 referee puts the puck back after an event through table_sim's ``/set_puck_state`` and homes the
-robots through its ``/reset_robots``; on the real table a person does.
+robots through its ``/reset_robots``; on the real table a person does. ``start_game`` is refused ("cannot
+start yet") until table_sim has answered those requests: it drops the trajectories of the robots it resets,
+so a motion planned before its reset would never run while its planner went on from it.
 """
 from __future__ import annotations
 
@@ -57,6 +59,7 @@ class RefereeNode(AirHockeyNode):
             self.puck_client = self.create_client(SetPuckState, "/set_puck_state")
             self.robots_client = self.create_client(Trigger, "/reset_robots")
         self._published: tuple | None = None
+        self._sim_calls: list = []  # table_sim requests (puck, robots) not answered yet
         self.create_timer(1.0 / p["rate"], self.on_tick)
         self.create_timer(p["status_period"], lambda: self.publish_status(force=True))
         self.publish_status(force=True)
@@ -101,10 +104,10 @@ class RefereeNode(AirHockeyNode):
         if not self.params["sim"]:
             return
         if decision.reset_robots:
-            self.robots_client.call_async(Trigger.Request())
+            self._sim_calls.append(self.robots_client.call_async(Trigger.Request()))
         if decision.reset_puck is not None:
             x, y = decision.reset_puck
-            self.puck_client.call_async(SetPuckState.Request(x=x, y=y))
+            self._sim_calls.append(self.puck_client.call_async(SetPuckState.Request(x=x, y=y)))
 
     def publish_status(self, force: bool = False) -> None:
         state = self.referee.state
@@ -131,6 +134,10 @@ class RefereeNode(AirHockeyNode):
         return response
 
     def on_start(self, _request, response):
+        self._sim_calls = [call for call in self._sim_calls if not call.done()]
+        if self._sim_calls:  # a trajectory sent now could reach table_sim before the reset, which drops it
+            return self._answer(response, (False, "cannot start yet: table_sim is still resetting the robots "
+                                                  "or the puck"))
         return self._answer(response, self.referee.start(self.now_seconds()))
 
     def on_pause(self, _request, response):

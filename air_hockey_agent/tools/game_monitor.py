@@ -12,6 +12,7 @@ from typing import Callable, Mapping, Sequence
 
 from air_hockey_agent.core.game.scoreboard import Scoreboard
 
+START_RETRY = 0.1  # [s] wall time between start requests while the referee waits for table_sim's reset
 ENV_KEYS = ("ROS_DOMAIN_ID", "FASTRTPS_DEFAULT_PROFILES_FILE", "RMW_IMPLEMENTATION", "ROS_HOME", "ROS_LOG_DIR")
 
 
@@ -71,10 +72,17 @@ class GameMonitor:
             client = self.node.create_client(Trigger, service)
             if not client.wait_for_service(timeout_sec=timeout):
                 raise GameError(f"the referee's {service} service did not appear within {timeout:g} s")
-            future = client.call_async(Trigger.Request())
-            if not self._spin_until(future.done, timeout) or not future.result().success:
-                message = future.result().message if future.done() else "no answer"
-                raise GameError(f"{service} failed: {message}")
+            deadline = time.monotonic() + timeout
+            while True:
+                future = client.call_async(Trigger.Request())
+                if not self._spin_until(future.done, timeout):
+                    raise GameError(f"{service} failed: no answer")
+                result = future.result()
+                if result.success:
+                    break
+                if not result.message.startswith("cannot start yet") or time.monotonic() > deadline:
+                    raise GameError(f"{service} failed: {result.message}")
+                self._spin_until(lambda: False, START_RETRY)  # the referee waits for table_sim's reset
 
     def follow(self, duration: float, goals: int, period: float, launcher, say, tty: bool) -> dict:
         """Spin until ``duration`` s of sim time or ``goals`` goals; returns the processes that ended
