@@ -26,6 +26,7 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("smash_depth", list, "[m] depth range of the smash area", 0.0, 1.0, 2),
     ParamSpec("smash_rim_margin", float, "[m] smash area distance from the long rims beyond the puck radius", 0.0, 0.5),
     ParamSpec("static_speed", float, "[m/s] puck at rest below this speed", 0.0, 1.0),
+    ParamSpec("drift_speed", float, "[m/s] puck hit where it lies below this speed", 0.0, 1.0),
     ParamSpec("smash_puck_speed", float, "[m/s] smash a puck slower than this", 0.0, 5.0),
     ParamSpec("approach_speed", float, "[m/s] puck approaches when vx < -this", 0.0, 1.0),
     ParamSpec("min_plan_time", float,

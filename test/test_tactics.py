@@ -63,6 +63,16 @@ def situation(model, state, t0=0.0, robot="iiwa_front", horizon=1.0):
 
 
 # --- building blocks --------------------------------------------------------------------------------
+def test_expected_carries_a_creeping_puck_on_beyond_the_horizon_and_holds_a_resting_one(model):
+    start = np.array([-0.5, 0.1, 0.05, -0.02, 0.0, 0.0])
+    sit = situation(model, start, horizon=0.5)
+    truth = predict_stepwise(model, start, None, 0.8, DT, np.zeros(6)).state
+    beyond = sit.expected(0.8, 0.01)
+    assert np.linalg.norm(beyond[:2] - truth[:2]) < 1e-3  # 0.3 s past the last sample
+    assert np.linalg.norm(sit.at(0.8)[:2] - truth[:2]) > 0.01  # held at the last sample
+    np.testing.assert_allclose(sit.expected(0.8, 0.06)[:4], [*start[:2], 0.0, 0.0])
+
+
 def test_own_frame_of_the_back_robot_is_the_table_turned_by_pi():
     s = to_own_frame(np.array([0.5, -0.2, 1.0, 0.3, 0.1, 2.0]), "iiwa_back")
     np.testing.assert_allclose(s, [-0.5, 0.2, -1.0, -0.3, 0.1 - math.pi, 2.0])
@@ -359,9 +369,30 @@ def test_a_smash_re_aimed_at_a_drifting_puck_keeps_its_hit_time(selector, model,
     assert last is not None and last.time == pytest.approx(late + settings.smash_lead_time)
 
 
+def test_a_smash_at_a_creeping_puck_aims_where_it_will_be_and_stays_with_it(selector, model, settings):
+    """A puck creeping at 0.05 m/s (below static_speed, above drift_speed) is taken where the model puts it at
+    the hit time, and while it creeps along that path the accepted smash is not re-sent (taken where it lay,
+    a game's smash was re-aimed every 0.1 s at a puck creeping at 0.02-0.14 m/s until the possession limit
+    ran out); a puck slower than drift_speed is hit where it lies."""
+    start = np.array([-0.5, 0.1, 0.04, 0.03, 0.0, 0.0])
+    assert settings.drift_speed < 0.05 < settings.static_speed
+    first = selector.step(0.0, RUNNING, situation(model, start)).command
+    assert first is not None and first.tactic == SMASH
+    truth = predict_stepwise(model, start, None, first.time, DT, np.zeros(6)).state
+    assert np.linalg.norm(first.puck - truth[:2]) < 1e-3 < np.linalg.norm(first.puck - start[:2]) - 0.02
+    selector.on_status(0.0, 0, 3.0, 0.01)
+    for t in (0.2, 0.4, 0.6):
+        later = predict_stepwise(model, start, None, t, DT, np.zeros(6)).state
+        decision = selector.step(t, RUNNING, situation(model, later, t0=t))
+        assert decision.tactic == SMASH and decision.command is None, t
+    resting = TacticsSelector(selector.s, selector.reach, selector.shots)
+    still = resting.step(0.0, RUNNING, situation(model, [-0.5, 0.1, 0.005, 0.0, 0, 0])).command
+    assert np.allclose(still.puck, [-0.5, 0.1])
+
+
 def test_a_prepare_re_aimed_at_a_creeping_puck_keeps_its_hit_time(selector, model, settings):
-    """The same for Prepare: a puck slower than static_speed counts as at rest where it is, so while it
-    creeps its push is re-aimed (a game re-planned one 14 times in a row at 0.03 m/s) at the same time."""
+    """The same for Prepare: a creeping puck's push is re-aimed when it strays from where it was expected (a
+    game re-planned one 14 times in a row at 0.03 m/s) at the same time."""
     first = selector.step(0.0, RUNNING, situation(model, [-0.85, 0.3, 0.0, 0.0, 0, 0])).command
     assert first is not None and first.tactic == PREPARE and first.time == pytest.approx(settings.smash_lead_time)
     selector.on_status(0.0, 0, 3.0, 0.01)

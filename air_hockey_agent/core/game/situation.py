@@ -66,10 +66,16 @@ class Situation:
 
     def expected(self, t: float, rest_speed: float) -> np.ndarray:
         """The state to plan a hit at ``t`` [s] for: a puck slower than ``rest_speed`` [m/s] is at rest where
-        it is (extrapolating its estimate's velocity noise would move it by centimetres), else :meth:`at`."""
+        it is (extrapolating its estimate's velocity noise would move it by centimetres), else :meth:`at`,
+        and beyond the horizon the last sample carried on at its velocity (a slow puck still drifts there:
+        holding it at the last sample would move the hit point with every new prediction)."""
         if self.speed <= rest_speed:
             state = self.puck.copy()
             state[2:4] = 0.0
+            return state
+        if len(self.times) and t > self.times[-1]:
+            state = self.states[-1].copy()
+            state[:2] += state[2:4] * (t - self.times[-1])
             return state
         return self.at(t)
 

@@ -36,13 +36,15 @@ class Prepare(Tactic):
         st = ctx.settings
         if situation is None or situation.speed > st.static_speed:
             return None
-        p = situation.puck[:2]
+        t = self_timed_hit_time(PREPARE, ctx)
+        puck = situation.expected(t, st.drift_speed)  # where a creeping puck will be; pushed as from rest
+        puck[2:4] = 0.0
+        p = puck[:2]
         if p[0] >= 0.0 or st.in_smash_area(p[0], p[1]):
             return None
-        push = self._best(situation.puck, ctx)
+        push = self._best(puck, ctx)
         if push is None:
             return None
-        t = self_timed_hit_time(PREPARE, ctx)
         reason = (f"prepare: puck at rest at ({p[0]:.2f}, {p[1]:.2f}) outside the smash area, pushed "
                   f"{push.mallet_speed:.2f} m/s to stop at ({push.rest[0]:.2f}, {push.rest[1]:.2f})")
         return Proposal(PREPARE, push.hit_point, push.mallet_velocity, t, reason, puck=p.copy(),

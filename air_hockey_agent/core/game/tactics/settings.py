@@ -23,6 +23,7 @@ class TacticsSettings:
     smash_depth: tuple[float, float]
     smash_rim_margin: float
     static_speed: float
+    drift_speed: float
     smash_puck_speed: float
     approach_speed: float
     min_plan_time: float

@@ -4,11 +4,12 @@ straight or off one of the long rims.
 Beyond the thesis and S (REFERENCE_FACTS 2.2: a variant drawn at random, banks aimed by the reflection
 law, a static puck only): the puck is taken where the tracker predicts it at the hit time, each variant
 is aimed with the puck model and the fastest speed the arm allows along its direction
-(:class:`~air_hockey_agent.core.game.shots.ShotPredictor`), and the most likely goal is played.
+(:class:`~air_hockey_agent.core.game.shots.ShotPredictor`), and the most likely goal is played. A puck
+creeping faster than ``drift_speed`` is also taken where it will be, not where it lies.
 
 A puck at rest beyond the smash area's far edge (between it and the centre line) is shot from where it
-lies. The arm's reach ends there (0.7 m deep at y = 0, ``config/motion.yaml`` max_reach), so it can
-mostly push such a puck only forward: of the strategy test's 29 Prepare positions there (seed 0), 5 had
+lies. The arm's reach ends there (a resting puck up to 0.85 m deep at y = 0, ``config/motion.yaml``
+max_reach), so it can mostly push such a puck only forward: of the strategy test's 29 Prepare positions there (seed 0), 5 had
 a push that stops in the area, and the others were pushed toward the line, out of reach, until the
 referee's possession limit gave the puck away. Where no shot reaches the goal line (no room ahead of
 the hit point), Smash does not apply and Prepare does what it can.
@@ -40,7 +41,7 @@ class Smash(Tactic):
         if situation is None:
             return None
         t_hit = self_timed_hit_time(SMASH, ctx)
-        puck = situation.expected(t_hit, st.static_speed)
+        puck = situation.expected(t_hit, st.drift_speed)
         speed = math.hypot(puck[2], puck[3])
         if speed > st.smash_puck_speed:
             return None
