@@ -270,6 +270,17 @@ def test_a_push_whose_puck_rebounds_into_the_stopping_mallet_is_flagged(selector
     assert not selector.shots.rebounds_into_mallet(away, 0.30, 1.5)
 
 
+def test_a_push_into_a_rim_the_puck_nearly_touches_is_flagged_too(selector, settings):
+    """A puck 1.2 cm from the goal-line rim pushed into it slowly is back before it has cleared the mallet
+    (in pybullet it was squeezed between mallet and rim and out sideways at 0.5 m/s); the same push from
+    0.3 m off the rim is not flagged."""
+    rim = -settings.table.length / 2 + settings.table.puck_radius
+    for gap, flagged in ((0.012, True), (0.3, False)):
+        puck = np.array([rim + gap, -0.3, 0.0, 0.0, 0.0, 0.0])
+        push = selector.shots.push(puck, math.pi - 0.26, 0.14, 0.005, 8.0)
+        assert push.bounces and selector.shots.rebounds_into_mallet(push, 0.02, 1.5) == flagged, gap
+
+
 def test_puck_straight_at_the_goal_is_repelled_toward_the_opponent(selector, model):
     d = selector.step(0.0, RUNNING, situation(model, [0.6, 0.05, -1.8, -0.05, 0, 0]))
     assert d.tactic == REPEL and d.command is not None and d.command.velocity[0] > 0.5

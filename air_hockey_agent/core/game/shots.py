@@ -137,8 +137,9 @@ class ShotPredictor:
         the mallet runs on ``follow_through`` [m] along its velocity and stays there (the planner's stop
         law; a mallet at rest stays at the contact point); judged once the puck has left the mallet by ``approach_clearance``,
         every ``RECONTACT_STEP`` s (the model lets the puck pass through the mallet, so a meeting lasts
-        about 2 (r_puck + r_mallet) / speed). A push into a near rim was hit a second time, twice across
-        the centre line."""
+        about 2 (r_puck + r_mallet) / speed), or once it has bounced off a rim (a puck 1 cm from the rim is
+        back before it clears the mallet: pushed into the goal-line rim it was squeezed out sideways). A
+        push into a near rim was hit a second time, twice across the centre line."""
         if not push.bounces:
             return False
         speed = push.mallet_speed
@@ -147,14 +148,15 @@ class ShotPredictor:
         d = push.mallet_velocity / speed if moving else np.zeros(2)
         every = max(1, int(round(RECONTACT_STEP / self.dt)))
         pred = predict_fast(self.model, push.after, None, watch, self.dt, NO_Q, sample_every=every)
+        bounced = pred.impacts[0][0] if pred.impacts else math.inf  # first rim impact [s]
         left, contact = False, self.s.contact_distance
         for t, s, _ in pred.samples:
             mallet = push.hit_point + d * follow_through * stop_fraction(min(t / stop_time, 1.0))
             gap = float(np.hypot(s[0] - mallet[0], s[1] - mallet[1])) - contact
-            if gap > self.s.approach_clearance:
-                left = True
-            elif left and gap < 0.5 * self.s.approach_clearance:
+            if left and gap < 0.5 * self.s.approach_clearance:
                 return True
+            # a puck next to the rim is back before it has cleared the mallet
+            left = left or gap > self.s.approach_clearance or t > bounced
         return False
 
     def aim(self, puck: np.ndarray, variant: str, speed: float | None = None) -> Shot | None:
