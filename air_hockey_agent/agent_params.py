@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterable
 
-from air_hockey_agent.params import ParamSpec, load_node_params
+from air_hockey_agent.params import ParamSpec, ParameterValueError, load_node_params
 from air_hockey_agent.sim.params import ROBOT_BASE_PARAMS
 from air_hockey_agent.tracker_params import TABLE_PARAMS
 
@@ -109,6 +109,9 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
     from air_hockey_agent.core.game.tactics.selector import TacticsSelector
     from air_hockey_agent.core.game.tactics.settings import TacticsSettings
     from air_hockey_agent.motion_params import build_planner, load_motion_params
+    if params["drift_speed"] > params["static_speed"]:
+        raise ParameterValueError(f"parameter 'drift_speed' = {params['drift_speed']!r} must not exceed "
+                                  f"'static_speed' = {params['static_speed']!r}")
     motion = load_motion_params()
     planner = build_planner(motion, robot)
     speeds = load_or_build(planner, motion, params["speed_map_grid"], log=log)

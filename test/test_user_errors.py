@@ -65,6 +65,11 @@ def test_a_misspelled_or_bad_node_parameter_is_a_one_line_error(ros_env, tmp_pat
     assert_one_line_error(result, "[puck_tracker] error:", *words)
 
 
+def test_parameters_that_contradict_each_other_are_a_one_line_error(ros_env):
+    result = run([BIN / "tactics", "--ros-args", "-p", "drift_speed:=0.1"], env=ros_env, timeout=60)
+    assert_one_line_error(result, "[tactics] error:", "'drift_speed' = 0.1 must not exceed 'static_speed'")
+
+
 def test_a_whole_number_is_accepted_for_a_float_parameter_and_logged(ros_env, tmp_path):
     """`-p real_time_factor:=0` (the README's own command) and `damping: 1` in a parameter file."""
     code, out = run_until([BIN / "table_sim", "--ros-args", "-p", "real_time_factor:=0"], "node ready", ros_env)
