@@ -312,8 +312,10 @@ class MotionPlanner:
         p0, v0 = self._mallet(start)
         velocity = speed * direction
         pos, _ = tm.hermite(p0, v0, hit, velocity, steps, dt)
-        if not self.region.contains(pos, tol=PATH_TOLERANCE):
-            return refused(TOO_LATE, "no time to stage the hit, and a direct path leaves the region")
+        outside = self.region.first_outside(pos, PATH_TOLERANCE)
+        if outside is not None:  # too late, not outside: with more time the staged hit keeps inside
+            return refused(TOO_LATE, "no time to stage the hit, and a direct path leaves the region: "
+                                     + self.region.why_outside(pos[outside]))
         approach = track(self.kin, self.limits, self.qp, start.q, start.dq, self._from_start(pos, start), dt,
                          config.q, s.posture_gain)
         if not approach.ok:
