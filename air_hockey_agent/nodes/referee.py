@@ -22,7 +22,7 @@ from std_srvs.srv import Trigger
 from air_hockey_msgs.msg import GameStatus
 from air_hockey_msgs.srv import SetPuckState
 from air_hockey_agent.core.motion.kinematics import ArmKinematics, base_to_table
-from air_hockey_agent.core.game.referee import EVENT_NONE, Decision, Referee, RefereeSettings
+from air_hockey_agent.core.game.referee import EVENT_NONE, NOT_YET, Decision, Referee, RefereeSettings
 from air_hockey_agent.nodes.messages import pose_measurement, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.referee_params import PARAM_FILES, REFEREE_PARAMS
@@ -103,11 +103,17 @@ class RefereeNode(AirHockeyNode):
                                f"iiwa_front {state.score['iiwa_front']} : {state.score['iiwa_back']} iiwa_back")
         if not self.params["sim"]:
             return
+        calls = self._pending_sim_calls()
         if decision.reset_robots:
-            self._sim_calls.append(self.robots_client.call_async(Trigger.Request()))
+            calls.append(self.robots_client.call_async(Trigger.Request()))
         if decision.reset_puck is not None:
             x, y = decision.reset_puck
-            self._sim_calls.append(self.puck_client.call_async(SetPuckState.Request(x=x, y=y)))
+            calls.append(self.puck_client.call_async(SetPuckState.Request(x=x, y=y)))
+
+    def _pending_sim_calls(self) -> list:
+        """table_sim requests not answered yet (the answered ones are dropped here)."""
+        self._sim_calls = [call for call in self._sim_calls if not call.done()]
+        return self._sim_calls
 
     def publish_status(self, force: bool = False) -> None:
         state = self.referee.state
@@ -134,10 +140,8 @@ class RefereeNode(AirHockeyNode):
         return response
 
     def on_start(self, _request, response):
-        self._sim_calls = [call for call in self._sim_calls if not call.done()]
-        if self._sim_calls:  # a trajectory sent now could reach table_sim before the reset, which drops it
-            return self._answer(response, (False, "cannot start yet: table_sim is still resetting the robots "
-                                                  "or the puck"))
+        if self._pending_sim_calls():  # a trajectory sent now could reach table_sim before the reset, which drops it
+            return self._answer(response, (False, f"{NOT_YET}: table_sim is still resetting the robots or the puck"))
         return self._answer(response, self.referee.start(self.now_seconds()))
 
     def on_pause(self, _request, response):

@@ -10,6 +10,7 @@ import time
 from pathlib import Path
 from typing import Callable, Mapping, Sequence
 
+from air_hockey_agent.core.game.referee import NOT_YET
 from air_hockey_agent.core.game.scoreboard import Scoreboard
 
 START_RETRY = 0.1  # [s] wall time between start requests while the referee waits for table_sim's reset
@@ -80,7 +81,7 @@ class GameMonitor:
                 result = future.result()
                 if result.success:
                     break
-                if not result.message.startswith("cannot start yet") or time.monotonic() > deadline:
+                if not result.message.startswith(NOT_YET) or time.monotonic() > deadline:
                     raise GameError(f"{service} failed: {result.message}")
                 self._spin_until(lambda: False, START_RETRY)  # the referee waits for table_sim's reset
 

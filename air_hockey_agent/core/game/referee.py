@@ -34,6 +34,9 @@ STOPPED, PAUSED, RUNNING = 0, 1, 2  # air_hockey_msgs/GameStatus.STATUS_*
 FRONT, BACK = "iiwa_front", "iiwa_back"
 SIDE = {FRONT: -1.0, BACK: 1.0}  # sign of x on each robot's half
 OTHER = {FRONT: BACK, BACK: FRONT}
+# start_game's answer while the simulation has not yet done the resets the referee asked for (the caller
+# tries again; any other refusal is final)
+NOT_YET = "cannot start yet"
 
 
 @dataclass(frozen=True)
