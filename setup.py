@@ -15,6 +15,7 @@ NODES = {
     "bag_player": "air_hockey_agent.nodes.bag_player:main",
     "strategy_test": "air_hockey_agent.nodes.strategy_test:main",
     "prediction_optimizer": "air_hockey_agent.nodes.prediction_optimizer:main",
+    "visualizer": "air_hockey_agent.nodes.visualizer:main",
 }
 
 setup(

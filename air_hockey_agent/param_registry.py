@@ -17,8 +17,10 @@ def node_parameters() -> dict[str, frozenset[str]]:
     from air_hockey_agent.tools.game import GAME_PARAMS
     from air_hockey_agent.tools.synth_bag import SESSION_PARAMS
     from air_hockey_agent.tracker_params import TRACKER_NODE_PARAMS
+    from air_hockey_agent.visualizer_params import VISUALIZER_PARAMS
     specs = {"puck_tracker": TRACKER_NODE_PARAMS, "tactics": AGENT_PARAMS, "trajectory_generator": MOTION_PARAMS,
              "referee": REFEREE_PARAMS, "table_sim": SIM_PARAMS, "strategy_test": STRATEGY_PARAMS,
+             "visualizer": VISUALIZER_PARAMS,
              # the tools' own sections (config/sysid.yaml, synthetic.yaml, game.yaml)
              "sysid": SYSID_PARAMS, "synth_bag": SESSION_PARAMS, "game": GAME_PARAMS}
     try:  # the two tool nodes keep their declarations next to their code (rclpy)

@@ -47,6 +47,8 @@ def test_world_reports_a_mallet_hitting_the_puck():
 
 def test_scoreboard_counts_events_once_and_names_faults_without_numbers():
     board = Scoreboard(("iiwa_front", "iiwa_back"))
+    board.on_clock(7.25)  # nodes up and robots home: the game starts here
+    board.start()
     reason = "iiwa_front's mallet at (-1.065, 0.030) m is in the rim"
     board.on_status(0, 0, EVENT_ROBOT_FAULT, reason, 3.0)
     board.on_status(0, 0, EVENT_ROBOT_FAULT, reason, 3.0)  # re-published status: same event
@@ -56,7 +58,7 @@ def test_scoreboard_counts_events_once_and_names_faults_without_numbers():
                         ("iiwa_front", "ready"), ("iiwa_back", "cut")]:
         board.on_tactic(robot, name)
     board.on_contact("iiwa_back")
-    board.on_clock(12.5)
+    board.on_clock(19.75)
     r = board.result(None)
     assert r["score"] == {"iiwa_front": 0, "iiwa_back": 1} and r["hits"] == {"iiwa_front": 0, "iiwa_back": 1}
     assert r["faults"] == {"robot_fault: iiwa_front's mallet is in the rim": 1,

@@ -37,7 +37,9 @@ def test_game_refuses_bad_arguments_in_one_line(args, message):
 @pytest.mark.integration
 def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_path):
     """As fast as possible, 30 s of simulated time: both robots touch the puck (contacts reported by the
-    simulation), the JSON result has the documented keys, and every node process is gone afterwards."""
+    simulation), the JSON result has the documented keys, the recording holds the visualizer's markers
+    over the whole game (30 s from the start; the clock ran before it while the nodes came up), and
+    every node process is gone afterwards."""
     bag = tmp_path / "game.mcap"
     result = run([str(BIN / "air-hockey"), "game", "--duration", "30", "--seed", "2", "--json", "--record", str(bag),
                   "--domain-id", ros_env["ROS_DOMAIN_ID"]], env=ros_env, timeout=400)
@@ -57,8 +59,26 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
     for robot in ("iiwa_front", "iiwa_back"):  # recorded joint states and plans of both arms, inside the region
         assert arms[robot]["joint_states"] > 1000 and arms[robot]["trajectories"] >= 1, arms
         assert arms[robot]["worst_outside_m"] < 0.005 and arms[robot]["trajectories_outside"] == 0, arms
-    leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|referee|tactics|puck_tracker|trajectory_generator)"])
+    spans, shown = _marker_stamps(game["recording"])
+    # recorded from before the start to the end, less a frame at either end (before: about 23 s of 30)
+    assert spans[-1] - spans[0] >= 29.5, (spans[0], spans[-1])
+    assert {"table", "puck", "prediction", "measurement", "score", "iiwa_front/mallet", "iiwa_back/mallet",
+            "iiwa_front/hit", "iiwa_back/hit"} <= shown, shown
+    leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|referee|tactics|puck_tracker|trajectory_generator|visualizer)"])
     assert leftovers.stdout.strip() == ""
+
+
+def _marker_stamps(bag: str) -> tuple[list[float], set[str]]:
+    """Sim-time stamps of the recorded marker arrays and every namespace they drew."""
+    from air_hockey_agent.bags.reader import iter_raw
+    from air_hockey_agent.bags.types import typestore
+    store, stamps, namespaces = typestore(), [], set()
+    for _, _, raw in iter_raw(bag, ["/visualization/markers"]):
+        array = store.deserialize_cdr(raw, "visualization_msgs/msg/MarkerArray")
+        drawn = [m for m in array.markers if m.action == 0]
+        namespaces |= {m.ns for m in drawn}
+        stamps += [drawn[0].header.stamp.sec + drawn[0].header.stamp.nanosec * 1e-9] if drawn else []
+    return sorted(stamps), namespaces
 
 
 def _children(pid: int) -> list[int]:

@@ -9,7 +9,7 @@ import pytest
 from conftest import REPO
 
 NODES = ["puck_tracker", "tactics", "trajectory_generator", "referee", "table_sim", "bag_player",
-         "strategy_test", "prediction_optimizer"]
+         "strategy_test", "prediction_optimizer", "visualizer"]
 
 
 def _check_layout(prefix: Path) -> None:

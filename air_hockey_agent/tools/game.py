@@ -2,7 +2,8 @@
 
 Starts the node graph of README "Architecture", each node in its own process: ``table_sim`` and
 ``referee``, and for each robot its ``puck_tracker``, ``tactics`` and ``trajectory_generator`` in the
-robot's namespace, all on simulated time. Starts the game through the referee and follows it: a
+robot's namespace, all on simulated time; with ``--record`` or ``--markers`` also the ``visualizer``
+(``/visualization/markers`` for Foxglove and RViz; recorded). Starts the game through the referee and follows it: a
 progress line while it runs (sim time, score, hits), and at the end the score, the hits per robot
 (mallet-puck contacts reported by the simulation), the referee's faults by reason and how often each
 tactic was entered. ``--json`` prints exactly one JSON object instead. Every process it started is
@@ -27,6 +28,8 @@ from air_hockey_agent.tools.argtypes import count
 
 ROBOTS = ("iiwa_front", "iiwa_back")
 SHARED_NODES = ("table_sim", "referee")
+VIEW_NODE = "visualizer"
+MARKER_TOPICS = {"/visualization/markers": "visualization_msgs/msg/MarkerArray"}  # the visualizer's
 PER_ROBOT_NODES = ("puck_tracker", "tactics", "trajectory_generator")
 RECORDED_TOPICS = {
     "/optitrack/puck": "geometry_msgs/msg/PoseStamped",
@@ -69,15 +72,17 @@ def robot_node(node: str, robot: str, label: str | None = None) -> ProcessSpec:
                                                     "-p", "use_sim_time:=true", *which])
 
 
-def game_processes(gui: bool, real_time_factor: float, seed: int) -> list[ProcessSpec]:
-    """The node processes of one game, all on sim time."""
+def game_processes(gui: bool, real_time_factor: float, seed: int, markers: bool = False) -> list[ProcessSpec]:
+    """The node processes of one game, all on sim time (``markers``: with the visualizer)."""
     shared = {
         "table_sim": ["-p", f"gui:={str(gui).lower()}", "-p", f"real_time_factor:={real_time_factor}",
                       "-p", f"seed:={seed}"],
         # unattended: a robot fault pauses and resets instead of stopping the game for a person
         "referee": ["-p", "use_sim_time:=true", "-p", f"seed:={seed}", "-p", "restart_after_fault:=true"],
+        VIEW_NODE: ["-p", "use_sim_time:=true"],
     }
-    specs = [ProcessSpec(node, [*node_executable(node), "--ros-args", *shared[node]]) for node in SHARED_NODES]
+    nodes = SHARED_NODES + ((VIEW_NODE,) if markers else ())
+    specs = [ProcessSpec(node, [*node_executable(node), "--ros-args", *shared[node]]) for node in nodes]
     specs += [robot_node(node, robot) for robot in ROBOTS for node in PER_ROBOT_NODES]
     return specs
 
@@ -95,7 +100,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="random seed of the simulation and the referee (default 0)")
     parser.add_argument("--gui", action="store_true", help="open the pybullet window (table seen from above)")
     parser.add_argument("--record", type=Path, default=None, metavar="OUT.mcap",
-                        help="record the game's topics to this MCAP bag (Foxglove opens it)")
+                        help="record the game's topics and markers to this MCAP bag (Foxglove opens it)")
+    parser.add_argument("--markers", action="store_true",
+                        help="publish /visualization/markers for RViz or Foxglove while the game runs "
+                             "(on with --record)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the summary table")
     parser.add_argument("--log", type=Path, default=None, metavar="FILE",
                         help="write every node's output to FILE (default: only errors, on stderr)")
@@ -167,13 +175,15 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
             errors.append(f"[{label}] {line}")
             print(f"[{label}] {line}", file=sys.stderr, flush=True)
 
-    specs = game_processes(args.gui, rtf, args.seed)
+    markers = args.markers or args.record is not None
+    specs = game_processes(args.gui, rtf, args.seed, markers)
     say(f"starting {len(specs)} nodes (real-time factor {rtf:g}, seed {args.seed})")
     with Launcher(env, echo=None, on_line=on_line) as launcher:
         for spec in specs:
             launcher.start(spec)
         _wait_for_lineup(launcher, settings["startup_timeout"])
-        monitor = GameMonitor(env, ROBOTS, args.record, RECORDED_TOPICS)
+        topics = {**RECORDED_TOPICS, **MARKER_TOPICS} if markers else RECORDED_TOPICS
+        monitor = GameMonitor(env, ROBOTS, args.record, topics)
         try:
             monitor.start_game(settings["start_timeout"])
             say(f"game started: {args.duration:g} s of simulated time" + (f" or {args.goals} goals" if args.goals else ""))
@@ -213,4 +223,4 @@ def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(run(argparse.Namespace(duration=60.0, goals=0, real_time_factor=None, seed=0, gui=False, record=None,
-                                    json=False, log=None, domain_id=None)))
+                                    json=False, log=None, domain_id=None, markers=False)))

@@ -80,6 +80,8 @@ class GameMonitor:
                     raise GameError(f"{service} failed: no answer")
                 result = future.result()
                 if result.success:
+                    if service.endswith("start_game"):
+                        self.board.start()
                     break
                 if not result.message.startswith(NOT_YET) or time.monotonic() > deadline:
                     raise GameError(f"{service} failed: {result.message}")
@@ -91,7 +93,7 @@ class GameMonitor:
         progress line in place instead of printing a line per ``period``."""
         board, last = self.board, time.monotonic()
         try:
-            while board.sim_time < duration and not (goals and board.goals >= goals):
+            while board.played < duration and not (goals and board.goals >= goals):
                 self.executor.spin_once(timeout_sec=0.05)
                 ended = launcher.exited()
                 if ended:

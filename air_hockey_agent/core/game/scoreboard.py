@@ -25,9 +25,13 @@ def fault_key(event: int, reason: str) -> str:
 
 
 class Scoreboard:
+    """The game's tally. Times are sim-clock seconds; the game's own time (``played``) counts from
+    :meth:`start` (the nodes come up and the robots go home on the same clock before that)."""
+
     def __init__(self, robots: Sequence[str]) -> None:
         self.robots = tuple(robots)
         self.sim_time = 0.0
+        self.started_at = 0.0
         self.score = {r: 0 for r in self.robots}
         self.hits = {r: 0 for r in self.robots}
         self.faults: Counter = Counter()
@@ -42,6 +46,15 @@ class Scoreboard:
     @property
     def robot_faults(self) -> int:
         return sum(n for k, n in self.faults.items() if k.startswith("robot_fault"))
+
+    @property
+    def played(self) -> float:
+        """Seconds of sim time since the game started [s]."""
+        return max(self.sim_time - self.started_at, 0.0)
+
+    def start(self) -> None:
+        """The referee started the game at the latest sim time seen."""
+        self.started_at = self.sim_time
 
     def on_clock(self, t: float) -> None:
         self.sim_time = max(self.sim_time, t)
@@ -65,13 +78,13 @@ class Scoreboard:
             self.tactics[robot][name] += 1
 
     def result(self, recording: str | None) -> dict:
-        return {"duration_s": round(self.sim_time, 3), "score": dict(self.score), "hits": dict(self.hits),
+        return {"duration_s": round(self.played, 3), "score": dict(self.score), "hits": dict(self.hits),
                 "faults": dict(self.faults), "tactics": {r: dict(c) for r, c in self.tactics.items()},
                 "recording": recording}
 
     def progress(self) -> str:
         front, back = self.robots
-        return (f"sim {self.sim_time:6.1f} s  score {front} {self.score[front]} : {self.score[back]} {back}  "
+        return (f"sim {self.played:6.1f} s  score {front} {self.score[front]} : {self.score[back]} {back}  "
                 f"hits {self.hits[front]} / {self.hits[back]}  faults {sum(self.faults.values())}")
 
     def table(self, recording: str | None) -> str:
@@ -81,7 +94,7 @@ class Scoreboard:
                 ("hits", self.hits[front], self.hits[back])]
         rows += [(f"tactic {n}", self.tactics[front][n], self.tactics[back][n]) for n in names]
         width = max(len(str(r[0])) for r in rows) + 2
-        lines = [f"game over after {self.sim_time:.1f} s of simulated time"]
+        lines = [f"game over after {self.played:.1f} s of simulated time"]
         lines += [f"  {str(a):<{width}}{str(b):>12}{str(c):>12}" for a, b, c in rows]
         lines.append("  faults: " + (", ".join(f"{k} x{n}" for k, n in sorted(self.faults.items())) or "none"))
         if recording:
