@@ -140,6 +140,29 @@ def test_imm_fuses_a_hit_its_contact_mode_expects_where_the_ekf_rejects_and_rest
     assert imm.x[2:4] == pytest.approx(v1, abs=0.02)
 
 
+def test_imm_reports_the_nis_of_its_likely_mode_which_is_consistent():
+    """On frames from the model with the filter's own noise (a free puck, rims), the NIS should follow the
+    chi-square of 3 dof (median 2.37), as the EKF's does; the mixture's covariance, widened by the rare
+    contact mode, read far less."""
+    m = model()
+    settings = replace(SETTINGS, impact_noise=0.15, imm_switch_probability=0.002, imm_rim_impact_noise=0.5,
+                       imm_contact_speed=2.0, imm_contact_spin=10.0)
+    times, states = simulate_truth(m, np.array([-0.5, 0.1, 1.5, 1.0, 0.0, 3.0]), 6.0, DT / 10)
+    noise = MocapImperfections(position_std=1e-4, angle_std=1e-2, jitter_std=0.0)  # R of SETTINGS, nothing else
+    frames = mocap_stream(m, times, states, 120.0, noise, np.random.default_rng(3))
+    nis = {}
+    for kind in (PuckEKF, PuckIMM):
+        f = kind(m, settings)
+        values = []
+        for stamp, z in frames:
+            f.process(stamp, z)
+            if f.last_nis is not None:
+                values.append(f.last_nis)
+        nis[kind] = float(np.median(values[20:]))
+    assert 1.9 < nis[PuckEKF] < 2.9, nis
+    assert nis[PuckIMM] == pytest.approx(nis[PuckEKF], rel=0.1), nis
+
+
 @pytest.mark.parametrize("kind", [PuckUKF, PuckMEEUKF])
 def test_a_covariance_that_lost_definiteness_falls_back_to_the_linearised_step(kind):
     f = filters(kind)
