@@ -260,6 +260,36 @@ def test_a_static_puck_outside_the_smash_area_is_pushed_to_stop_inside_it(select
     assert settings.in_smash_area(*pred.state[:2])
 
 
+def test_a_puck_no_push_keeps_on_the_own_half_is_cleared_past_the_neutral_zone(selector, model, settings):
+    """0.19 m from the centre line the test arm reaches the puck only from behind (its reach ends 1.30 m
+    from the base, and a hit needs 6 cm of follow-through): every push runs forward. Rather than leave it for the referee's possession limit, Prepare
+    pushes it across the line; by the stepwise model (not the closed form Prepare searched with) it stops
+    at least clear_depth past the line, and not in the opponent's goal."""
+    puck = (-0.19, 0.1)
+    selector.force(PREPARE)
+    d = selector.step(0.0, RUNNING, situation(model, [*puck, 0, 0, 0, 0]))
+    assert d.tactic == PREPARE and d.command is not None and "clear" in d.reason, d.reason
+    v = d.command.velocity
+    n = v / np.linalg.norm(v)
+    vp = puck_after_hit(np.zeros(2), v, n, settings.mallet_restitution)
+    pred = predict_stepwise(model, np.array([*puck, *vp, 0.0, 0.0]), np.eye(6), 10.0, DT, np.zeros((6, 6)))
+    assert pred.state[0] >= settings.clear_depth and np.hypot(*pred.state[2:4]) < 0.02, pred.state
+    assert abs(pred.state[0]) < settings.table.length / 2  # stopped on the table, not in a goal
+
+
+def test_a_tactic_with_nothing_to_play_under_its_speed_cap_waits_like_a_refused_one(selector, model, settings):
+    """A smash refused with a speed the puck cannot reach the goal at has nothing to propose under that
+    cap; the tactic after it is played, and the smash is not asked again uncapped (the cap goes when the
+    tactic changes) until retry_delay has passed: it was, every decision, refused again, and a Prepare
+    sent in between was replaced before its answer came (a game's possession foul)."""
+    sit = situation(model, [-0.5, 0.1, 0, 0, 0, 0])
+    assert selector.step(0.0, RUNNING, sit).tactic == SMASH
+    selector.on_status(0.0, TOO_FAST, 0.05, 0.01)
+    assert selector.step(0.02, RUNNING, sit).tactic != SMASH
+    assert selector.step(0.04, RUNNING, sit).tactic != SMASH
+    assert selector.step(0.04 + settings.retry_delay, RUNNING, sit).tactic == SMASH
+
+
 def test_a_push_whose_puck_rebounds_into_the_stopping_mallet_is_flagged(selector):
     """A puck 4 cm from the -y rim pushed into it bounces back into the mallet, which runs on 0.3 m
     after the hit; pushed away from the rim it does not."""

@@ -9,6 +9,12 @@ directions around the puck and ``prepare_speed_steps`` mallet speeds spaced geom
 rest, the one whose stopping point lies deepest inside the smash area, also when the direction is off by
 the aim noise, is played (the slower one when two are as deep), so a puck against a rim is banked off it
 into the area and one the arm cannot push into it is left as near to it as the arm can.
+
+Where no push keeps the puck on the own half (a creeping puck that stopped beyond the smash area at the
+arm's reach, next to a rim: every push the arm can make there runs forward), the puck is **cleared**:
+pushed across the centre line, the slowest push whose puck stops at least ``clear_depth`` past it with the
+aim noise either way (else the one that gets it farthest). Left alone, it would stay until the referee's
+possession limit gave it to the opponent with a foul.
 """
 from __future__ import annotations
 
@@ -42,23 +48,25 @@ class Prepare(Tactic):
         p = puck[:2]
         if p[0] >= 0.0 or st.in_smash_area(p[0], p[1]):
             return None
-        push = self._best(puck, ctx)
+        push, verb = self._best(puck, ctx, self._ranked, "prepare"), "prepare"
+        if push is None:
+            push, verb = self._best(puck, ctx, self._clears, "clear"), "prepare (clear)"
         if push is None:
             return None
-        reason = (f"prepare: puck at rest at ({p[0]:.2f}, {p[1]:.2f}) outside the smash area, pushed "
+        reason = (f"{verb}: puck at rest at ({p[0]:.2f}, {p[1]:.2f}) outside the smash area, pushed "
                   f"{push.mallet_speed:.2f} m/s to stop at ({push.rest[0]:.2f}, {push.rest[1]:.2f})")
         return Proposal(PREPARE, push.hit_point, push.mallet_velocity, t, reason, puck=p.copy(),
                         target=push.rest, flexible_time=True)
 
-    def _best(self, puck: np.ndarray, ctx: Context) -> Push | None:
-        """The first push of the ranked list whose approach keeps off the puck and whose puck does not
+    def _best(self, puck: np.ndarray, ctx: Context, ranking, kind: str) -> Push | None:
+        """The first push of ``ranking(puck, ctx)`` whose approach keeps off the puck and whose puck does not
         rebound into the mallet."""
         cap = None if math.isinf(ctx.speed_cap) else round(ctx.speed_cap, 3)
-        key = (round(puck[0] / KEY_POSITION), round(puck[1] / KEY_POSITION), cap)
+        key = (kind, round(puck[0] / KEY_POSITION), round(puck[1] / KEY_POSITION), cap)
         if key not in self._cache:
             if len(self._cache) >= CACHE_SIZE:
                 self._cache.clear()
-            self._cache[key] = Ranked(self._ranked(puck, ctx))
+            self._cache[key] = Ranked(ranking(puck, ctx))
         st = ctx.settings
         best = self._cache[key].first(
             lambda p, run_on: approach_clear(puck, p.hit_point, p.mallet_velocity, ctx),
@@ -71,20 +79,44 @@ class Prepare(Tactic):
         direction off by ``aim_noise`` either way (negative: outside; then the nearest to the area), the
         slower first among equals."""
         st = ctx.settings
-        speeds = np.geomspace(st.prepare_speed[0], st.prepare_speed[1], st.prepare_speed_steps)
         scored = []
+        for angle, v, run_on, push in self._pushes(puck, ctx):
+            scored_push = worst_margin(st, push, lambda pushed: pushed.crosses_centre or pushed.enters_goal)
+            if scored_push is not None:
+                scored.append((scored_push[0], -v, scored_push[1], run_on))
+        scored.sort(key=lambda item: item[:2], reverse=True)
+        return [(push, run_on) for _, _, push, run_on in scored]
+
+    def _clears(self, puck: np.ndarray, ctx: Context) -> list[tuple[Push, float]]:
+        """(push, follow-through [m]) for every push that sends the puck across the centre line and not into
+        the own goal with the aim noise either way: first those whose puck stops ``clear_depth`` or more past
+        the line in the worst case, slowest first; then the others, farthest first."""
+        st = ctx.settings
+        scored = []
+        for angle, v, run_on, push in self._pushes(puck, ctx):
+            aimed = [push(turn) for turn in (0.0, -st.aim_noise, st.aim_noise)]
+            if any(p.enters_goal or not p.crosses_centre for p in aimed):
+                continue
+            depth = min(float(p.rest[0]) for p in aimed)
+            deep = depth >= st.clear_depth
+            scored.append(((deep, -v if deep else depth), aimed[0], run_on))
+        scored.sort(key=lambda item: item[0], reverse=True)
+        return [(push, run_on) for _, push, run_on in scored]
+
+    @staticmethod
+    def _pushes(puck: np.ndarray, ctx: Context):
+        """(angle [rad], mallet speed [m/s], follow-through [m], push(turn)) of every push the arm can make:
+        ``prepare_directions`` directions, the ``prepare_speed_steps`` speeds the arm allows there under the
+        speed cap; ``push(turn)`` predicts it aimed off by ``turn`` [rad]."""
+        st = ctx.settings
+        speeds = np.geomspace(st.prepare_speed[0], st.prepare_speed[1], st.prepare_speed_steps)
         for angle in np.linspace(-math.pi, math.pi, st.prepare_directions, endpoint=False):
             d = np.array([math.cos(angle), math.sin(angle)])
             hit = puck[:2] - d * st.contact_distance
             top = ctx.reach.max_speed(hit, d) * st.hit_speed_fraction
             run_on = ctx.reach.follow_through_length(hit, d)
             for v in speeds[speeds <= min(top, ctx.speed_cap)]:
-                scored_push = worst_margin(
-                    st, lambda turn: ctx.shots.push(puck, float(angle + turn), float(v), st.prepare_end_speed,
-                                                    st.prepare_horizon),
-                    lambda push: push.crosses_centre or push.enters_goal)
-                if scored_push is not None:
-                    scored.append((scored_push[0], -v, scored_push[1], run_on))
-        scored.sort(key=lambda item: item[:2], reverse=True)
-        return [(push, run_on) for _, _, push, run_on in scored]
+                yield angle, float(v), run_on, (lambda turn, a=float(angle), v=float(v):
+                                                ctx.shots.push(puck, a + turn, v, st.prepare_end_speed,
+                                                               st.prepare_horizon))
 

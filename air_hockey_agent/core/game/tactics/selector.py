@@ -12,7 +12,8 @@ Every decision period the selector looks at the referee's status and the tracker
   at the goal, no rim impact), **Cut** (any other approach with time to get there), **Prepare** (puck at
   rest outside the smash area), else **Ready**.
 * The trajectory generator's answer steers the next try: "faster than the arm allows" caps the speed
-  at the reported maximum, "beyond the joint limits" slows a self-timed hit down by ``limits_slowdown``,
+  at the reported maximum, "beyond the joint limits" slows a self-timed hit down by ``limits_slowdown``
+  (a tactic with nothing to play under its cap is blocked like a refused one),
   "too late" adds lead time to tactics that choose their own hit time (and makes a Cut meet the puck
   at least that much later on its path), and
   any other refusal (or "too late" for a puck that will not wait) blocks that tactic for
@@ -146,6 +147,10 @@ class TacticsSelector:
             proposal = self.tactics[tactic].propose(situation, ctx)
             if proposal is not None:
                 return self._decide(tactic, proposal.reason, self._to_send(proposal, now))
+            if tactic == self.current and not math.isinf(self.speed_cap):
+                # nothing to play under the speed its refusal left: asked again uncapped once the tactic
+                # changes, it would be refused again, and the tactic after it never get its turn
+                self.blocked[tactic] = now + self.s.retry_delay
         if self.forced is not None and status == RUNNING:
             return self._decide(self.forced, f"{NAMES[self.forced]} forced: waiting until it applies", None)
         fallback = HOME if status == PAUSED else READY

@@ -41,6 +41,7 @@ class TacticsSettings:
     prepare_directions: int
     prepare_end_speed: float
     prepare_horizon: float
+    clear_depth: float
     recontact_watch: float
     mallet_restitution: float
     aim_noise: float
