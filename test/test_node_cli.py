@@ -53,8 +53,11 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
     assert not any(k.startswith("robot_fault") for k in game["faults"]), game
     assert Path(game["recording"]).is_dir() and any(Path(game["recording"]).glob("*.mcap"))
     assert "Traceback" not in result.stderr
-    checked = run([str(BIN / "air-hockey"), "game-check", game["recording"], "--json"])
+    plots = tmp_path / "plots"
+    checked = run([str(BIN / "air-hockey"), "game-check", game["recording"], "--json", "--plot", str(plots)])
     assert checked.returncode == 0, checked.stderr[-2000:]
+    drawn = plots / f"{Path(game['recording']).name}_arms.png"
+    assert drawn.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote {drawn}" in checked.stderr
     arms = json.loads(checked.stdout)[game["recording"]]
     for robot in ("iiwa_front", "iiwa_back"):  # recorded joint states and plans of both arms, inside the region
         assert arms[robot]["joint_states"] > 1000 and arms[robot]["trajectories"] >= 1, arms

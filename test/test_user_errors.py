@@ -110,6 +110,7 @@ def rest_bag(path):
     (lambda d: ["record", d / "rec", "--duration", "-5"], ["--duration", ">= 0"]),
     (lambda d: ["strategy-test", "--workers", "0"], ["--workers"]),
     (lambda d: ["plot", d, "--out", write(d / "notabag.txt", "x")], ["--out", "is a file"]),
+    (lambda d: ["game-check", d, "--plot", write(d / "taken.txt", "x") / "sub"], ["--plot", "cannot create"]),
     (lambda d: ["sysid", rest_bag(d / "bag"), "--out", write(d / "old.yaml", "x")], ["old.yaml", "exists already"]),
     (lambda d: ["noise-estimate", rest_bag(d / "bag")], ["found 0", "at rest throughout", "nothing moved it"]),
     (lambda d: ["shoot", "--speed", "-1", "--angle", "0"], ["--speed", ">= 0"]),

@@ -4,8 +4,11 @@ Reads a recording of `air-hockey game --record` (or any bag with ``/<robot>/join
 plans, ``/<robot>/joint_trajectory``; rosbags, no ROS needed) and reports per robot: how far the mallet
 went beyond the motion layer's allowed region (the referee stops play 2 cm into a rim), the largest joint
 velocity against the real limits, and how many received trajectories had a planned knot outside the
-region (:mod:`air_hockey_agent.core.motion.execution_check`). A bag that cannot be used gives a one-line
-error on stderr and exit code 2; the other bags are still checked.
+region (:mod:`air_hockey_agent.core.motion.execution_check`). ``--plot DIR`` also draws each bag as
+``DIR/<bag>_arms.png``: the table seen from above with both regions, the mallets' paths and the puck's
+(``/sim/puck_true_state``, if recorded), the worst excursion marked; below, each arm's largest joint
+velocity against its limit over time. A bag that cannot be used gives a one-line error on stderr and
+exit code 2; the other bags are still checked.
 """
 from __future__ import annotations
 
@@ -14,12 +17,13 @@ import json
 import sys
 from pathlib import Path
 
-from air_hockey_agent.bags.reader import BagError, bag_topics, iter_raw
+from air_hockey_agent.bags.reader import BagError, bag_directory, bag_topics, iter_raw
 
 PROG = "air-hockey game-check"
 ROBOTS = ("iiwa_front", "iiwa_back")
 JOINT_STATE = "sensor_msgs/msg/JointState"
 TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
+PUCK_TRUTH, PUCK_STATE = "/sim/puck_true_state", "air_hockey_msgs/msg/PuckState"
 # [m] a planned knot this far outside the region counts: the planner's own path check allows 1 mm between
 # its samples (core/motion/planner.py PATH_TOLERANCE), so more is a plan that left the region
 PLANNED_TOLERANCE = 0.002
@@ -30,11 +34,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("bags", nargs="+", type=Path, metavar="BAG", help="rosbag2 directories (sqlite3 or MCAP)")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
+    parser.add_argument("--plot", type=Path, default=None, metavar="DIR",
+                        help="also write DIR/<bag>_arms.png: paths over the table, joint velocity over time")
     parser.set_defaults(run=run)
 
 
-def check_bag(bag: Path, planners: dict) -> dict:
-    """Per robot :class:`ArmExecution` as a dict; raises :class:`BagError` when the bag has no joint states."""
+def check_bag(bag: Path, planners: dict, checks_out: dict | None = None) -> dict:
+    """Per robot :class:`ArmExecution` as a dict; raises :class:`BagError` when the bag has no joint states.
+    With ``checks_out`` (a dict), the per-robot :class:`ExecutionCheck` with its trace is put there, and the
+    recorded true puck positions (table frame) under ``"puck"``."""
     from air_hockey_agent.bags.types import typestore
     from air_hockey_agent.core.motion.execution_check import ExecutionCheck
     from air_hockey_agent.core.motion.kinematics import in_order
@@ -43,12 +51,19 @@ def check_bag(bag: Path, planners: dict) -> dict:
     if not robots:
         raise BagError(bag, "no /<robot>/joint_states (sensor_msgs/msg/JointState) of "
                             f"{' or '.join(ROBOTS)}: record a game with `air-hockey game --record`")
-    checks = {r: ExecutionCheck(planners[r], PLANNED_TOLERANCE) for r in robots}
+    keep = checks_out is not None
+    checks = {r: ExecutionCheck(planners[r], PLANNED_TOLERANCE, keep_trace=keep) for r in robots}
     wanted = {f"/{r}/joint_states": r for r in robots}
     wanted.update({f"/{r}/joint_trajectory": r for r in robots if topics.get(f"/{r}/joint_trajectory") == TRAJECTORY})
+    puck: list[tuple[float, float]] = []
+    if keep and topics.get(PUCK_TRUTH) == PUCK_STATE:
+        wanted[PUCK_TRUTH] = ""
     store = typestore()
     for topic, _, raw in iter_raw(bag, wanted):
         robot, msg = wanted[topic], store.deserialize_cdr(raw, topics[topic])
+        if topic == PUCK_TRUTH:
+            puck.append((msg.x, msg.y))
+            continue
         names = planners[robot].kin.joint_names
         if topic.endswith("joint_states"):
             q, dq = in_order(msg.name, msg.position, names), in_order(msg.name, msg.velocity, names)
@@ -57,6 +72,8 @@ def check_bag(bag: Path, planners: dict) -> dict:
         else:
             knots = (in_order(msg.joint_names, point.positions, names) for point in msg.points)
             checks[robot].trajectory([q for q in knots if q is not None])
+    if keep:
+        checks_out.update(checks, puck=puck)
     return {r: c.result.as_dict() for r, c in checks.items()}
 
 
@@ -75,16 +92,27 @@ def run(args: argparse.Namespace) -> int:
     from air_hockey_agent.motion_params import build_planner, load_motion_params
     motion = load_motion_params()
     planners = {r: build_planner(motion, r) for r in ROBOTS}
+    if args.plot is not None:
+        try:
+            args.plot.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:
+            print(f"{PROG}: error: --plot {args.plot}: cannot create the directory ({exc.strerror})", file=sys.stderr)
+            return 2
     results, failed = {}, 0
     for bag in args.bags:
+        checks = {} if args.plot is not None else None
         try:
-            results[str(bag)] = check_bag(bag, planners)
+            results[str(bag)] = check_bag(bag, planners, checks)
         except BagError as exc:
             print(f"{PROG}: error: {exc}", file=sys.stderr)
             failed += 1
             continue
         if not args.json:
             _print(bag, results[str(bag)])
+        if checks is not None:
+            from air_hockey_agent.tools.game_check_plot import plot_arms
+            written = plot_arms(checks, args.plot / f"{bag_directory(bag).name}_arms.png")
+            print(f"wrote {written}", file=sys.stderr if args.json else sys.stdout)
     if args.json:
         print(json.dumps(results))
     return 2 if failed else 0

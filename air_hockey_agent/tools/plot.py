@@ -12,7 +12,6 @@ parameters; give it twice as ``--compare`` to draw a second parameter set next t
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
@@ -25,6 +24,7 @@ from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 from air_hockey_agent.tracker_params import load_tracker_params
 from air_hockey_agent.tools.argtypes import count, number
+from air_hockey_agent.tools.files import save_figure
 
 PROG = "air-hockey plot"
 HORIZON_GRID = np.round(np.arange(0.1, 1.51, 0.1), 2)
@@ -73,13 +73,6 @@ def run(args: argparse.Namespace) -> int:
     return 2 if loaded.errors else 0
 
 
-def _save(fig, path: Path) -> Path:
-    tmp = path.with_name(f".{path.stem}.tmp-{os.getpid()}.png")
-    fig.savefig(tmp, dpi=110)
-    os.replace(tmp, path)
-    return path
-
-
 def _velocity(out: Path, traj, params) -> Path:
     import matplotlib.pyplot as plt
     s = prediction_series(PuckEKF.from_params(params), traj.frames(), 0.0)
@@ -95,7 +88,7 @@ def _velocity(out: Path, traj, params) -> Path:
     axes[-1].set_xlabel("time [s]")
     fig.suptitle("Estimated and measured velocity (cf. thesis fig. 5.1)")
     fig.tight_layout()
-    return _save(fig, out / "velocity.png")
+    return save_figure(fig, out / "velocity.png")
 
 
 def _legend_below(fig, ax) -> None:
@@ -124,7 +117,7 @@ def _prediction(out: Path, traj, sets: dict, horizon: float) -> Path:
     _legend_below(fig, axes[0])
     axes[-1].set_xlabel("time [s]")
     fig.suptitle(f"Measured and predicted position, horizon {horizon} s (cf. thesis fig. 5.2-5.4)")
-    return _save(fig, out / "prediction.png")
+    return save_figure(fig, out / "prediction.png")
 
 
 def _error_vs_horizon(out: Path, trajectories, sets: dict) -> Path:
@@ -140,4 +133,4 @@ def _error_vs_horizon(out: Path, trajectories, sets: dict) -> Path:
     ax.grid(alpha=0.3)
     ax.set_title(f"Prediction error against horizon, {len(trajectories)} trajectories (cf. thesis fig. 5.5)")
     _legend_below(fig, ax)
-    return _save(fig, out / "error_vs_horizon.png")
+    return save_figure(fig, out / "error_vs_horizon.png")

@@ -17,7 +17,7 @@ import numpy as np
 
 from air_hockey_agent.core.identification.impact_fit import restitution_law
 from air_hockey_agent.core.identification.split import AXES, SplitResult
-from air_hockey_agent.tools.plot import _save
+from air_hockey_agent.tools.files import save_figure
 
 
 def write_split_plots(out: Path, result: SplitResult) -> list[Path]:
@@ -88,10 +88,7 @@ def _tangential(out: Path, impacts) -> Path:
 
 def _finish(fig, ax, path: Path, legend: str = "best") -> Path:
     """Grid, legend (at ``legend``) and layout, then the PNG written atomically and the figure closed."""
-    import matplotlib.pyplot as plt
     ax.grid(alpha=0.3)
     ax.legend(loc=legend)
     fig.tight_layout()
-    _save(fig, path)
-    plt.close(fig)
-    return path
+    return save_figure(fig, path)

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from air_hockey_agent.core.game.strategy.report import THESIS
+from air_hockey_agent.tools.files import save_figure
 
 
 def write_plots(summary: dict, results: list[dict], out: Path) -> list[Path]:
@@ -31,9 +32,7 @@ def write_plots(summary: dict, results: list[dict], out: Path) -> list[Path]:
     # below the axes: inside, it covered the Prepare and Repel bars
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2, frameon=False)
     fig.tight_layout()
-    bars = out / "strategy_success.png"
-    fig.savefig(bars, dpi=120)
-    plt.close(fig)
+    bars = save_figure(fig, out / "strategy_success.png", dpi=120)
     fig, ax = plt.subplots(figsize=(6, 4))
     for k in [k for k in keys if k.startswith("smash")]:
         offsets = [r["offset"] for r in results if r["strategy"] == k and r["offset"] is not None]
@@ -44,7 +43,5 @@ def write_plots(summary: dict, results: list[dict], out: Path) -> list[Path]:
     ax.set_ylabel("shots")
     ax.legend()
     fig.tight_layout()
-    spread = out / "smash_spread.png"
-    fig.savefig(spread, dpi=120)
-    plt.close(fig)
+    spread = save_figure(fig, out / "smash_spread.png", dpi=120)
     return [bars, spread]

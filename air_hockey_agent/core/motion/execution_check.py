@@ -36,19 +36,24 @@ class ArmExecution:
 class ExecutionCheck:
     """Accumulates one arm's joint states and received trajectories (joint vectors in the planner's order)."""
 
-    def __init__(self, planner: MotionPlanner, planned_tolerance: float) -> None:
+    def __init__(self, planner: MotionPlanner, planned_tolerance: float, keep_trace: bool = False) -> None:
         self.planner, self.tolerance = planner, planned_tolerance
         self.result = ArmExecution()
+        # with keep_trace, every joint state's (time [s], mallet x, y [m] in the own frame, velocity use [-])
+        self.trace: list[tuple[float, float, float, float]] | None = [] if keep_trace else None
 
     def joint_state(self, t: float, q: np.ndarray, dq: np.ndarray) -> None:
         r, p = self.result, self.planner
         r.joint_states += 1
-        outside = float(p.region.excess(p.kin.position(q)[:2])[0])
+        mallet = p.kin.position(q)[:2]
+        outside = float(p.region.excess(mallet)[0])
         if outside > r.worst_outside_m:
             r.worst_outside_m, r.worst_outside_time = outside, t
         use = float(np.max(np.abs(dq) / p.limits.dq_max_real))
         if use > r.worst_velocity_use:
             r.worst_velocity_use, r.worst_velocity_time = use, t
+        if self.trace is not None:
+            self.trace.append((t, float(mallet[0]), float(mallet[1]), use))
 
     def trajectory(self, knots: Iterable[np.ndarray]) -> None:
         r, p = self.result, self.planner
