@@ -16,6 +16,8 @@ REFEREE_PARAMS = TABLE_PARAMS + (
     ParamSpec("goal_margin", float, "[m] puck centre behind a goal line for a goal", 0.0, 1.0),
     ParamSpec("out_margin", float, "[m] puck centre beyond a rim for puck out", 0.0, 1.0),
     ParamSpec("lost_timeout", float, "[s] no puck pose for this long is puck out", 0.01, 3600.0),
+    ParamSpec("confirm_frames", int, "poses in a row beyond a line for a goal or a puck out", 1, 1000),
+    ParamSpec("vanish_time", float, "[s] a puck last seen beyond a line and unseen this long has gone there", 0.0, 60.0),
     ParamSpec("stuck_radius", float, "[m] movement below which the puck is at rest", 0.0, 1.0),
     ParamSpec("stuck_time", float, "[s] at rest in the neutral zone for this long is stuck", 0.0, 3600.0),
     ParamSpec("neutral_zone_length", float, "[m] zone around the centre line no robot reaches", 0.0, 5.0),

@@ -48,7 +48,8 @@ def test_a_puck_in_a_goal_scores_for_the_other_robot_and_comes_back_on_the_conce
     t, decision = run(referee, 0.0, 2.0, lambda t: (direction * (0.5 + 1.0 * t), 0.05))
     assert decision.event == event and referee.state.score[scorer] == 1
     assert referee.state.score[FRONT if scorer == BACK else BACK] == 0
-    assert t == pytest.approx((settings.table.length / 2 + settings.goal_margin - 0.5) / 1.0, abs=0.011)
+    crossed = (settings.table.length / 2 + settings.goal_margin - 0.5) / 1.0
+    assert t == pytest.approx(crossed + (settings.confirm_frames - 1) / 100.0, abs=0.011)  # poses at 100 Hz
     assert np.sign(decision.reset_puck[0]) == direction  # the conceding robot's half, where the puck went in
     assert referee.state.status == PAUSED
 
@@ -56,6 +57,23 @@ def test_a_puck_in_a_goal_scores_for_the_other_robot_and_comes_back_on_the_conce
 def test_a_puck_over_the_rim_beside_the_goal_is_out_not_a_goal(referee):
     _, decision = run(referee, 0.0, 2.0, lambda t: (0.5 + t, 0.3))
     assert decision.event == EVENT_PUCK_OUT and referee.state.score == {FRONT: 0, BACK: 0}
+
+
+@pytest.mark.parametrize("glitch", [(0.4, 0.584), (-0.99, 0.02)])
+def test_one_glitched_pose_beyond_a_rim_or_goal_line_is_no_event(referee, settings, glitch):
+    """A game's puck bounced off a long rim and one mocap pose put it 6 cm beyond (a marker glitch): that was
+    "puck off the table". Now a goal or a puck out needs confirm_frames poses in a row; a puck seen
+    beyond the line and then no more is gone there after vanish_time."""
+    path = lambda t: glitch if abs(t - 0.5) < 1e-9 else (0.4, 0.45)
+    assert run(referee, 0.0, 1.0, path) == (None, None)
+    assert referee.state.status == RUNNING and referee.state.score == {FRONT: 0, BACK: 0}
+    t, decision = run(referee, 1.0, 2.0, lambda t: glitch)
+    assert decision is not None and t == pytest.approx(1.0 + (settings.confirm_frames - 1) / 100.0)
+    referee.observe_puck(3.0, 0.4, 0.45)
+    assert referee.start(3.0)[0]
+    referee.observe_puck(3.01, *glitch)  # seen there once, then not at all
+    assert referee.update(3.01 + settings.vanish_time / 2, HOME) is None
+    assert referee.update(3.01 + settings.vanish_time, HOME) is not None
 
 
 def test_a_lost_puck_pauses_after_the_timeout(referee, settings):

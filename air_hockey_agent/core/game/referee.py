@@ -7,6 +7,9 @@ the one at x = +L/2. The rules, after the ROS 1 referee (REFERENCE_FACTS 4) with
   robot scores; the game pauses and the puck is put back on the side of the robot that conceded.
 * **Puck out**: the puck centre beyond the table's edge by ``out_margin`` anywhere else, or no puck
   pose for ``lost_timeout``. Pause; the puck goes back on a random side.
+* A goal or a puck out counts once ``confirm_frames`` poses in a row show it, or the puck was last seen
+  there ``vanish_time`` ago (gone into the goal): one glitched mocap frame is no event (a game's puck
+  bounced off a long rim and the referee saw it 6 cm beyond).
 * **Puck stuck**: the puck has stayed within ``stuck_radius`` for ``stuck_time`` in the neutral zone
   (|x| < ``neutral_zone_length``/2, where neither robot can reach), or on one robot's side for
   ``possession_limit`` (the time-limit rule the ROS 1 referee lacked) and outside the neutral zone (the
@@ -48,6 +51,8 @@ class RefereeSettings:
     goal_margin: float
     out_margin: float
     lost_timeout: float
+    confirm_frames: int
+    vanish_time: float
     stuck_radius: float
     stuck_time: float
     neutral_zone_length: float
@@ -95,6 +100,7 @@ class Referee:
         self._puck: tuple[float, float] | None = None
         self._anchor: tuple[float, float, float] | None = None  # (x, y, t) where the puck settled
         self._side_since: tuple[float, float] | None = None     # (side sign, since t)
+        self._beyond: tuple[str, int] = ("", 0)  # ("goal", "out" or "": the latest pose's zone, poses in a row)
         self._resume_at: float | None = None
 
     # --- inputs -------------------------------------------------------------------------------
@@ -107,6 +113,18 @@ class Referee:
         side = float(np.sign(x))
         if self._side_since is None or side != self._side_since[0]:
             self._side_since = (side, t)
+        zone = self._zone(x, y)
+        self._beyond = (zone, self._beyond[1] + 1 if zone == self._beyond[0] else 1)
+
+    def _zone(self, x: float, y: float) -> str:
+        """"goal" for a puck centre beyond a goal line inside the mouth, "out" beyond the table's edge
+        elsewhere, "" on the table."""
+        s, table = self.settings, self.settings.table
+        if abs(x) > table.length / 2 + s.goal_margin and abs(y) < table.goal_width / 2:
+            return "goal"
+        if abs(x) > table.length / 2 + s.out_margin or abs(y) > table.width / 2 + s.out_margin:
+            return "out"
+        return ""
 
     # --- operator commands ----------------------------------------------------------------------
     def start(self, t: float) -> tuple[bool, str]:
@@ -158,13 +176,15 @@ class Referee:
         if self._lost(t):
             return Decision(EVENT_PUCK_OUT, f"no puck pose for {s.lost_timeout:g} s", self._reset_point(None))
         x, y = self._puck
-        if abs(x) > table.length / 2 + s.goal_margin and abs(y) < table.goal_width / 2:
+        zone, poses = self._beyond
+        confirmed = poses >= s.confirm_frames or t - self._last_seen >= s.vanish_time
+        if zone == "goal" and confirmed:
             conceding = FRONT if x < 0 else BACK
             scorer = OTHER[conceding]
             self.state.score[scorer] += 1
             event = EVENT_GOAL_FRONT if scorer == FRONT else EVENT_GOAL_BACK
             return Decision(event, f"goal for {scorer} (puck in {conceding}'s goal)", self._reset_point(conceding))
-        if abs(x) > table.length / 2 + s.out_margin or abs(y) > table.width / 2 + s.out_margin:
+        if zone == "out" and confirmed:
             return Decision(EVENT_PUCK_OUT, f"puck off the table at ({x:.3f}, {y:.3f}) m", self._reset_point(None))
         if self._anchor is not None and t - self._anchor[2] >= s.stuck_time and abs(x) < s.neutral_zone_length / 2:
             return Decision(EVENT_PUCK_STUCK, f"puck at rest in the neutral zone for {s.stuck_time:g} s",
