@@ -158,6 +158,25 @@ def test_flight_parameters_survive_effects_the_model_lacks():
     assert found["tangential_restitution"] == pytest.approx(effects.tangential_scale - 1.0, abs=0.05)
 
 
+@pytest.mark.parametrize("film, varies", [({"testbed.air_film_amplitude": 0.0}, False),
+                                         ({"testbed.air_film_amplitude": 0.03, "testbed.air_film_wavelength": 2.0},
+                                          True)])
+def test_a_table_acceleration_that_varies_over_the_table_is_shown(film, varies):
+    """The field check (issue #13 item 3: a field only where the data support it): with a tilt and random
+    accelerations alone the residuals show no field; an air film of 0.03 m/s^2 at 2 m wavelength, which
+    the constant table acceleration cannot hold, is shown."""
+    from air_hockey_agent.core.identification.flight_fit import field_check
+    trajectories, _ = session_on_testbed(40, 6, film)
+    settings = load_sysid_params()
+    result = identify_all(trajectories)
+    check = result.field
+    assert check is not None and len(check.cells) == 8
+    assert (check.p_value < settings["split.field_significance"]) == varies, check.p_value
+    table = TableGeometry.from_params(load_tracker_params())
+    one_cell = field_check(result.flight, table, (1, 1), settings["split.field_min_windows"])
+    assert one_cell is None  # nothing to compare a single cell with
+
+
 def _impacts(rng, n, slip):
     """Incoming (vb, vn, omega) with slips of size in ``slip`` [m/s] (what fit_tangential reads)."""
     class Obs:

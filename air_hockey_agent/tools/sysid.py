@@ -22,6 +22,7 @@ from __future__ import annotations
 import argparse
 import contextlib
 import json
+import math
 import multiprocessing
 import os
 import sys
@@ -216,6 +217,11 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
         f = split.flight
         objective["flight"] = {"windows": f.windows, "dropped": f.dropped, "weighted_squared_residual": f.objective,
                                "rms_acceleration_m_s2": f.rms_acceleration}
+        if split.field is not None:
+            c = split.field
+            objective["flight"]["field"] = {"cells": c.cells, "largest_m_s2": c.largest, "f_statistic": c.f_statistic,
+                                            "p_value": c.p_value,
+                                            "varies": c.p_value < settings["split.field_significance"]}
     if split.impacts is not None:
         i = split.impacts
         objective["impacts"] = {"impacts": i.impacts, "dropped": i.dropped, "rms_normal_speed_m_s": i.rms_normal,
@@ -371,6 +377,8 @@ def _format_split(result: dict, out: Path | None) -> str:
         f = o["flight"]
         lines.append(f"flight fit: {f['windows']} windows ({f['dropped']} dropped), acceleration residual RMS "
                      f"{f['rms_acceleration_m_s2']:.4f} m/s^2")
+        if "field" in f:
+            lines.append(_field_text(f["field"]))
     if "impacts" in o:
         i = o["impacts"]
         lines.append(f"impact fit: {i['impacts']} impacts ({i['dropped']} dropped), residual RMS normal "
@@ -389,6 +397,18 @@ def _format_split(result: dict, out: Path | None) -> str:
     if out is not None:
         lines.append(f"wrote {out}")
     return "\n".join(lines)
+
+
+def _field_text(field: dict) -> str:
+    """One line on the field check: does the free flight's acceleration vary over the table?"""
+    cell = max(field["cells"], key=lambda c: math.hypot(c["ax"], c["ay"]))
+    where = (f"largest cell mean {field['largest_m_s2']:.4f} m/s^2 (+- {cell['std_error']:.4f} per axis) at "
+             f"({cell['x']:+.2f}, {cell['y']:+.2f}) m, {len(field['cells'])} cells, F {field['f_statistic']:.2f}, "
+             f"p {field['p_value']:.2g}")
+    if field["varies"]:
+        return (f"warning: the free flight's acceleration varies over the table ({where}): an uneven air film "
+                f"or a warped surface, which the constant table_acceleration cannot hold")
+    return f"table acceleration field: none shown ({where}): the constant table_acceleration suffices"
 
 
 def _value_text(value) -> str:

@@ -172,7 +172,7 @@ class Referee:
         return self._record(t, decision)
 
     def _puck_rules(self, t: float) -> Decision | None:
-        s, table = self.settings, self.settings.table
+        s = self.settings
         if self._lost(t):
             return Decision(EVENT_PUCK_OUT, f"no puck pose for {s.lost_timeout:g} s", self._reset_point(None))
         x, y = self._puck

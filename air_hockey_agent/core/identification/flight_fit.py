@@ -66,6 +66,20 @@ class FlightFit:
     objective: float       # weighted squared residual per window (dimensionless)
     rms_acceleration: float  # [m/s^2] unweighted residual RMS per axis
     used: list = field(default_factory=list)  # the windows (LocalFit) of the final fit, for plots
+    used_weights: list = field(default_factory=list)  # [s^4/m^2] their weights in the fit
+
+
+@dataclass(frozen=True)
+class FieldCheck:
+    """Does the free flight's acceleration vary over the table beyond the flight law's constant ``g``
+    (an uneven air film, a warped surface: issue #13 item 3, "where the data support it")? The fit's
+    residual accelerations, averaged per cell of a grid over the table."""
+
+    cells: list            # per cell with enough windows: {"x", "y" [m] centre, "windows", "ax", "ay" [m/s^2]
+    #                        mean residual, "std_error" [m/s^2] per axis}
+    largest: float         # [m/s^2] the largest cell mean's magnitude
+    f_statistic: float     # between-cell over within-cell variance of the residuals, both axes
+    p_value: float         # of "one acceleration all over the table" (one-way analysis of variance)
 
 
 def flight_windows(traj: GridTrajectory, table: TableGeometry, settings: FlightSettings) -> list[LocalFit]:
@@ -175,7 +189,47 @@ def _report(windows, weights, mask, values, free, dropped) -> FlightFit:
     covariance = np.linalg.pinv(design.T @ design) * weighted / dof
     std = {n: float(math.sqrt(max(covariance[i, i], 0.0))) for i, n in enumerate(free)}
     rms = math.sqrt(sum(float(r @ r) for r in residuals) / (2 * len(used)))
-    return FlightFit(values, std, len(used), dropped, weighted / len(used), rms, [w for w, _ in used])
+    return FlightFit(values, std, len(used), dropped, weighted / len(used), rms, [w for w, _ in used],
+                     [weight for _, weight in used])
+
+
+def field_check(fit: FlightFit, table: TableGeometry, grid: Sequence[int], min_windows: int) -> FieldCheck | None:
+    """One-way analysis of variance of the flight fit's residual accelerations over a ``grid`` (cells along
+    x, along y) of the table; cells with fewer than ``min_windows`` windows are left out. Every other
+    window is used (neighbours share half their frames, and correlated residuals would look like a
+    field). None when fewer than two cells have enough windows."""
+    from scipy.stats import f as f_distribution
+
+    law = flight_law(fit.values)
+    nx, ny = int(grid[0]), int(grid[1])
+    cells: dict[tuple[int, int], list] = {}
+    for w, weight in list(zip(fit.used, fit.used_weights))[::2]:
+        i = min(nx - 1, max(0, int((w.p[0] + table.length / 2) / table.length * nx)))
+        j = min(ny - 1, max(0, int((w.p[1] + table.width / 2) / table.width * ny)))
+        cells.setdefault((i, j), []).append((w.a - law(w.v), weight))
+    groups = {key: items for key, items in cells.items() if len(items) >= min_windows}
+    n, k = sum(len(g) for g in groups.values()), len(groups)
+    if k < 2 or n <= k:
+        return None
+    means, between, within, total_w, total = {}, 0.0, 0.0, 0.0, np.zeros(2)
+    for key, items in groups.items():
+        r = np.array([res for res, _ in items])
+        wt = np.array([weight for _, weight in items])
+        means[key] = (wt @ r) / wt.sum(), wt.sum()
+        within += float(wt @ np.sum((r - means[key][0]) ** 2, axis=1))
+        total += wt @ r
+        total_w += wt.sum()
+    grand = total / total_w
+    between = sum(weight * float(np.sum((mean - grand) ** 2)) for mean, weight in means.values())
+    df_between, df_within = 2 * (k - 1), 2 * (n - k)
+    scale = within / df_within
+    statistic = (between / df_between) / scale if scale > 0.0 else math.inf
+    report = [{"x": float((i + 0.5) * table.length / nx - table.length / 2),
+               "y": float((j + 0.5) * table.width / ny - table.width / 2), "windows": len(groups[(i, j)]),
+               "ax": float(mean[0]), "ay": float(mean[1]), "std_error": float(math.sqrt(scale / weight))}
+              for (i, j), (mean, weight) in sorted(means.items())]
+    largest = max(math.hypot(c["ax"], c["ay"]) for c in report)
+    return FieldCheck(report, largest, float(statistic), float(f_distribution.sf(statistic, df_between, df_within)))
 
 
 def identify_flight(trajectories: Sequence[GridTrajectory], table: TableGeometry, noise: NoiseModel,

@@ -14,8 +14,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.identification.flight_fit import (FlightFit, FlightSettings, NoiseModel, flight_law,
-                                                           identify_flight)
+from air_hockey_agent.core.identification.flight_fit import (FieldCheck, FlightFit, FlightSettings, NoiseModel,
+                                                           field_check, flight_law, identify_flight)
 from air_hockey_agent.core.identification.impact_fit import ImpactFit, ImpactSettings, find_impacts, fit_impacts
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.table import TableGeometry
@@ -33,6 +33,7 @@ class SplitResult:
     std: dict             # tracker parameter name -> standard error (table_acceleration as [x, y])
     flight: FlightFit | None
     impacts: ImpactFit | None
+    field: FieldCheck | None = None  # whether the free flight's acceleration varies over the table
 
 
 def flight_settings(settings: Mapping[str, Any]) -> FlightSettings:
@@ -61,7 +62,7 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
     flight_values = {"damping": tracker["damping"], "friction_surface": tracker["friction_surface"],
                      AXES[0]: tracker["table_acceleration"][0], AXES[1]: tracker["table_acceleration"][1]}
     identified, std = {}, {}
-    flight = None
+    flight = field = None
     if any(n in FLIGHT for n in names):
         fixed = {k: v for k, v in flight_values.items()
                  if (k in AXES and "table_acceleration" not in names) or (k not in AXES and k not in names)}
@@ -70,6 +71,7 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
                                  {**bounds, **axis_bounds})
         flight_values = flight.values
         _collect(flight.values, flight.std, names, identified, std)
+        field = field_check(flight, table, settings["split.field_grid"], settings["split.field_min_windows"])
     impacts = None
     if any(n in IMPACT for n in names):
         fixed = {n: tracker[n] for n in IMPACT if n not in names}
@@ -78,7 +80,7 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
         found = [o for traj in trajectories for o in find_impacts(traj, table, law, noise, chosen)]
         impacts = fit_impacts(found, table.puck_radius, fixed, bounds, chosen, {n: tracker[n] for n in IMPACT})
         _collect(impacts.values, {}, names, identified, std)
-    return SplitResult(identified, std, flight, impacts)
+    return SplitResult(identified, std, flight, impacts, field)
 
 
 def _collect(values: Mapping[str, float], errors: Mapping[str, float], names: Sequence[str], identified: dict,
