@@ -1,4 +1,4 @@
-"""Console scripts: `air-hockey --help`, node --help, honest not-implemented nodes, the game launcher."""
+"""Console scripts: `air-hockey --help`, node --help, the game launcher."""
 import json
 import os
 import signal
