@@ -200,6 +200,30 @@ def field_check(fit: FlightFit, table: TableGeometry, grid: Sequence[int], min_w
     field). None when fewer than two cells have enough windows."""
     from scipy.stats import f as f_distribution
 
+    groups = {key: items for key, items in _cell_residuals(fit, table, grid).items() if len(items) >= min_windows}
+    n, k = sum(len(g) for g in groups.values()), len(groups)
+    if k < 2 or n <= k:
+        return None
+    means = {key: _weighted_mean(items) for key, items in groups.items()}
+    within = sum(weight * float(np.sum((residual - means[key][0]) ** 2))
+                 for key, items in groups.items() for residual, weight in items)
+    total_weight = sum(weight for _, weight in means.values())
+    grand = sum(weight * mean for mean, weight in means.values()) / total_weight
+    between = sum(weight * float(np.sum((mean - grand) ** 2)) for mean, weight in means.values())
+    df_between, df_within = 2 * (k - 1), 2 * (n - k)
+    scale = within / df_within
+    statistic = (between / df_between) / scale if scale > 0.0 else math.inf
+    nx, ny = int(grid[0]), int(grid[1])
+    cells = [{"x": float((i + 0.5) * table.length / nx - table.length / 2),
+              "y": float((j + 0.5) * table.width / ny - table.width / 2), "windows": len(groups[(i, j)]),
+              "ax": float(mean[0]), "ay": float(mean[1]), "std_error": float(math.sqrt(scale / weight))}
+             for (i, j), (mean, weight) in sorted(means.items())]
+    largest = max(math.hypot(c["ax"], c["ay"]) for c in cells)
+    return FieldCheck(cells, largest, float(statistic), float(f_distribution.sf(statistic, df_between, df_within)))
+
+
+def _cell_residuals(fit: FlightFit, table: TableGeometry, grid: Sequence[int]) -> dict:
+    """(cell along x, cell along y) -> [(residual acceleration (2,) [m/s^2], weight)] of every other window."""
     law = flight_law(fit.values)
     nx, ny = int(grid[0]), int(grid[1])
     cells: dict[tuple[int, int], list] = {}
@@ -207,29 +231,14 @@ def field_check(fit: FlightFit, table: TableGeometry, grid: Sequence[int], min_w
         i = min(nx - 1, max(0, int((w.p[0] + table.length / 2) / table.length * nx)))
         j = min(ny - 1, max(0, int((w.p[1] + table.width / 2) / table.width * ny)))
         cells.setdefault((i, j), []).append((w.a - law(w.v), weight))
-    groups = {key: items for key, items in cells.items() if len(items) >= min_windows}
-    n, k = sum(len(g) for g in groups.values()), len(groups)
-    if k < 2 or n <= k:
-        return None
-    means, between, within, total_w, total = {}, 0.0, 0.0, 0.0, np.zeros(2)
-    for key, items in groups.items():
-        r = np.array([res for res, _ in items])
-        wt = np.array([weight for _, weight in items])
-        means[key] = (wt @ r) / wt.sum(), wt.sum()
-        within += float(wt @ np.sum((r - means[key][0]) ** 2, axis=1))
-        total += wt @ r
-        total_w += wt.sum()
-    grand = total / total_w
-    between = sum(weight * float(np.sum((mean - grand) ** 2)) for mean, weight in means.values())
-    df_between, df_within = 2 * (k - 1), 2 * (n - k)
-    scale = within / df_within
-    statistic = (between / df_between) / scale if scale > 0.0 else math.inf
-    report = [{"x": float((i + 0.5) * table.length / nx - table.length / 2),
-               "y": float((j + 0.5) * table.width / ny - table.width / 2), "windows": len(groups[(i, j)]),
-               "ax": float(mean[0]), "ay": float(mean[1]), "std_error": float(math.sqrt(scale / weight))}
-              for (i, j), (mean, weight) in sorted(means.items())]
-    largest = max(math.hypot(c["ax"], c["ay"]) for c in report)
-    return FieldCheck(report, largest, float(statistic), float(f_distribution.sf(statistic, df_between, df_within)))
+    return cells
+
+
+def _weighted_mean(items: list) -> tuple[np.ndarray, float]:
+    """Weighted mean of (residual, weight) pairs and the sum of the weights."""
+    weights = np.array([weight for _, weight in items])
+    residuals = np.array([residual for residual, _ in items])
+    return (weights @ residuals) / weights.sum(), float(weights.sum())
 
 
 def identify_flight(trajectories: Sequence[GridTrajectory], table: TableGeometry, noise: NoiseModel,
