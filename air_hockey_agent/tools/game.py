@@ -202,6 +202,8 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
     result = monitor.board.result(str(recording) if recording else None)
     if not args.json:
         print(monitor.board.table(result["recording"]), flush=True)
+        if result["recording"] is None:
+            print("  to watch one: add --record OUT.mcap and open it in Foxglove (README \"Watching a game\")")
     return result
 
 
