@@ -99,6 +99,7 @@ def rest_bag(path):
 @pytest.mark.parametrize("make_args, words", [
     (lambda d: ["synth-bag", d / "out", "--shots", "0"], ["--shots", "integer >= 1", "'0'"]),
     (lambda d: ["game", "--domain-id", "200"], ["--domain-id", "1..101", "'200'"]),
+    (lambda d: ["play", d, "--domain-id", "0"], ["--domain-id", "1..101", "'0'"]),
     (lambda d: ["bench", "tracker", "--samples", "0"], ["--samples"]),
     (lambda d: ["bench", "sim", "--duration", "-1"], ["--duration", "> 0"]),
     (lambda d: ["sysid", d, "--batch", "0"], ["--batch"]),
