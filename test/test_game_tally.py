@@ -45,6 +45,18 @@ def test_world_reports_a_mallet_hitting_the_puck():
         world.close()
 
 
+def test_the_games_time_counts_from_its_start_even_before_the_clock_is_heard():
+    """The game's duration counts from the referee's start. On a loaded machine the launcher's clock
+    subscription may not have heard the clock yet when the start is answered: the game then starts at the
+    first clock heard, not at the clock's zero (a 30 s game that had started at 7.9 s ended at 30 s)."""
+    board = Scoreboard(("iiwa_front", "iiwa_back"))
+    board.start()
+    assert board.played == 0.0
+    board.on_clock(7.9)
+    board.on_clock(10.0)
+    assert board.played == pytest.approx(2.1)
+
+
 def test_scoreboard_counts_events_once_and_names_faults_without_numbers():
     board = Scoreboard(("iiwa_front", "iiwa_back"))
     board.on_clock(7.25)  # nodes up and robots home: the game starts here

@@ -31,7 +31,7 @@ class Scoreboard:
     def __init__(self, robots: Sequence[str]) -> None:
         self.robots = tuple(robots)
         self.sim_time = 0.0
-        self.started_at = 0.0
+        self.started_at: float | None = 0.0
         self.score = {r: 0 for r in self.robots}
         self.hits = {r: 0 for r in self.robots}
         self.faults: Counter = Counter()
@@ -49,14 +49,17 @@ class Scoreboard:
 
     @property
     def played(self) -> float:
-        """Seconds of sim time since the game started [s]."""
-        return max(self.sim_time - self.started_at, 0.0)
+        """Seconds of sim time since the game started [s] (0 until the start has a time)."""
+        return 0.0 if self.started_at is None else max(self.sim_time - self.started_at, 0.0)
 
     def start(self) -> None:
-        """The referee started the game at the latest sim time seen."""
-        self.started_at = self.sim_time
+        """The referee started the game: at the latest sim time seen, or, when no clock has been heard yet
+        (discovery on a loaded machine takes seconds), at the first one heard."""
+        self.started_at = self.sim_time if self.sim_time > 0.0 else None
 
     def on_clock(self, t: float) -> None:
+        if self.started_at is None:
+            self.started_at = t
         self.sim_time = max(self.sim_time, t)
 
     def on_status(self, score_front: int, score_back: int, event: int, reason: str, event_time: float) -> None:
