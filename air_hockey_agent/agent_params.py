@@ -8,13 +8,13 @@ from typing import Any, Iterable
 
 from air_hockey_agent.params import ParamSpec, ParameterValueError, load_node_params
 from air_hockey_agent.sim.params import ROBOT_BASE_PARAMS
-from air_hockey_agent.tracker_params import TABLE_PARAMS
+from air_hockey_agent.tracker_params import MALLET_RADIUS_PARAM, TABLE_PARAMS
 
 NODE_NAME = "/tactics"
 PARAM_FILES = ("table.yaml", "agent.yaml")
 
 AGENT_PARAMS = TABLE_PARAMS + (
-    ParamSpec("mallet.radius", float, "[m] mallet radius", 0.005, 0.2),
+    MALLET_RADIUS_PARAM,
     ParamSpec("robot", str, "which robot this node plays (iiwa_front or iiwa_back)"),
     ParamSpec("puck_params_file", str, "tracker parameter YAML whose puck physics the shots are predicted with "
                                        "('': config/tracker.yaml's; give the tracker's own --params-file)"),

@@ -14,13 +14,13 @@ from air_hockey_agent.core.motion.region import Region
 from air_hockey_agent.params import ParamSpec, load_node_params
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.params import ROBOT_BASE_PARAMS, ROBOTS
-from air_hockey_agent.tracker_params import TABLE_PARAMS
+from air_hockey_agent.tracker_params import MALLET_RADIUS_PARAM, TABLE_PARAMS
 
 NODE_NAME = "/trajectory_generator"
 PARAM_FILES = ("table.yaml", "motion.yaml")
 
 MOTION_PARAMS = TABLE_PARAMS + (
-    ParamSpec("mallet.radius", float, "[m] mallet radius", 0.005, 0.2),
+    MALLET_RADIUS_PARAM,
     ParamSpec("robot", str, "which robot this node drives (iiwa_front or iiwa_back)"),
     ParamSpec("playing_height", float, "[m] mallet bottom above the surface while playing", 0.0, 0.1),
     ParamSpec("joint_velocity_limits", list, "[rad/s] joint velocity limits", 0.01, 10.0, 7),

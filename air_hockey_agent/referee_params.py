@@ -3,13 +3,13 @@ from __future__ import annotations
 
 from air_hockey_agent.params import ParamSpec
 from air_hockey_agent.sim.params import ROBOT_BASE_PARAMS
-from air_hockey_agent.tracker_params import MOCAP_POSE_PARAM, TABLE_PARAMS
+from air_hockey_agent.tracker_params import MALLET_RADIUS_PARAM, MOCAP_POSE_PARAM, TABLE_PARAMS
 
 NODE_NAME = "/referee"
 PARAM_FILES = ("table.yaml", "referee.yaml")
 
 REFEREE_PARAMS = TABLE_PARAMS + (
-    ParamSpec("mallet.radius", float, "[m] mallet radius", 0.005, 0.2),
+    MALLET_RADIUS_PARAM,
     MOCAP_POSE_PARAM,
     ParamSpec("rate", float, "[Hz] rule checks per simulated second", 1.0, 10000.0),
     ParamSpec("status_period", float, "[s] GameStatus re-publication period", 0.01, 3600.0),

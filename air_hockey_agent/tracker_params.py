@@ -25,6 +25,9 @@ TABLE_PARAMS = (
 )
 MOCAP_POSE_PARAM = ParamSpec("mocap_table_pose", list, "table pose in the mocap frame: x, y, z [m], yaw [rad]",
                              -100.0, 100.0, 4)  # config/table.yaml
+# config/table.yaml, for the nodes that need them besides TABLE_PARAMS
+MALLET_RADIUS_PARAM = ParamSpec("mallet.radius", float, "[m] mallet radius", 0.005, 0.2)
+PUCK_HEIGHT_PARAM = ParamSpec("puck.height", float, "[m] puck thickness", 0.001, 0.1)
 TRACKER_PARAMS = (
     ParamSpec("frequency", float, "[Hz] model step rate (mocap frame rate)", 1.0, 2000.0),
     ParamSpec("friction_surface", float, "[m/s^2] surface friction deceleration mu_s", 0.0, 10.0),

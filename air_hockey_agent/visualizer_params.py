@@ -7,14 +7,14 @@ from typing import Any, Mapping
 from air_hockey_agent.core.scene import SceneStyle
 from air_hockey_agent.params import ParamSpec
 from air_hockey_agent.sim.params import ROBOT_BASE_PARAMS, ROBOTS
-from air_hockey_agent.tracker_params import MOCAP_POSE_PARAM, TABLE_PARAMS
+from air_hockey_agent.tracker_params import MALLET_RADIUS_PARAM, MOCAP_POSE_PARAM, PUCK_HEIGHT_PARAM, TABLE_PARAMS
 
 PARAM_FILES = ("table.yaml", "visualizer.yaml")
 COLOR_NAMES = ("table", "rim", "puck", "measurement", "prediction", "impact", "text") + ROBOTS
 
 VISUALIZER_PARAMS = TABLE_PARAMS + (
-    ParamSpec("mallet.radius", float, "[m] mallet radius", 0.005, 0.2),
-    ParamSpec("puck.height", float, "[m] puck height", 0.001, 0.1),
+    MALLET_RADIUS_PARAM,
+    PUCK_HEIGHT_PARAM,
     MOCAP_POSE_PARAM,
     ParamSpec("rate", float, "[Hz] scenes per simulated second", 0.1, 1000.0),
     ParamSpec("tracker", str, "robot whose puck_tracker's estimate and prediction are drawn", choices=ROBOTS),

@@ -6,7 +6,7 @@ from typing import Any, Iterable
 
 from air_hockey_agent.core.estimation.synthetic import MOCAP_FIELDS
 from air_hockey_agent.params import ParamSpec, load_node_params
-from air_hockey_agent.tracker_params import MOCAP_POSE_PARAM, TABLE_PARAMS
+from air_hockey_agent.tracker_params import MOCAP_POSE_PARAM, PUCK_HEIGHT_PARAM, TABLE_PARAMS
 
 NODE_NAME = "/table_sim"
 PARAM_FILES = ("table.yaml", "sim.yaml")
@@ -17,7 +17,7 @@ ROBOT_BASE_PARAMS = tuple(  # config/table.yaml
     for name in ROBOTS)
 
 SIM_PARAMS = TABLE_PARAMS + (
-    ParamSpec("puck.height", float, "[m] puck thickness", 0.001, 0.1),
+    PUCK_HEIGHT_PARAM,
     ParamSpec("physics_rate", float, "[Hz] physics step rate", 100.0, 10000.0),
     ParamSpec("real_time_factor", float, "sim seconds per wall second; 0 = as fast as possible", 0.0, 1000.0),
     ParamSpec("gui", bool, "open the pybullet window (top view)"),
