@@ -49,9 +49,9 @@ def test_the_puck_velocity_arrow_covers_arrow_time_of_motion(defaults, style):
 
 
 def test_a_hit_is_drawn_until_its_time_and_a_position_while_it_is_the_latest():
-    assert scene.command_visible("smash", now=4.9, hit_time=5.0)
-    assert not scene.command_visible("smash", now=5.1, hit_time=5.0)
-    assert scene.command_visible("ready", now=9.0, hit_time=5.0)
+    assert scene.command_visible(True, now=4.9, hit_time=5.0)  # a smash
+    assert not scene.command_visible(True, now=5.1, hit_time=5.0)
+    assert scene.command_visible(False, now=9.0, hit_time=5.0)  # a ready position
 
 
 def test_a_hit_has_its_velocity_and_target_a_position_only_its_point(style):

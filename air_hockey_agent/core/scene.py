@@ -18,7 +18,6 @@ Point2 = tuple[float, float]
 Point3 = tuple[float, float, float]
 Color = tuple[float, float, float, float]
 KINDS = ("cube", "cylinder", "sphere", "arrow", "line_strip", "line_list", "sphere_list", "text")
-HIT_TACTICS = ("smash", "cut", "prepare", "repel")  # tactics whose command is a hit; the others' is a position
 
 
 @dataclass(frozen=True)
@@ -145,10 +144,10 @@ def _arrow(ns: str, shape_id: int, start: Point3, end: Point3, color: Color, sty
     return Shape(ns, "arrow", color, (w, 2 * w, 2 * w), points=(start, end), id=shape_id)
 
 
-def command_visible(tactic: str, now: float, hit_time: float) -> bool:
+def command_visible(hit: bool, now: float, hit_time: float) -> bool:
     """A hit command is drawn until its hit time [s] (then the hit is made or missed); a position
-    command (init, home, ready) as long as it is the robot's latest."""
-    return tactic not in HIT_TACTICS or now <= hit_time
+    command (home, ready) as long as it is the robot's latest."""
+    return not hit or now <= hit_time
 
 
 def status_text(status: str, score_front: int, score_back: int, reason: str) -> str:

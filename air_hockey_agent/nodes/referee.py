@@ -23,14 +23,11 @@ from air_hockey_msgs.msg import GameStatus
 from air_hockey_msgs.srv import SetPuckState
 from air_hockey_agent.core.motion.kinematics import ArmKinematics, base_to_table
 from air_hockey_agent.core.game.referee import EVENT_NONE, NOT_YET, Decision, Referee, RefereeSettings
-from air_hockey_agent.nodes.messages import pose_measurement, to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import STATUS_NAMES, pose_measurement, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.referee_params import PARAM_FILES, REFEREE_PARAMS
 from air_hockey_agent.sim.params import ROBOTS
 from air_hockey_agent.paths import model_path
-
-STATUS_NAMES = {GameStatus.STATUS_STOPPED: "stopped", GameStatus.STATUS_PAUSED: "paused",
-                GameStatus.STATUS_RUNNING: "running"}
 
 
 class RefereeNode(AirHockeyNode):

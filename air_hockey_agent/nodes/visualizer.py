@@ -23,7 +23,7 @@ from air_hockey_agent.core.frames import TABLE_FRAME, quaternion_from_yaw, robot
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.motion.kinematics import ArmKinematics, base_to_table
 from air_hockey_agent.core.table import TableGeometry
-from air_hockey_agent.nodes.messages import pose_measurement, to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import STATUS_NAMES, pose_measurement, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.params import ROBOTS
@@ -32,8 +32,6 @@ from air_hockey_agent.visualizer_params import PARAM_FILES, VISUALIZER_PARAMS, s
 MARKER_TYPES = {"arrow": Marker.ARROW, "cube": Marker.CUBE, "sphere": Marker.SPHERE, "cylinder": Marker.CYLINDER,
                 "line_strip": Marker.LINE_STRIP, "line_list": Marker.LINE_LIST, "sphere_list": Marker.SPHERE_LIST,
                 "text": Marker.TEXT_VIEW_FACING}
-STATUS_NAMES = {GameStatus.STATUS_STOPPED: "stopped", GameStatus.STATUS_PAUSED: "paused",
-                GameStatus.STATUS_RUNNING: "running"}
 
 
 def marker(shape: scene.Shape, stamp) -> Marker:
@@ -164,13 +162,13 @@ class VisualizerNode(AirHockeyNode):
             shapes += scene.mallet_shapes(robot, float(tip[0]), float(tip[1]), self.tactics.get(robot, ""), self.style)
         cmd = self.commands.get(robot)
         if cmd is not None:
-            tactic = NAMES[cmd.tactic]
-            if scene.command_visible(tactic, now, to_seconds(cmd.hit_time)):
+            hit = cmd.hit_velocity.x != 0.0 or cmd.hit_velocity.y != 0.0  # the tactics' Proposal.is_hit
+            if scene.command_visible(hit, now, to_seconds(cmd.hit_time)):
                 # the robot frame shares the table frame's origin: velocities turn like points
                 point = robot_to_table(cmd.hit_point.x, cmd.hit_point.y, 0.0, robot)[:2]
                 velocity = robot_to_table(cmd.hit_velocity.x, cmd.hit_velocity.y, 0.0, robot)[:2]
                 target = robot_to_table(cmd.target.x, cmd.target.y, 0.0, robot)[:2]
-                shapes += scene.hit_shapes(robot, point, velocity, target, tactic in scene.HIT_TACTICS, self.style)
+                shapes += scene.hit_shapes(robot, point, velocity, target, hit, self.style)
         return shapes
 
 
