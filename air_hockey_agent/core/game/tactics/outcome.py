@@ -19,19 +19,26 @@ def area_margin(st: TacticsSettings, point: np.ndarray) -> float:
     return min(depth - st.smash_depth[0], st.smash_depth[1] - depth, half_width - abs(point[1]))
 
 
-def worst_margin(st: TacticsSettings, contact: Callable[[float], Push],
-                 rejected: Callable[[Push], bool]) -> tuple[int, Push] | None:
-    """(the smallest smash-area margin in TIE steps, the aimed contact) over the contact aimed as planned
-    (``contact(0)``) and turned by the aim noise either way; None when any of them is ``rejected``."""
-    margins = []
+def worst_case(st: TacticsSettings, contact: Callable[[float], Push], rejected: Callable[[Push], bool],
+               score: Callable[[Push], float]) -> tuple[float, Push] | None:
+    """(the smallest ``score``, the aimed contact) over the contact aimed as planned (``contact(0)``) and
+    turned by the aim noise either way; None when any of them is ``rejected``."""
+    scores = []
     for turn in (0.0, -st.aim_noise, st.aim_noise):
         push = contact(turn)
         if rejected(push):
             return None
-        margins.append(area_margin(st, push.rest))
+        scores.append(score(push))
         if turn == 0.0:
             aimed = push
-    return round(min(margins) / TIE), aimed
+    return min(scores), aimed
+
+
+def worst_margin(st: TacticsSettings, contact: Callable[[float], Push],
+                 rejected: Callable[[Push], bool]) -> tuple[int, Push] | None:
+    """:func:`worst_case` of the smash-area margin, in TIE steps."""
+    worst = worst_case(st, contact, rejected, lambda push: area_margin(st, push.rest))
+    return None if worst is None else (round(worst[0] / TIE), worst[1])
 
 
 class Ranked:

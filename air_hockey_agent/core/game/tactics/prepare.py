@@ -26,7 +26,7 @@ from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import (PREPARE, Context, Proposal, Tactic, approach_clear,
                                                     self_timed_hit_time)
-from air_hockey_agent.core.game.tactics.outcome import Ranked, worst_margin
+from air_hockey_agent.core.game.tactics.outcome import Ranked, worst_case, worst_margin
 
 CACHE_SIZE = 64
 KEY_POSITION = 0.005  # [m] puck positions closer than this share a chosen push
@@ -80,7 +80,7 @@ class Prepare(Tactic):
         slower first among equals."""
         st = ctx.settings
         scored = []
-        for angle, v, run_on, push in self._pushes(puck, ctx):
+        for v, run_on, push in self._pushes(puck, ctx):
             scored_push = worst_margin(st, push, lambda pushed: pushed.crosses_centre or pushed.enters_goal)
             if scored_push is not None:
                 scored.append((scored_push[0], -v, scored_push[1], run_on))
@@ -93,19 +93,19 @@ class Prepare(Tactic):
         the line in the worst case, slowest first; then the others, farthest first."""
         st = ctx.settings
         scored = []
-        for angle, v, run_on, push in self._pushes(puck, ctx):
-            aimed = [push(turn) for turn in (0.0, -st.aim_noise, st.aim_noise)]
-            if any(p.enters_goal or not p.crosses_centre for p in aimed):
-                continue
-            depth = min(float(p.rest[0]) for p in aimed)
-            deep = depth >= st.clear_depth
-            scored.append(((deep, -v if deep else depth), aimed[0], run_on))
+        for v, run_on, push in self._pushes(puck, ctx):
+            worst = worst_case(st, push, lambda pushed: pushed.enters_goal or not pushed.crosses_centre,
+                               lambda pushed: float(pushed.rest[0]))
+            if worst is not None:
+                depth, aimed = worst
+                deep = depth >= st.clear_depth
+                scored.append(((deep, -v if deep else depth), aimed, run_on))
         scored.sort(key=lambda item: item[0], reverse=True)
         return [(push, run_on) for _, push, run_on in scored]
 
     @staticmethod
     def _pushes(puck: np.ndarray, ctx: Context):
-        """(angle [rad], mallet speed [m/s], follow-through [m], push(turn)) of every push the arm can make:
+        """(mallet speed [m/s], follow-through [m], push(turn)) of every push the arm can make:
         ``prepare_directions`` directions, the ``prepare_speed_steps`` speeds the arm allows there under the
         speed cap; ``push(turn)`` predicts it aimed off by ``turn`` [rad]."""
         st = ctx.settings
@@ -116,7 +116,6 @@ class Prepare(Tactic):
             top = ctx.reach.max_speed(hit, d) * st.hit_speed_fraction
             run_on = ctx.reach.follow_through_length(hit, d)
             for v in speeds[speeds <= min(top, ctx.speed_cap)]:
-                yield angle, float(v), run_on, (lambda turn, a=float(angle), v=float(v):
-                                                ctx.shots.push(puck, a + turn, v, st.prepare_end_speed,
-                                                               st.prepare_horizon))
+                yield float(v), run_on, (lambda turn, a=float(angle), v=float(v):
+                                         ctx.shots.push(puck, a + turn, v, st.prepare_end_speed, st.prepare_horizon))
 
