@@ -42,18 +42,23 @@ def plot_arms(checks: dict, path: Path) -> Path:
     return save_figure(fig, path, dpi=110)
 
 
+def _table_half(region) -> tuple[float, float]:
+    """Half the playing surface's length and width [m], from a region: its box is the own half less the
+    mallet radius and margin (``Region.for_table``), which its x_max is."""
+    inset = -region.x_max
+    return -region.x_min + inset, region.y_max + inset
+
+
 def _table_outline(ax, region) -> None:
-    """The playing surface's rims, from a region (its box is the own half less mallet radius and margin)."""
-    inset = -region.x_max  # mallet radius + margin
-    half_l, half_w = -region.x_min + inset, region.y_max + inset
+    """The playing surface's rims and centre line."""
+    half_l, half_w = _table_half(region)
     ax.plot([-half_l, half_l, half_l, -half_l, -half_l], [-half_w, -half_w, half_w, half_w, -half_w], color="k", lw=1)
     ax.plot([0.0, 0.0], [-half_w, half_w], color="k", lw=0.5)
 
 
 def _arm(top, bottom, robot: str, check) -> None:
     region, color = check.planner.region, COLORS.get(robot, "tab:green")
-    inset = -region.x_max  # the region's box is the own half less this (mallet radius and margin)
-    half_l, half_w = -region.x_min + inset, region.y_max + inset
+    half_l, half_w = _table_half(region)
     xs = np.arange(-half_l, half_l + GRID, GRID)
     ys = np.arange(-half_w, half_w + GRID, GRID)
     gx, gy = np.meshgrid(xs, ys)
