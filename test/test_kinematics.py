@@ -23,6 +23,9 @@ def test_tip_in_the_table_frame_matches_the_simulated_mallet_for_both_robots():
                     world.client.resetJointState(body, joints[name], value)
                 tip = base_to_table(kin.tip_position(q), params[f"robot_base.{robot}"])
                 np.testing.assert_allclose(tip, world.mallet_position(robot), atol=1e-6)
+                # the referee's and the visualizer's planar mallet position
+                np.testing.assert_allclose(kin.tip_in_table(q, params[f"robot_base.{robot}"]),
+                                           world.mallet_position(robot)[:2], atol=1e-6)
     finally:
         world.close()
 

@@ -39,6 +39,15 @@ def pose_measurement(msg: PoseStamped, table_pose) -> tuple[float, float, float]
     return pose_to_measurement((p.x, p.y, p.z), (q.x, q.y, q.z, q.w), table_pose, msg.header.frame_id)
 
 
+def joint_vector(kinematics, robot: str, msg, logger) -> np.ndarray | None:
+    """The arm's joint positions in model order from ``/<robot>/joint_states`` (a JointState); None, with
+    a throttled warning naming the topic, when the message lacks a joint of ``kinematics`` (ArmKinematics)."""
+    q = kinematics.positions_from_names(msg.name, msg.position)
+    if q is None:
+        logger.warn(f"/{robot}/joint_states: missing joints of {kinematics.joint_names}", throttle_duration_sec=5.0)
+    return q
+
+
 def state_msg(state: np.ndarray, cov: np.ndarray, seconds: float, flags: int = 0) -> PuckState:
     """PuckState (table frame) of a state (x, y, vx, vy, theta, omega) and its 6x6 covariance at ``seconds``."""
     msg = PuckState(x=float(state[0]), y=float(state[1]), vx=float(state[2]), vy=float(state[3]),

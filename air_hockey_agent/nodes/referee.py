@@ -21,9 +21,9 @@ from std_srvs.srv import Trigger
 
 from air_hockey_msgs.msg import GameStatus
 from air_hockey_msgs.srv import SetPuckState
-from air_hockey_agent.core.motion.kinematics import ArmKinematics, base_to_table
+from air_hockey_agent.core.motion.kinematics import ArmKinematics
 from air_hockey_agent.core.game.referee import EVENT_NONE, NOT_YET, Decision, Referee, RefereeSettings
-from air_hockey_agent.nodes.messages import STATUS_NAMES, pose_measurement, to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import STATUS_NAMES, joint_vector, pose_measurement, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.referee_params import PARAM_FILES, REFEREE_PARAMS
 from air_hockey_agent.sim.params import ROBOTS
@@ -76,13 +76,9 @@ class RefereeNode(AirHockeyNode):
 
     def on_joint_state(self, robot: str, msg: JointState) -> None:
         try:
-            q = self.kinematics.positions_from_names(msg.name, msg.position)
-            if q is None:
-                self.get_logger().warn(f"/{robot}/joint_states: missing joints of {self.kinematics.joint_names}",
-                                       throttle_duration_sec=5.0)
-                return
-            tip = base_to_table(self.kinematics.tip_position(q), self.params[f"robot_base.{robot}"])
-            self.mallets[robot] = (float(tip[0]), float(tip[1]))
+            q = joint_vector(self.kinematics, robot, msg, self.get_logger())
+            if q is not None:
+                self.mallets[robot] = self.kinematics.tip_in_table(q, self.params[f"robot_base.{robot}"])
         except Exception as exc:
             self.get_logger().error(f"/{robot}/joint_states: message ignored ({type(exc).__name__}: {exc})",
                                     throttle_duration_sec=1.0)

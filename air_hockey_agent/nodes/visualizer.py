@@ -21,9 +21,9 @@ from air_hockey_msgs.msg import GameStatus, HitCommand, PuckPrediction, PuckStat
 from air_hockey_agent.core import scene
 from air_hockey_agent.core.frames import TABLE_FRAME, quaternion_from_yaw, robot_to_table
 from air_hockey_agent.core.game.tactics.base import NAMES
-from air_hockey_agent.core.motion.kinematics import ArmKinematics, base_to_table
+from air_hockey_agent.core.motion.kinematics import ArmKinematics
 from air_hockey_agent.core.table import TableGeometry
-from air_hockey_agent.nodes.messages import STATUS_NAMES, pose_measurement, to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import STATUS_NAMES, joint_vector, pose_measurement, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.params import ROBOTS
@@ -113,12 +113,9 @@ class VisualizerNode(AirHockeyNode):
         self.status = msg
 
     def on_joints(self, robot: str, msg: JointState) -> None:
-        q = self.kinematics.positions_from_names(msg.name, msg.position)
-        if q is None:
-            self.get_logger().warn(f"/{robot}/joint_states: missing joints of {self.kinematics.joint_names}",
-                                   throttle_duration_sec=5.0)
-            return
-        self.joints[robot] = q
+        q = joint_vector(self.kinematics, robot, msg, self.get_logger())
+        if q is not None:
+            self.joints[robot] = q
 
     def on_tactic(self, robot: str, msg: TacticState) -> None:
         self.tactics[robot] = msg.name
@@ -158,8 +155,8 @@ class VisualizerNode(AirHockeyNode):
         shapes = []
         q = self.joints.get(robot)
         if q is not None:
-            tip = base_to_table(self.kinematics.tip_position(q), self.params[f"robot_base.{robot}"])
-            shapes += scene.mallet_shapes(robot, float(tip[0]), float(tip[1]), self.tactics.get(robot, ""), self.style)
+            x, y = self.kinematics.tip_in_table(q, self.params[f"robot_base.{robot}"])
+            shapes += scene.mallet_shapes(robot, x, y, self.tactics.get(robot, ""), self.style)
         cmd = self.commands.get(robot)
         if cmd is not None:
             hit = cmd.hit_velocity.x != 0.0 or cmd.hit_velocity.y != 0.0  # the tactics' Proposal.is_hit

@@ -45,6 +45,11 @@ class ArmKinematics:
         pin.framesForwardKinematics(self.model, self.data, q)
         return self.data.oMf[self.tip].translation.copy()
 
+    def tip_in_table(self, q: np.ndarray, base_pose: Sequence[float]) -> tuple[float, float]:
+        """Mallet tip (x, y) in the table frame [m]; ``base_pose`` as for :func:`base_to_table`."""
+        tip = base_to_table(self.tip_position(q), base_pose)
+        return float(tip[0]), float(tip[1])
+
 
 def base_to_table(point: Sequence[float], base_pose: Sequence[float]) -> np.ndarray:
     """A point in a robot base frame -> table frame; ``base_pose`` = (x, y, z, yaw) of the base in the table."""
