@@ -53,11 +53,33 @@ def test_replay_drives_the_tracker_on_bag_time(bag, launcher, rclpy_node):
     assert digest(bag) == before  # the input bag is only read
 
 
+def test_a_ros1_bag_is_replayed_as_ros2_messages(bag, tmp_path, launcher, rclpy_node):
+    """The lab's recordings are ROS 1 bags: the same poses converted by rosbags' converter replay as the
+    Jazzy PoseStamped, and the tracker follows them."""
+    from air_hockey_msgs.msg import PuckState
+    from geometry_msgs.msg import PoseStamped
+
+    ros1 = tmp_path / "lab.bag"
+    converted = subprocess.run([str(BIN / "rosbags-convert"), "--src", str(bag), "--dst", str(ros1),
+                                "--dst-typestore", "ros1_noetic", "--include-topic", "/optitrack/puck"],
+                               capture_output=True, text=True, timeout=120)
+    assert converted.returncode == 0, converted.stderr
+    poses, estimates = [], []
+    rclpy_node.create_subscription(PoseStamped, "/optitrack/puck", poses.append, 500)
+    rclpy_node.create_subscription(PuckState, "/puck/state", estimates.append, 500)
+    launcher.start(ProcessSpec("puck_tracker", [str(BIN / "puck_tracker"), "--ros-args", "-p", "use_sim_time:=true"]))
+    assert spin_until(rclpy_node, lambda: rclpy_node.count_subscribers("/optitrack/puck") > 1, 30.0)
+    launcher.start(ProcessSpec("bag_player", [str(BIN / "air-hockey"), "play", str(ros1), "--rate", "4", "--clock"]))
+    assert spin_until(rclpy_node, lambda: len(estimates) > 300, 60.0), len(estimates)
+    assert poses[0].header.frame_id == "optitrack" and poses[1].header.stamp.sec > 0
+    assert sum(abs(p.pose.orientation.w) > 0.0 for p in poses) == len(poses)  # real quaternions, not zeros
+
+
 def test_bad_bag_is_one_line_and_exit_2(tmp_path, ros_env):
     out = subprocess.run([str(BIN / "bag_player"), "--ros-args", "-p", f"bag:={tmp_path}"], capture_output=True,
                          text=True, timeout=60, env=ros_env)
     assert out.returncode == 2
-    assert f"{tmp_path}: not a rosbag2 bag" in out.stderr and len(out.stderr.strip().splitlines()) == 1
+    assert f"{tmp_path}: not a bag (neither a rosbag2 bag" in out.stderr and len(out.stderr.strip().splitlines()) == 1
     out = subprocess.run([str(BIN / "air-hockey"), "play", str(tmp_path / "missing")], capture_output=True,
                          text=True, timeout=60, env=ros_env)
     assert out.returncode == 2 and "does not exist" in out.stderr

@@ -1,9 +1,14 @@
-"""rosbag2 reading and writing with rosbags: round trips in both storages, and one-line errors for bad bags."""
+"""Bag reading and writing with rosbags: round trips in both rosbag2 storages, ROS 1 bags read, and one-line
+errors for bad bags."""
 import sqlite3
 
 import pytest
+from rosbags.rosbag1 import Writer as Ros1Writer
+from rosbags.typesys import Stores, get_typestore
 
-from air_hockey_agent.bags.reader import BagError, read_poses
+from air_hockey_agent.bags.reader import BagError, iter_raw, read_poses
+from air_hockey_agent.bags.trajectories import find_bags
+from helpers.ros1_bags import poses_to_tf_bag
 from air_hockey_agent.bags.types import typestore
 from air_hockey_agent.bags.writer import BagExistsError, write_bag
 
@@ -81,7 +86,7 @@ def test_missing_bag(tmp_path):
 
 
 def test_directory_that_is_not_a_bag(tmp_path):
-    assert "not a rosbag2 bag" in error_of(tmp_path)
+    assert "not a bag (neither a rosbag2 bag" in error_of(tmp_path)
 
 
 def test_missing_topic_names_the_topics_present(tmp_path):
@@ -115,3 +120,67 @@ def test_garbage_database(tmp_path):
     assert "cannot read" in error_of(bag)
     with pytest.raises(sqlite3.DatabaseError):  # the reader did not repair or replace the input
         sqlite3.connect(bag / "bag.db3").execute("select * from messages").fetchall()
+
+
+def write_ros1_poses(path, n=5, topic="/optitrack/puck"):
+    """A ROS 1 bag as the lab's recorder wrote it: Noetic types (a header with seq), ROS 1 serialisation."""
+    store = get_typestore(Stores.ROS1_NOETIC)
+    t = store.types
+    with Ros1Writer(path) as writer:
+        connection = writer.add_connection(topic, POSE, typestore=store)
+        for k in range(n):
+            ns = 10**9 + k * 8_333_333
+            stamp = t["builtin_interfaces/msg/Time"](sec=ns // 10**9, nanosec=ns % 10**9)
+            msg = t[POSE](header=t["std_msgs/msg/Header"](seq=k, stamp=stamp, frame_id="optitrack"),
+                          pose=t["geometry_msgs/msg/Pose"](position=t["geometry_msgs/msg/Point"](x=0.1 * k, y=0.0, z=0.0),
+                                                            orientation=t["geometry_msgs/msg/Quaternion"](
+                                                                x=0.0, y=0.0, z=0.0, w=1.0)))
+            writer.write(connection, ns, store.serialize_ros1(msg, POSE))
+    return path
+
+
+def test_a_ros1_bag_reads_like_a_rosbag2_bag_and_replays_as_ros2_cdr(tmp_path):
+    bag = write_ros1_poses(tmp_path / "lab.bag")
+    records = read_poses(bag, "/optitrack/puck")
+    assert [round(r.position[0], 9) for r in records] == [0.0, 0.1, 0.2, 0.3, 0.4]
+    assert records[1].stamp == pytest.approx(1.008333333) and records[1].frame_id == "optitrack"
+    topic, log_ns, raw = list(iter_raw(bag))[3]
+    msg = typestore().deserialize_cdr(raw, POSE)  # the Jazzy type: no seq in the header
+    assert (topic, log_ns) == ("/optitrack/puck", 10**9 + 3 * 8_333_333)
+    assert msg.pose.position.x == pytest.approx(0.3) and msg.header.stamp.nanosec == 24_999_999
+    assert msg.header.frame_id == "optitrack"
+
+
+def test_bad_ros1_bags_are_one_line_errors(tmp_path):
+    bag = write_ros1_poses(tmp_path / "lab.bag", n=300)
+    assert "no topic /other (topics: /optitrack/puck)" in error_of(bag, "/other")
+    bag.write_bytes(bag.read_bytes()[: bag.stat().st_size // 2])
+    assert "cannot read" in error_of(bag)
+    (tmp_path / "junk.bag").write_bytes(b"not a bag" * 50)
+    assert "cannot read" in error_of(tmp_path / "junk.bag")
+
+
+def test_directories_are_searched_for_both_kinds_of_bag(tmp_path):
+    write_poses(tmp_path / "sessions" / "a")
+    (tmp_path / "sessions" / "lab").mkdir()
+    write_ros1_poses(tmp_path / "sessions" / "lab" / "b.bag")
+    (tmp_path / "sessions" / "notes.txt").write_text("not a bag")
+    bags, errors = find_bags([tmp_path / "sessions", tmp_path / "c.bag"])
+    assert bags == [tmp_path / "sessions" / "a", tmp_path / "sessions" / "lab" / "b.bag", tmp_path / "c.bag"]
+    assert errors == []
+    assert find_bags([tmp_path / "none"])[1] == [f"{tmp_path / 'none'}: does not exist"]
+
+
+def test_the_puck_is_read_from_tf_as_the_ros1_lab_published_it(tmp_path):
+    """The ROS 1 lab's tracker looked the puck up on /tf (child frame "Puck"): its transforms are the poses,
+    in their parent frame, and the other bodies' transforms are left out."""
+    source = write_poses(tmp_path / "bag", n=7)
+    assert poses_to_tf_bag(source, tmp_path / "tf.bag") == 7
+    records = read_poses(tmp_path / "tf.bag", "/tf")
+    assert [round(r.position[0], 9) for r in records] == [round(0.1 * k, 9) for k in range(7)]
+    assert records[2].stamp == pytest.approx(1.016666666) and records[2].frame_id == "world"
+    assert [r.stamp for r in records] == [r.stamp for r in read_poses(source, "/optitrack/puck")]
+    assert len(read_poses(tmp_path / "tf.bag", "/tf", frame="Table")) == 7
+    with pytest.raises(BagError) as info:
+        read_poses(tmp_path / "tf.bag", "/tf", frame="Mallet")
+    assert "no transform to frame Mallet on /tf (child frames: Puck, Table; choose one with --frame)" in str(info.value)

@@ -6,6 +6,8 @@ from pathlib import Path
 
 import pytest
 
+from helpers.ros1_bags import poses_to_tf_bag
+
 EXE = Path(sys.executable).parent / "air-hockey"
 
 
@@ -49,8 +51,34 @@ def test_bad_bags_give_one_line_errors_and_exit_2_while_good_bags_count(bags, tm
               bags / "b", "--topic", "/optitrack/puck", "--json")
     assert out.returncode == 2
     errors = out.stderr.strip().splitlines()
-    assert len(errors) == 2 and "missing: does not exist" in errors[0] and "not a rosbag2 bag" in errors[1]
+    assert len(errors) == 2 and "missing: does not exist" in errors[0] and "not a bag (neither a rosbag2 bag" in errors[1]
     assert json.loads(out.stdout)["bags"] == 2
+
+
+def test_a_ros1_copy_of_a_bag_gives_the_same_figures(bags, tmp_path):
+    """The lab recorded with ROS 1: the same session converted by rosbags' own converter (Noetic types, a header
+    with seq, ROS 1 serialisation) is evaluated exactly like the rosbag2 original."""
+    converted = subprocess.run([str(EXE.parent / "rosbags-convert"), "--src", str(bags / "a"), "--dst",
+                                str(tmp_path / "a.bag"), "--dst-typestore", "ros1_noetic",
+                                "--include-topic", "/optitrack/puck"], capture_output=True, text=True, timeout=120)
+    assert converted.returncode == 0, converted.stderr
+    original, ros1 = (cli("eval-prediction", bag, "--json") for bag in (bags / "a", tmp_path / "a.bag"))
+    assert original.returncode == ros1.returncode == 0, ros1.stderr
+    assert json.loads(ros1.stdout) == json.loads(original.stdout)
+    assert json.loads(ros1.stdout)["frames"] > 500
+
+
+def test_the_puck_on_tf_gives_the_same_figures(bags, tmp_path):
+    """The ROS 1 lab's tracker read the puck from /tf (child frame "Puck"): the same poses as transforms,
+    beside another body's, are evaluated exactly like the PoseStamped original."""
+    assert poses_to_tf_bag(bags / "a", tmp_path / "tf.bag") > 500
+    original, tf = cli("eval-prediction", bags / "a", "--json"), cli("eval-prediction", tmp_path / "tf.bag",
+                                                                      "--topic", "/tf", "--json")
+    assert tf.returncode == 0, tf.stderr
+    assert json.loads(tf.stdout) == json.loads(original.stdout)
+    wrong = cli("eval-prediction", tmp_path / "tf.bag", "--topic", "/tf", "--frame", "puck")
+    assert wrong.returncode == 2 and len(wrong.stderr.strip().splitlines()) == 1
+    assert "no transform to frame puck on /tf (child frames: Puck, Table; choose one with --frame)" in wrong.stderr
 
 
 def test_wrong_topic_type_is_reported(bags):

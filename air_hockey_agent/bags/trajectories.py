@@ -7,7 +7,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.bags.reader import BagError, read_poses
+from air_hockey_agent.bags.reader import PUCK_FRAME, ROS1_SUFFIX, BagError, read_poses
 from air_hockey_agent.core.frames import TABLE_FRAME, pose_to_measurement
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.identification.preprocess import preprocess
@@ -36,28 +36,29 @@ class LoadedTrajectories:
 
 
 def find_bags(paths: Sequence[Path]) -> tuple[list[Path], list[str]]:
-    """Bags named directly or found below directories (any folder with a metadata.yaml), sorted."""
+    """Bags named directly or found below directories (any folder with a metadata.yaml, any ROS 1 .bag
+    file), sorted."""
     bags, errors = [], []
     for path in map(Path, paths):
-        if (path / "metadata.yaml").is_file() or path.suffix in (".mcap", ".db3"):
+        if (path / "metadata.yaml").is_file() or path.suffix in (".mcap", ".db3", ROS1_SUFFIX):
             bags.append(path)
         elif path.is_dir():
-            found = sorted(p.parent for p in path.rglob("metadata.yaml"))
-            bags.extend(found) if found else errors.append(f"{path}: no rosbag2 bags in this directory")
+            found = sorted([p.parent for p in path.rglob("metadata.yaml")] + list(path.rglob("*" + ROS1_SUFFIX)))
+            bags.extend(found) if found else errors.append(f"{path}: no bags (rosbag2 or ROS 1) in this directory")
         else:
             errors.append(f"{path}: does not exist")
     return bags, errors
 
 
 def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, Any],
-                      prep: Mapping[str, Any]) -> LoadedTrajectories:
+                      prep: Mapping[str, Any], frame: str = PUCK_FRAME) -> LoadedTrajectories:
     """Read, grid, clean, split and cut every bag (thesis sec. 4.5.1); bad bags are reported, not fatal."""
     bags, errors = find_bags(paths)
     result = LoadedTrajectories([], [], errors, 0)
     dt = 1.0 / tracker["frequency"]
     for bag in bags:
         try:
-            records = read_poses(bag, topic)
+            records = read_poses(bag, topic, frame)
         except BagError as exc:
             result.errors.append(str(exc))
             continue

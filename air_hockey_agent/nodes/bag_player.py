@@ -1,4 +1,5 @@
-"""``bag_player`` node: replay a rosbag2 bag (sqlite3 or MCAP) onto its original topics.
+"""``bag_player`` node: replay a rosbag2 bag (sqlite3 or MCAP) or a ROS 1 bag onto its original topics (a ROS 1 message
+as the ROS 2 type of the same name).
 
 Messages go out with their original spacing (divided by ``rate``), unchanged (header stamps included),
 optionally looping; with ``publish_clock`` the bag's time is published on ``/clock`` so that nodes with
@@ -22,7 +23,7 @@ from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.params import ParamSpec
 
 PLAYER_PARAMS = (
-    ParamSpec("bag", str, "rosbag2 bag directory (or its .mcap/.db3 file) to replay"),
+    ParamSpec("bag", str, "rosbag2 bag directory (or its .mcap/.db3 file) or ROS 1 .bag file to replay"),
     ParamSpec("rate", float, "replay speed factor (1.0 = as recorded)", 1e-3, 1000.0),
     ParamSpec("loop", bool, "start again at the end"),
     ParamSpec("publish_clock", bool, "publish the bag's time on /clock"),

@@ -30,7 +30,8 @@ from air_hockey_agent.tracker_params import load_tracker_params
 
 OPTIMIZER_PARAMS = (
     ParamSpec("bags", str, "comma-separated bags or directories of bags"),
-    ParamSpec("topic", str, "PoseStamped topic in the bags"),
+    ParamSpec("topic", str, "PoseStamped (or tf2_msgs/TFMessage) topic in the bags"),
+    ParamSpec("frame", str, "the puck's child frame when topic is a TFMessage topic such as /tf"),
     ParamSpec("tracker", str, "namespace of the puck_tracker's services (e.g. /iiwa_front; empty: /)"),
     ParamSpec("horizon", float, "[s] prediction horizon of the loss", 0.05, 3.0),
     ParamSpec("iterations", int, "HEBO iterations", 1, 1000),
@@ -55,7 +56,7 @@ class PredictionOptimizerNode(AirHockeyNode):
         if not paths:
             raise NodeStartupError("no recordings given: set the parameter bags (-p bags:=DIR)")
         self.tracker_defaults = load_tracker_params()
-        loaded = load_trajectories(paths, p["topic"], self.tracker_defaults, p)
+        loaded = load_trajectories(paths, p["topic"], self.tracker_defaults, p, frame=p["frame"])
         for message in loaded.errors:
             self.get_logger().error(message)
         if len(loaded.trajectories) < 2:

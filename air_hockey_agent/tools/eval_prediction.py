@@ -1,6 +1,6 @@
 """``air-hockey eval-prediction BAG...``: prediction accuracy of the puck tracker on recorded bags.
 
-Each rosbag2 bag (sqlite3 or MCAP, read with rosbags; no ROS needed) is replayed through the tracker's
+Each bag (rosbag2, sqlite3 or MCAP, or a ROS 1 .bag; read with rosbags, no ROS needed) is replayed through the tracker's
 own filter code offline (:mod:`air_hockey_agent.core.estimation.evaluation`, thesis sec. 4.3): from every
 frame at which the filter has a state the position is predicted ``h`` seconds ahead and compared with the
 valid pose at ``t + h``, fused by the filter or not (marker glitches excepted), so rejecting frames does
@@ -26,6 +26,7 @@ from air_hockey_agent.bags.trajectories import measurements_of, off_table_warnin
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tracker_params import load_tracker_params
 from air_hockey_agent.tools.argtypes import number
+from air_hockey_agent.tools.recordings import add_pose_topic_arguments
 
 PROG = "air-hockey eval-prediction"
 
@@ -33,8 +34,9 @@ PROG = "air-hockey eval-prediction"
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("eval-prediction", help="prediction error of the puck tracker on bags",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG", help="rosbag2 directories (sqlite3 or MCAP)")
-    parser.add_argument("--topic", default="/optitrack/puck", help="PoseStamped topic (default /optitrack/puck)")
+    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG",
+                        help="rosbag2 bags (directory, or its .mcap/.db3 file) or ROS 1 .bag files")
+    add_pose_topic_arguments(parser)
     parser.add_argument("--horizons", type=number(0.0, low_open=True), nargs="+", default=[0.5, 1.0, 1.5], metavar="SECONDS",
                         help="prediction horizons [s] (default 0.5 1.0 1.5)")
     parser.add_argument("--params-file", type=Path, action="append", default=[],
@@ -57,7 +59,7 @@ def run(args: argparse.Namespace) -> int:
     failed = 0
     for bag in args.bags:
         try:
-            records = read_poses(bag, args.topic)
+            records = read_poses(bag, args.topic, args.frame)
         except BagError as exc:
             print(f"{PROG}: error: {exc}", file=sys.stderr)
             failed += 1

@@ -32,7 +32,8 @@ PLANNED_TOLERANCE = 0.002
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("game-check", help="mallet excursions and joint velocities in a recorded game",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG", help="rosbag2 directories (sqlite3 or MCAP)")
+    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG",
+                        help="rosbag2 bags (directory, or its .mcap/.db3 file) or ROS 1 .bag files")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.add_argument("--plot", type=Path, default=None, metavar="DIR",
                         help="also write DIR/<bag>_arms.png: paths over the table, joint velocity over time")

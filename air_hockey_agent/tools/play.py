@@ -16,7 +16,7 @@ from air_hockey_agent.tools.argtypes import count, number
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("play", help="replay a bag onto its topics (bag_player node)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
-    parser.add_argument("bag", type=Path, help="rosbag2 bag (directory, or its .mcap/.db3 file)")
+    parser.add_argument("bag", type=Path, help="rosbag2 bag (directory, or its .mcap/.db3 file) or ROS 1 .bag file")
     parser.add_argument("--rate", type=number(0.0, low_open=True), default=1.0, help="speed factor (default 1.0)")
     parser.add_argument("--loop", action="store_true", help="start again at the end")
     parser.add_argument("--clock", action="store_true", help="publish the bag's time on /clock")

@@ -6,6 +6,7 @@ import sys
 from dataclasses import dataclass
 from pathlib import Path
 
+from air_hockey_agent.bags.reader import PUCK_FRAME
 from air_hockey_agent.bags.trajectories import LoadedTrajectories, load_trajectories
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.sysid_params import load_sysid_params
@@ -23,9 +24,19 @@ class Recordings:
     loaded: LoadedTrajectories
 
 
+def add_pose_topic_arguments(parser: argparse.ArgumentParser) -> None:
+    """--topic and --frame: where the puck's poses are in a bag (a PoseStamped topic, or /tf's "Puck")."""
+    parser.add_argument("--topic", default="/optitrack/puck",
+                        help="the puck's poses: a PoseStamped topic, or a tf2_msgs/TFMessage topic such as /tf "
+                             "(default /optitrack/puck)")
+    parser.add_argument("--frame", default=PUCK_FRAME,
+                        help=f"the puck's child frame on a TFMessage --topic (default {PUCK_FRAME}: the ROS 1 lab's)")
+
+
 def add_recording_arguments(parser: argparse.ArgumentParser) -> None:
-    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG_DIR", help="bags, or directories of bags")
-    parser.add_argument("--topic", default="/optitrack/puck", help="PoseStamped topic (default /optitrack/puck)")
+    parser.add_argument("bags", nargs="+", type=Path, metavar="BAG_DIR",
+                        help="bags (rosbag2, or ROS 1 .bag files), or directories of bags")
+    add_pose_topic_arguments(parser)
     parser.add_argument("--params-file", type=Path, action="append", default=[],
                         help="tracker / sysid parameter YAML; may be repeated")
 
@@ -37,7 +48,7 @@ def load_recordings(prog: str, args: argparse.Namespace, minimum: int = 1) -> Re
         settings = load_sysid_params(args.params_file)
     except (ParameterFileError, ParameterValueError) as exc:
         raise ToolError(str(exc)) from None
-    loaded = load_trajectories(args.bags, args.topic, tracker, settings)
+    loaded = load_trajectories(args.bags, args.topic, tracker, settings, frame=args.frame)
     for message in loaded.errors:
         print(f"{prog}: error: {message}", file=sys.stderr)
     for message in loaded.warnings:
