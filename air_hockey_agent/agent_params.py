@@ -46,6 +46,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("prepare_end_speed", float, "[m/s] a pushed puck is predicted until it is this slow", 1e-4, 1.0),
     ParamSpec("prepare_horizon", float, "[s] longest prediction of a pushed puck", 0.1, 30.0),
     ParamSpec("clear_depth", float, "[m] a cleared puck should stop this far past the centre line", 0.0, 2.0),
+    ParamSpec("clear_after", float, "[s] on the own half this long, a puck Prepare cannot smash is cleared",
+              0.0, 600.0),
     ParamSpec("recontact_watch", float, "[s] a pushed or cut puck may not meet the mallet again this long", 0.0, 10.0),
     ParamSpec("mallet_restitution", float, "[-] puck-mallet restitution of the shot model", 0.0, 1.0),
     ParamSpec("aim_noise", float, "[rad] shot direction spread used to rank shots", 1e-4, 1.0),

@@ -277,6 +277,36 @@ def test_a_puck_no_push_keeps_on_the_own_half_is_cleared_past_the_neutral_zone(s
     assert abs(pred.state[0]) < settings.table.length / 2  # stopped on the table, not in a goal
 
 
+def test_a_puck_on_the_own_half_for_clear_after_is_cleared_and_the_clock_restarts_when_it_crosses(
+        selector, model, settings):
+    """The possession clock the robot keeps: a puck Prepare pushes toward the smash area at first is cleared
+    across the centre line once it has been on the own half for clear_after (in a game a corner puck was
+    pushed a little at a time until the referee's possession limit gave it away); the clock restarts when
+    the puck crosses the line and when play restarts."""
+    puck = [-0.6, 0.45, 0, 0, 0, 0]
+    d = selector.step(0.0, RUNNING, situation(model, puck))
+    assert d.tactic == PREPARE and "clear" not in d.reason, d.reason
+    late = settings.clear_after + 0.01
+    selector.sent = None  # the push was never played (the puck is where it was)
+    d = selector.step(late, RUNNING, situation(model, puck, t0=late))
+    assert d.tactic == PREPARE and "prepare (clear)" in d.reason and f"for {late:.1f} s on the own half" in d.reason
+    v = d.command.velocity
+    vp = puck_after_hit(np.zeros(2), v, v / np.linalg.norm(v), settings.mallet_restitution)
+    pred = predict_stepwise(model, np.array([*puck[:2], *vp, 0.0, 0.0]), np.eye(6), 10.0, DT, np.zeros((6, 6)),
+                            lines=(0.0,))
+    assert pred.crossings and pred.state[0] >= settings.clear_depth, pred.state
+    for crossing, status in (([0.1, 0.0, 0, 0, 0, 0], RUNNING), (puck, PAUSED)):
+        selector.sent = None
+        selector.step(late + 0.5, status, situation(model, crossing, t0=late + 0.5))  # the clock restarts
+        selector.sent = None
+        d = selector.step(late + 1.0, RUNNING, situation(model, puck, t0=late + 1.0))
+        assert d.tactic == PREPARE and "clear" not in d.reason, d.reason
+    selector.force(PREPARE)  # the strategy test's forced Prepare plays its push whenever it is asked
+    selector.step(late + 1.0, RUNNING, situation(model, puck, t0=late + 1.0))
+    d = selector.step(2 * late + 1.0, RUNNING, situation(model, puck, t0=2 * late + 1.0))
+    assert d.tactic == PREPARE and "clear" not in d.reason, d.reason
+
+
 def test_a_tactic_with_nothing_to_play_under_its_speed_cap_waits_like_a_refused_one(selector, model, settings):
     """A smash refused with a speed the puck cannot reach the goal at has nothing to propose under that
     cap; the tactic after it is played, and the smash is not asked again uncapped (the cap goes when the

@@ -54,6 +54,7 @@ class Context:
     speed_cap: float = float("inf")   # [m/s] after the planner said "faster than the arm allows"
     variant: str = ""                 # a forced Smash variant (strategy test); empty: the tactic chooses
     running: Proposal | None = None   # the accepted command the arm is executing (None: none, or not known yet)
+    possession: float = 0.0           # [s] how long the puck has been on the own half (0: it is not)
 
 
 class Tactic:

@@ -11,7 +11,9 @@ the aim noise, is played (the slower one when two are as deep), so a puck agains
 into the area and one the arm cannot push into it is left as near to it as the arm can.
 
 Where no push keeps the puck on the own half (a creeping puck that stopped beyond the smash area at the
-arm's reach, next to a rim: every push the arm can make there runs forward), the puck is **cleared**:
+arm's reach, next to a rim: every push the arm can make there runs forward), or when the puck has been on
+the own half for ``clear_after`` (a puck in a corner, which pushes move only a little at a time), the puck
+is **cleared**:
 pushed across the centre line, the slowest push whose puck stops at least ``clear_depth`` past it with the
 aim noise either way (else the one that gets it farthest). Left alone, it would stay until the referee's
 possession limit gave it to the opponent with a foul.
@@ -48,12 +50,17 @@ class Prepare(Tactic):
         p = puck[:2]
         if p[0] >= 0.0 or st.in_smash_area(p[0], p[1]):
             return None
-        push, verb = self._best(puck, ctx, self._ranked, "prepare"), "prepare"
-        if push is None:
-            push, verb = self._best(puck, ctx, self._clears, "clear"), "prepare (clear)"
-        if push is None:
+        late = ctx.possession >= st.clear_after  # time is running out: clear rather than set up a smash
+        order = [(self._ranked, "prepare"), (self._clears, "prepare (clear)")]
+        order = order[::-1] if late else order
+        for ranking, verb in order:
+            push = self._best(puck, ctx, ranking, verb)
+            if push is not None:
+                break
+        else:
             return None
-        reason = (f"{verb}: puck at rest at ({p[0]:.2f}, {p[1]:.2f}) outside the smash area, pushed "
+        reason = (f"{verb}: puck at rest at ({p[0]:.2f}, {p[1]:.2f}) outside the smash area"
+                  f"{f' for {ctx.possession:.1f} s on the own half' if late else ''}, pushed "
                   f"{push.mallet_speed:.2f} m/s to stop at ({push.rest[0]:.2f}, {push.rest[1]:.2f})")
         return Proposal(PREPARE, push.hit_point, push.mallet_velocity, t, reason, puck=p.copy(),
                         target=push.rest, flexible_time=True)

@@ -80,6 +80,7 @@ class TacticsSelector:
         self.sent: _Sent | None = None
         self.blocked: dict[int, float] = {}
         self.lead_extra, self.speed_cap = 0.0, math.inf
+        self.own_half_since: float | None = None  # [s] when the puck last came onto the own half
 
     # --- inputs ------------------------------------------------------------------------------------
     def force(self, tactic: int | None, variant: str = "") -> str:
@@ -127,6 +128,7 @@ class TacticsSelector:
              mallet_velocity: np.ndarray | None = None) -> Decision:
         """The decision at ``now`` [s] for the referee's ``status``, the puck's ``situation`` and the mallet's
         position [m] and velocity [m/s] (own frame; None when unknown)."""
+        self._track_possession(now, status, situation)
         if status == STOPPED:
             self.sent, self.blocked = None, {}
             return self._decide(INIT, "game stopped: holding", None)
@@ -139,8 +141,10 @@ class TacticsSelector:
         else:
             wanted = self.candidates(situation)
         running = self.sent.proposal if self.sent is not None and self.sent.accepted else None
+        # a forced tactic (strategy test) plays as asked: its trials move the puck, no referee counts
+        possession = 0.0 if self.own_half_since is None or self.forced is not None else now - self.own_half_since
         ctx = Context(now, self.s, self.reach, self.shots, mallet, mallet_velocity, self.lead_extra, self.speed_cap,
-                      self.variant, running)
+                      self.variant, running, possession)
         for tactic in wanted:
             if self.blocked.get(tactic, -math.inf) > now:
                 continue
@@ -171,6 +175,14 @@ class TacticsSelector:
         return out
 
     # --- bookkeeping -------------------------------------------------------------------------------
+    def _track_possession(self, now: float, status: int, situation: Situation | None) -> None:
+        """The referee's possession clock as the robot can keep it: it runs while the puck is on the own half
+        (own-frame x < 0) and restarts when the puck crosses the centre line or play (re)starts."""
+        if status != RUNNING or situation is None or situation.puck[0] >= 0.0:
+            self.own_half_since = None
+        elif self.own_half_since is None:
+            self.own_half_since = now
+
     def _committed(self, now: float, situation: Situation | None) -> bool:
         """An accepted hit (or cut) is running and the prediction still agrees with it."""
         sent = self.sent

@@ -42,6 +42,7 @@ class TacticsSettings:
     prepare_end_speed: float
     prepare_horizon: float
     clear_depth: float
+    clear_after: float
     recontact_watch: float
     mallet_restitution: float
     aim_noise: float
