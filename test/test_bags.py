@@ -6,8 +6,8 @@ import pytest
 from rosbags.rosbag1 import Writer as Ros1Writer
 from rosbags.typesys import Stores, get_typestore
 
-from air_hockey_agent.bags.reader import BagError, iter_raw, read_poses
-from air_hockey_agent.bags.trajectories import find_bags
+from air_hockey_agent.bags.reader import BagError, iter_raw, read_frame_transform, read_poses
+from air_hockey_agent.bags.trajectories import find_bags, table_pose_from_tf
 from helpers.ros1_bags import poses_to_tf_bag
 from air_hockey_agent.bags.types import typestore
 from air_hockey_agent.bags.writer import BagExistsError, write_bag
@@ -184,3 +184,20 @@ def test_the_puck_is_read_from_tf_as_the_ros1_lab_published_it(tmp_path):
     with pytest.raises(BagError) as info:
         read_poses(tmp_path / "tf.bag", "/tf", frame="Mallet")
     assert "no transform to frame Mallet on /tf (child frames: Puck, Table; choose one with --frame)" in str(info.value)
+
+
+def test_a_fixed_frame_is_read_from_tf_and_must_share_the_pucks_parent(tmp_path):
+    """The table's pose from the bag's transform to its frame (on /tf when no /tf_static holds it); poses
+    in another frame than that transform's parent cannot use it."""
+    source = write_poses(tmp_path / "bag", n=3)
+    poses_to_tf_bag(source, tmp_path / "tf.bag")
+    table = read_frame_transform(tmp_path / "tf.bag", "/Table")
+    assert table.position == (1.0, 2.0, 0.0) and table.frame_id == "world"
+    assert table_pose_from_tf(tmp_path / "tf.bag", "Table", read_poses(tmp_path / "tf.bag", "/tf")) == (
+        1.0, 2.0, 0.0, 0.0)
+    with pytest.raises(BagError) as info:
+        table_pose_from_tf(tmp_path / "tf.bag", "Table", read_poses(source, "/optitrack/puck"))
+    assert "the puck's poses are in frame optitrack, Table's transform in world" in str(info.value)
+    with pytest.raises(BagError) as info:
+        read_frame_transform(source, "Table")
+    assert "no transform to frame Table on /tf_static or /tf (child frames: none)" in str(info.value)

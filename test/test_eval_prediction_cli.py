@@ -81,6 +81,27 @@ def test_the_puck_on_tf_gives_the_same_figures(bags, tmp_path):
     assert "no transform to frame puck on /tf (child frames: Puck, Table; choose one with --frame)" in wrong.stderr
 
 
+def test_the_table_pose_can_come_from_the_bags_own_transform(bags, tmp_path):
+    """The ROS 1 lab's TF tree holds world -> Table (static): --table-frame Table takes the table pose from
+    it. The same session carried into a world where the table stands elsewhere and turned 0.3 rad gives
+    the original's figures; without --table-frame the poses lie off the table and a warning says so."""
+    lab = ((1.694, 0.813, 0.1, 0.3), "Table")  # REFERENCE_FACTS: the lab's static world -> Table, turned
+    assert poses_to_tf_bag(bags / "a", tmp_path / "lab.bag", moved=lab, table_in_source=(1.504, 0.0, 0.0, 0.0)) > 500
+    original = json.loads(cli("eval-prediction", bags / "a", "--json").stdout)
+    moved = cli("eval-prediction", tmp_path / "lab.bag", "--topic", "/tf", "--table-frame", "Table", "--json")
+    assert moved.returncode == 0, moved.stderr
+    report = json.loads(moved.stdout)
+    assert report["frames"] == original["frames"] and report["outliers_rejected"] == original["outliers_rejected"]
+    for h, figures in original["horizons"].items():
+        assert report["horizons"][h]["n"] == figures["n"]
+        assert report["horizons"][h]["median_m"] == pytest.approx(figures["median_m"], rel=1e-6, abs=1e-9)
+    plain = cli("eval-prediction", tmp_path / "lab.bag", "--topic", "/tf")
+    assert "lie off the table" in plain.stderr
+    wrong = cli("eval-prediction", tmp_path / "lab.bag", "--topic", "/tf", "--table-frame", "TableHome")
+    assert wrong.returncode == 2 and len(wrong.stderr.strip().splitlines()) == 1
+    assert "no transform to frame TableHome on /tf_static or /tf (child frames: Puck, Table)" in wrong.stderr
+
+
 def test_wrong_topic_type_is_reported(bags):
     out = cli("eval-prediction", bags / "a", "--topic", "/puck/true_state")
     assert out.returncode == 2

@@ -20,6 +20,7 @@ from air_hockey_agent.bags.types import typestore
 POSE_TYPE = "geometry_msgs/msg/PoseStamped"
 TF_TYPE = "tf2_msgs/msg/TFMessage"
 PUCK_FRAME = "Puck"  # the puck's child frame on /tf: the ROS 1 lab's tracker looked up "Puck" (REFERENCE_FACTS 1.9)
+TF_TOPICS = ("/tf_static", "/tf")  # where a fixed frame's transform (the lab's world -> Table) is looked up
 ROS1_SUFFIX = ".bag"  # a ROS 1 bag is one file; a rosbag2 bag is a directory with metadata.yaml
 _READ_ERRORS = (AnyReaderError, ReaderError, SerdeError, TypesysError, sqlite3.Error, OSError, ValueError,
                 KeyError, IndexError, EOFError, AssertionError)
@@ -94,6 +95,26 @@ def read_poses(path: Path | str, topic: str, frame: str = PUCK_FRAME) -> list[Po
     if all(r.stamp == 0.0 for r in records):  # a publisher that leaves the header empty: use log times
         records = [PoseRecord(r.log_time, r.position, r.orientation, r.log_time, r.frame_id) for r in records]
     return records
+
+
+def read_frame_transform(path: Path | str, frame: str) -> PoseRecord:
+    """The first transform to child ``frame`` on ``/tf_static``, else on ``/tf`` (a fixed frame such as the
+    ROS 1 lab's ``world -> Table``), as a pose in its parent frame. Raises :class:`BagError`."""
+    directory = bag_directory(path)
+    frame, children = frame.lstrip("/"), set()
+    try:
+        with AnyReader([directory], default_typestore=typestore()) as reader:
+            for topic in TF_TOPICS:
+                connections = [c for c in reader.connections if c.topic == topic and c.msgtype == TF_TYPE]
+                for c, log_ns, raw in reader.messages(connections=connections) if connections else ():
+                    for t in reader.deserialize(raw, c.msgtype).transforms:
+                        children.add(t.child_frame_id.lstrip("/"))
+                        if t.child_frame_id.lstrip("/") == frame:
+                            return _pose_record(t.header, t.transform.translation, t.transform.rotation, log_ns)
+    except _READ_ERRORS as exc:
+        raise BagError(directory, f"cannot read ({_one_line(exc)})") from None
+    raise BagError(directory, f"no transform to frame {frame} on {' or '.join(TF_TOPICS)} (child frames: "
+                              f"{', '.join(sorted(children)) or 'none'})")
 
 
 def _topic_connections(reader: AnyReader, directory: Path, topic: str) -> list:

@@ -7,8 +7,8 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.bags.reader import PUCK_FRAME, ROS1_SUFFIX, BagError, read_poses
-from air_hockey_agent.core.frames import TABLE_FRAME, pose_to_measurement
+from air_hockey_agent.bags.reader import PUCK_FRAME, ROS1_SUFFIX, BagError, read_frame_transform, read_poses
+from air_hockey_agent.core.frames import TABLE_FRAME, pose_to_measurement, yaw_from_quaternion
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.identification.preprocess import preprocess
 
@@ -51,21 +51,19 @@ def find_bags(paths: Sequence[Path]) -> tuple[list[Path], list[str]]:
 
 
 def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, Any],
-                      prep: Mapping[str, Any], frame: str = PUCK_FRAME) -> LoadedTrajectories:
+                      prep: Mapping[str, Any], frame: str = PUCK_FRAME, table_frame: str = "") -> LoadedTrajectories:
     """Read, grid, clean, split and cut every bag (thesis sec. 4.5.1); bad bags are reported, not fatal."""
     bags, errors = find_bags(paths)
     result = LoadedTrajectories([], [], errors, 0)
     dt = 1.0 / tracker["frequency"]
     for bag in bags:
         try:
-            records = read_poses(bag, topic, frame)
+            records, measurements, off_table = bag_measurements(bag, topic, frame, table_frame, tracker)
         except BagError as exc:
             result.errors.append(str(exc))
             continue
         result.bags += 1
-        measurements = measurements_of(records, tracker["mocap_table_pose"])
-        for note in (_stream_problems([r.stamp for r in records], measurements),
-                     off_table_warning(measurements, tracker)):
+        for note in (_stream_problems([r.stamp for r in records], measurements), off_table):
             if note:
                 result.warnings.append(f"{bag}: {note}")
         done = preprocess([r.stamp for r in records], measurements, dt, prep, tracker["glitch_speed"])
@@ -87,23 +85,52 @@ def split_train_validation(n: int, fraction: float, seed: int) -> tuple[list[int
 
 
 
+def bag_measurements(bag: Path, topic: str, frame: str, table_frame: str,
+                     tracker: Mapping[str, Any]) -> tuple[list, list, str]:
+    """(pose records, table-frame measurements, off-table warning or "") of one bag: the puck's poses on
+    ``topic`` (``frame`` on a TF topic), in the table frame of ``mocap_table_pose`` or, with
+    ``table_frame``, of the bag's own transform to that frame (the ROS 1 lab's ``world -> Table``).
+    Raises :class:`BagError`."""
+    records = read_poses(bag, topic, frame)
+    table_pose = tracker["mocap_table_pose"]
+    if table_frame:
+        table_pose = table_pose_from_tf(bag, table_frame, records)
+    measurements = measurements_of(records, table_pose)
+    return records, measurements, off_table_warning(measurements, tracker, table_pose)
+
+
+def table_pose_from_tf(bag: Path, table_frame: str, records: Sequence) -> tuple[float, float, float, float]:
+    """(x, y, z, yaw) of ``table_frame`` in the frame the puck's poses are in, from the bag's transform to
+    it (the table taken as level: its roll and pitch are not used). Raises :class:`BagError`."""
+    table = read_frame_transform(bag, table_frame)
+    parents = sorted({r.frame_id for r in records})
+    if parents != [table.frame_id]:
+        raise BagError(bag, f"the puck's poses are in frame {', '.join(parents)}, {table_frame}'s transform in "
+                            f"{table.frame_id}: set mocap_table_pose instead of --table-frame")
+    return (*table.position, yaw_from_quaternion(*table.orientation))
+
+
 def measurements_of(records: Sequence, table_pose: Sequence[float]) -> list:
     """Table-frame measurements (x, y, theta) of pose records (None for unusable poses); a pose whose
     frame_id is the table frame needs no table pose."""
     return [pose_to_measurement(r.position, r.orientation, table_pose, r.frame_id) for r in records]
 
 
-def off_table_warning(measurements: Sequence, tracker: Mapping[str, Any]) -> str:
+def off_table_warning(measurements: Sequence, tracker: Mapping[str, Any],
+                      table_pose: Sequence[float] | None = None) -> str:
     """One line when most usable poses lie off the table (beyond ``outside_table_margin``): the filter
-    drops them all, which usually means a bag recorded in another frame than ``mocap_table_pose`` says."""
+    drops them all, which usually means a bag recorded in another frame than the table pose (by default
+    ``mocap_table_pose``) says."""
     ekf = PuckEKF.from_params(tracker)
     usable = [m for m in measurements if m is not None]
     off = sum(not ekf.plausible(m) for m in usable)
     if not usable or off <= len(usable) / 2:
         return ""
-    return (f"{off / len(usable):.0%} of the poses lie off the table with mocap_table_pose "
-            f"{list(tracker['mocap_table_pose'])} (dropped by the filter); recorded in another frame? "
-            f"Poses whose frame_id is '{TABLE_FRAME}' need no table pose")
+    pose = tracker["mocap_table_pose"] if table_pose is None else table_pose
+    return (f"{off / len(usable):.0%} of the poses lie off the table with the table pose "
+            f"{[round(float(v), 4) for v in pose]} (dropped by the filter); recorded in another frame? "
+            f"Poses whose frame_id is '{TABLE_FRAME}' need no table pose; a bag with the table's transform "
+            f"gives it with --table-frame")
 
 
 def _stream_problems(stamps: Sequence[float], measurements: Sequence) -> str:

@@ -32,6 +32,8 @@ OPTIMIZER_PARAMS = (
     ParamSpec("bags", str, "comma-separated bags or directories of bags"),
     ParamSpec("topic", str, "PoseStamped (or tf2_msgs/TFMessage) topic in the bags"),
     ParamSpec("frame", str, "the puck's child frame when topic is a TFMessage topic such as /tf"),
+    ParamSpec("table_frame", str, "take the table pose from the bags' transform to this frame (empty: "
+                                  "mocap_table_pose)"),
     ParamSpec("tracker", str, "namespace of the puck_tracker's services (e.g. /iiwa_front; empty: /)"),
     ParamSpec("horizon", float, "[s] prediction horizon of the loss", 0.05, 3.0),
     ParamSpec("iterations", int, "HEBO iterations", 1, 1000),
@@ -56,7 +58,8 @@ class PredictionOptimizerNode(AirHockeyNode):
         if not paths:
             raise NodeStartupError("no recordings given: set the parameter bags (-p bags:=DIR)")
         self.tracker_defaults = load_tracker_params()
-        loaded = load_trajectories(paths, p["topic"], self.tracker_defaults, p, frame=p["frame"])
+        loaded = load_trajectories(paths, p["topic"], self.tracker_defaults, p, frame=p["frame"],
+                                   table_frame=p["table_frame"])
         for message in loaded.errors:
             self.get_logger().error(message)
         if len(loaded.trajectories) < 2:

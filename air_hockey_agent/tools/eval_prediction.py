@@ -19,10 +19,10 @@ import json
 import sys
 from pathlib import Path
 
-from air_hockey_agent.bags.reader import BagError, read_poses
+from air_hockey_agent.bags.reader import BagError
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
-from air_hockey_agent.bags.trajectories import measurements_of, off_table_warning
+from air_hockey_agent.bags.trajectories import bag_measurements
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tracker_params import load_tracker_params
 from air_hockey_agent.tools.argtypes import number
@@ -59,13 +59,11 @@ def run(args: argparse.Namespace) -> int:
     failed = 0
     for bag in args.bags:
         try:
-            records = read_poses(bag, args.topic, args.frame)
+            records, measurements, warning = bag_measurements(bag, args.topic, args.frame, args.table_frame, params)
         except BagError as exc:
             print(f"{PROG}: error: {exc}", file=sys.stderr)
             failed += 1
             continue
-        measurements = measurements_of(records, params["mocap_table_pose"])
-        warning = off_table_warning(measurements, params)
         if warning:
             print(f"{PROG}: warning: {bag}: {warning}", file=sys.stderr)
         frames = [(r.stamp, m) for r, m in zip(records, measurements)]

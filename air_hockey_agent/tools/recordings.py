@@ -31,6 +31,9 @@ def add_pose_topic_arguments(parser: argparse.ArgumentParser) -> None:
                              "(default /optitrack/puck)")
     parser.add_argument("--frame", default=PUCK_FRAME,
                         help=f"the puck's child frame on a TFMessage --topic (default {PUCK_FRAME}: the ROS 1 lab's)")
+    parser.add_argument("--table-frame", default="", metavar="FRAME",
+                        help="take the table's pose from the bag's transform to FRAME on /tf_static or /tf (the "
+                             "ROS 1 lab's: Table) instead of mocap_table_pose")
 
 
 def add_recording_arguments(parser: argparse.ArgumentParser) -> None:
@@ -48,7 +51,8 @@ def load_recordings(prog: str, args: argparse.Namespace, minimum: int = 1) -> Re
         settings = load_sysid_params(args.params_file)
     except (ParameterFileError, ParameterValueError) as exc:
         raise ToolError(str(exc)) from None
-    loaded = load_trajectories(args.bags, args.topic, tracker, settings, frame=args.frame)
+    loaded = load_trajectories(args.bags, args.topic, tracker, settings, frame=args.frame,
+                               table_frame=args.table_frame)
     for message in loaded.errors:
         print(f"{prog}: error: {message}", file=sys.stderr)
     for message in loaded.warnings:
