@@ -295,6 +295,11 @@ def test_a_puck_on_the_own_half_for_clear_after_is_cleared_and_the_clock_restart
     pred = predict_stepwise(model, np.array([*puck[:2], *vp, 0.0, 0.0]), np.eye(6), 10.0, DT, np.zeros((6, 6)),
                             lines=(0.0,))
     assert pred.crossings and pred.state[0] >= settings.clear_depth, pred.state
+    selector.sent = None
+    assert selector.step(late + 0.2, RUNNING, None).tactic == READY  # no estimate for a moment: the clock runs on
+    selector.sent = None
+    d = selector.step(late + 0.3, RUNNING, situation(model, puck, t0=late + 0.3))
+    assert "prepare (clear)" in d.reason and f"for {late + 0.3:.1f} s on the own half" in d.reason, d.reason
     for crossing, status in (([0.1, 0.0, 0, 0, 0, 0], RUNNING), (puck, PAUSED)):
         selector.sent = None
         selector.step(late + 0.5, status, situation(model, crossing, t0=late + 0.5))  # the clock restarts

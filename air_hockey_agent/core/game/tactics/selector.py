@@ -177,10 +177,11 @@ class TacticsSelector:
     # --- bookkeeping -------------------------------------------------------------------------------
     def _track_possession(self, now: float, status: int, situation: Situation | None) -> None:
         """The referee's possession clock as the robot can keep it: it runs while the puck is on the own half
-        (own-frame x < 0) and restarts when the puck crosses the centre line or play (re)starts."""
-        if status != RUNNING or situation is None or situation.puck[0] >= 0.0:
+        (own-frame x < 0), also while no estimate comes (the referee's clock does not stop), and restarts
+        when the puck crosses the centre line or play (re)starts."""
+        if status != RUNNING or (situation is not None and situation.puck[0] >= 0.0):
             self.own_half_since = None
-        elif self.own_half_since is None:
+        elif situation is not None and self.own_half_since is None:
             self.own_half_since = now
 
     def _committed(self, now: float, situation: Situation | None) -> bool:
