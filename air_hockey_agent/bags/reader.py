@@ -51,7 +51,7 @@ def bag_directory(path: Path | str) -> Path:
     path = Path(path)
     if not path.exists():
         raise BagError(path, "does not exist")
-    if path.is_file() and path.suffix == ROS1_SUFFIX:
+    if is_ros1(path):
         return path
     directory = path if path.is_dir() else path.parent
     if not (directory / "metadata.yaml").is_file():
@@ -61,7 +61,7 @@ def bag_directory(path: Path | str) -> Path:
 
 
 def is_ros1(source: Path) -> bool:
-    """Whether a :func:`bag_directory` result is a ROS 1 bag file."""
+    """Whether ``source`` (a path, or a :func:`bag_directory` result) is a ROS 1 bag file."""
     return source.suffix == ROS1_SUFFIX and source.is_file()
 
 
@@ -79,10 +79,7 @@ def read_poses(path: Path | str, topic: str, frame: str = PUCK_FRAME) -> list[Po
                 if c.msgtype == POSE_TYPE:
                     records.append(_pose_record(msg.header, msg.pose.position, msg.pose.orientation, log_ns))
                     continue
-                for t in msg.transforms:
-                    children.add(t.child_frame_id.lstrip("/"))
-                    if t.child_frame_id.lstrip("/") == frame:
-                        records.append(_pose_record(t.header, t.transform.translation, t.transform.rotation, log_ns))
+                records.extend(_transform_record(t, log_ns) for t in _transforms_to(msg, frame, children))
     except BagError:
         raise
     except _READ_ERRORS as exc:
@@ -107,10 +104,8 @@ def read_frame_transform(path: Path | str, frame: str) -> PoseRecord:
             for topic in TF_TOPICS:
                 connections = [c for c in reader.connections if c.topic == topic and c.msgtype == TF_TYPE]
                 for c, log_ns, raw in reader.messages(connections=connections) if connections else ():
-                    for t in reader.deserialize(raw, c.msgtype).transforms:
-                        children.add(t.child_frame_id.lstrip("/"))
-                        if t.child_frame_id.lstrip("/") == frame:
-                            return _pose_record(t.header, t.transform.translation, t.transform.rotation, log_ns)
+                    for t in _transforms_to(reader.deserialize(raw, c.msgtype), frame, children):
+                        return _transform_record(t, log_ns)
     except _READ_ERRORS as exc:
         raise BagError(directory, f"cannot read ({_one_line(exc)})") from None
     raise BagError(directory, f"no transform to frame {frame} on {' or '.join(TF_TOPICS)} (child frames: "
@@ -132,6 +127,21 @@ def _pose_record(header, position, orientation, log_ns: int) -> PoseRecord:
     p, q, stamp = position, orientation, header.stamp
     return PoseRecord(stamp.sec + stamp.nanosec * 1e-9, (p.x, p.y, p.z), (q.x, q.y, q.z, q.w), log_ns * 1e-9,
                       header.frame_id.lstrip("/"))
+
+
+def _transforms_to(msg, frame: str, children: set[str]) -> Iterator:
+    """The transforms of a TFMessage to child ``frame`` (a leading "/" ignored, as ROS 1's tf allowed it);
+    every child frame seen is added to ``children`` (for the error that names them)."""
+    for t in msg.transforms:
+        child = t.child_frame_id.lstrip("/")
+        children.add(child)
+        if child == frame:
+            yield t
+
+
+def _transform_record(t, log_ns: int) -> PoseRecord:
+    """A TransformStamped as the pose of its child frame in its parent frame."""
+    return _pose_record(t.header, t.transform.translation, t.transform.rotation, log_ns)
 
 
 def _one_line(exc: BaseException) -> str:
