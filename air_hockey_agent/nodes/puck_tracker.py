@@ -15,6 +15,7 @@ from air_hockey_msgs.msg import LineCrossing, PuckPrediction, PuckState, WallImp
 from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, SetPhysicalParams
 from geometry_msgs.msg import PoseStamped
 
+from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
 from air_hockey_agent.core.estimation.ekf import PuckEKF, check_covariance
 from air_hockey_agent.nodes.messages import pose_measurement, state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
@@ -30,7 +31,6 @@ class PuckTrackerNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         self.ekf = PuckEKF.from_params(self.params)
-        self.table = self.ekf.model.table
         self.state_pub = self.create_publisher(PuckState, "puck/state", 10)
         self.prediction_pub = self.create_publisher(PuckPrediction, "puck/prediction", 10)
         self.create_subscription(PoseStamped, "/optitrack/puck", self.on_pose, 10)
@@ -57,29 +57,22 @@ class PuckTrackerNode(AirHockeyNode):
             self.get_logger().error(f"/optitrack/puck: frame dropped ({type(exc).__name__}: {exc})",
                                     throttle_duration_sec=1.0)
 
-    def defend_lines(self) -> dict[str, float]:
-        half = self.table.length / 2
-        off = self.params["defend_line_offset"]
-        return {"iiwa_front": -half + off, "iiwa_back": half - off}
-
     def publish_prediction(self) -> None:
-        period = self.params["prediction_sample_period"]
-        every = max(1, round(period * self.params["frequency"]))
-        lines = self.defend_lines()
-        goal_lines = (-self.table.length / 2, self.table.length / 2)
-        pred = self.ekf.predict(self.params["prediction_horizon"], list(lines.values()) + list(goal_lines), every)
-        t0 = self.ekf.stamp
-        msg = PuckPrediction(sample_period=every * self.ekf.settings.dt)
+        p = self.params
+        out = predict_for_agents(self.ekf, p["prediction_horizon"], p["prediction_sample_period"],
+                                 p["defend_line_offset"])
+        pred, t0 = out.prediction, out.stamp
+        msg = PuckPrediction(sample_period=out.sample_period)
         msg.header.stamp, msg.header.frame_id = to_stamp(t0), "table"
         msg.initial = state_msg(self.ekf.x, self.ekf.P, t0)
         msg.states = [state_msg(s, c, t0 + t, PuckState.FLAG_PREDICTED) for t, s, c in pred.samples]
         msg.impacts = [WallImpact(time_from_start=t, wall=w, x=x, y=y, sliding=sl) for t, w, x, y, sl in pred.impacts]
-        for robot, line in lines.items():
+        for robot, line in out.defend_lines.items():
             c = pred.crossings.get(line)
             msg.defend_lines.append(LineCrossing(robot=robot, line_x=line, crosses=c is not None,
                                                  **({} if c is None else dict(time_from_start=c.time, y=c.y,
                                                                               vx=c.vx, vy=c.vy))))
-        goals = [pred.crossings[g] for g in goal_lines if g in pred.crossings]
+        goals = [pred.crossings[g] for g in out.goal_lines if g in pred.crossings]
         if goals:
             msg.enters_goal, msg.goal_time_from_start = True, min(g.time for g in goals)
         self.prediction_pub.publish(msg)

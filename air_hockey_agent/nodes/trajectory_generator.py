@@ -25,9 +25,9 @@ from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 from trajectory_msgs.msg import JointTrajectoryPoint
 
 from air_hockey_msgs.msg import HitCommand, TrajectoryStatus
-from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
+from air_hockey_agent.core.motion.arm_commander import ArmCommander
 from air_hockey_agent.core.motion.kinematics import in_order
-from air_hockey_agent.core.motion.planner import INVALID, ArmState, Command, Plan, refused
+from air_hockey_agent.core.motion.planner import INVALID, Command, Plan, refused
 from air_hockey_agent.motion_params import MOTION_PARAMS, PARAM_FILES, build_planner
 from air_hockey_agent.nodes.messages import to_duration, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
@@ -41,11 +41,10 @@ class TrajectoryGeneratorNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         try:
-            self.planner = build_planner(self.params, self.params["robot"])
+            planner = build_planner(self.params, self.params["robot"])
         except ValueError as exc:
             raise NodeStartupError(f"parameter 'robot': {exc}") from exc
-        self.measured: ArmState | None = None
-        self.running: JointTrajectory | None = None
+        self.arm = ArmCommander(planner, self.params["planning_delay"], self.params["max_tracking_error"])
         self.trajectory_pub = self.create_publisher(JointTrajectoryMsg, "joint_trajectory", 10)
         self.status_pub = self.create_publisher(TrajectoryStatus, "trajectory_status", 10)
         self.sync_pub = self.create_publisher(Clock, "~/sim_sync", 10)
@@ -57,40 +56,21 @@ class TrajectoryGeneratorNode(AirHockeyNode):
 
     def on_joint_state(self, msg: JointState) -> None:
         try:
-            joints = self.planner.kin.joint_names
+            joints = self.arm.planner.kin.joint_names
             q = in_order(msg.name, msg.position, joints)
             dq = in_order(msg.name, msg.velocity or [0.0] * len(msg.name), joints)
             if q is None or dq is None:
                 self.get_logger().error(f"joint_states: message ignored (needs positions and velocities of "
                                         f"{list(joints)})", throttle_duration_sec=5.0)
             elif np.all(np.isfinite(q)) and np.all(np.isfinite(dq)):
-                self.measured = ArmState(to_seconds(msg.header.stamp), q, dq)
-                self.check_tracking(self.measured)
+                error = self.arm.measure(to_seconds(msg.header.stamp), q, dq)
+                if error is not None:
+                    self.get_logger().warn(f"joint_states: the arm is {error:.2f} rad from the running plan "
+                                           "(reset?); the next motion starts from the measured state")
         except (TypeError, ValueError) as exc:
             self.get_logger().error(f"joint_states: message ignored ({type(exc).__name__}: {exc})",
                                     throttle_duration_sec=5.0)
         self.sync_pub.publish(Clock(clock=to_stamp(self.now_seconds())))
-
-    def check_tracking(self, measured: ArmState) -> None:
-        """Drop the running plan when the arm is not where it says (reset, stopped, collided)."""
-        if self.running is None or measured.t > self.running.start + self.running.duration:
-            return
-        error = float(np.max(np.abs(self.running.sample(measured.t)[0] - measured.q)))
-        if error > self.params["max_tracking_error"]:
-            self.get_logger().warn(f"joint_states: the arm is {error:.2f} rad from the running plan (reset?); "
-                                   "the next motion starts from the measured state")
-            self.running = None
-
-    def start_state(self, now: float) -> ArmState | None:
-        """Where the new motion starts, ``planning_delay`` ahead of now (so its first point is still ahead
-        when the controller gets it): the running plan's state then, or the measured one at rest."""
-        t = now + self.params["planning_delay"]
-        if self.running is not None and now < self.running.start + self.running.duration:
-            q, dq = self.running.sample(t)
-            return ArmState(t, q, dq)
-        if self.measured is None:
-            return None
-        return ArmState(t, self.measured.q, np.zeros(7))
 
     def on_command(self, msg: HitCommand) -> None:
         wall = time.perf_counter()
@@ -98,8 +78,7 @@ class TrajectoryGeneratorNode(AirHockeyNode):
         try:
             command = Command(np.array([msg.hit_point.x, msg.hit_point.y], float),
                               np.array([msg.hit_velocity.x, msg.hit_velocity.y], float), to_seconds(msg.hit_time))
-            start = self.start_state(now)
-            plan = refused(INVALID, "no joint_states received yet") if start is None else self.planner.plan(command, start)
+            plan = self.arm.plan(command, now)
         except Exception as exc:  # a malformed command must never stop the node
             plan = refused(INVALID, f"{type(exc).__name__}: {exc}")
         elapsed = time.perf_counter() - wall
@@ -111,18 +90,12 @@ class TrajectoryGeneratorNode(AirHockeyNode):
         self.publish_status(msg, plan, now, elapsed)
 
     def publish_trajectory(self, plan: Plan, now: float) -> None:
-        times = np.concatenate([[plan.start.t], plan.times]) - now
-        q = np.vstack([plan.start.q, plan.q])
-        dq = np.vstack([plan.start.dq, plan.dq])
-        if times[0] <= 1e-9:  # the plan starts now: the controller's implicit first point is the start
-            times, q, dq = times[1:], q[1:], dq[1:]
-        msg = JointTrajectoryMsg(joint_names=list(self.planner.kin.joint_names))
+        times, q, dq = self.arm.accept(plan, now)
+        msg = JointTrajectoryMsg(joint_names=list(self.arm.planner.kin.joint_names))
         msg.header.stamp = to_stamp(now)
         msg.points = [JointTrajectoryPoint(positions=qi.tolist(), velocities=dqi.tolist(),
                                            time_from_start=to_duration(ti)) for ti, qi, dqi in zip(times, q, dq)]
         self.trajectory_pub.publish(msg)
-        current_q, current_dq = self.running.sample(now) if self.running is not None else (plan.start.q, plan.start.dq)
-        self.running = JointTrajectory.from_points(self.planner.kin.joint_names, now, times, q, dq, current_q, current_dq)
 
     def publish_status(self, command: HitCommand, plan: Plan, now: float, elapsed: float) -> None:
         status = TrajectoryStatus(command_stamp=command.header.stamp, tactic=command.tactic, outcome=plan.outcome,
