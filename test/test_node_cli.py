@@ -27,6 +27,7 @@ def test_air_hockey_help_lists_commands():
     (["--goals", "-2"], "--goals must be 0"),
     (["--real-time-factor", "-1"], "--real-time-factor must be 0 or more"),
     (["--record", "/nonexistent/dir/out.mcap"], "does not exist"),
+    (["--in-process", "--record", "/tmp/x.mcap", "--domain-id", "7"], "--record, --domain-id need the node graph"),
 ])
 def test_game_refuses_bad_arguments_in_one_line(args, message):
     result = run([str(BIN / "air-hockey"), "game", *args])

@@ -8,6 +8,10 @@ progress line while it runs (sim time, score, hits), and at the end the score, t
 (mallet-puck contacts reported by the simulation), the referee's faults by reason and how often each
 tactic was entered. ``--json`` prints exactly one JSON object instead. Every process it started is
 stopped at the end, on Ctrl-C, or when any node dies.
+
+``--in-process`` plays the same game without ROS in this process (:mod:`air_hockey_agent.sim.game_loop`:
+the same agent, simulation, tracker and referee code called in a fixed order), so a seed repeats a
+game exactly, and faster; nothing is published or recorded.
 """
 from __future__ import annotations
 
@@ -108,6 +112,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--log", type=Path, default=None, metavar="FILE",
                         help="write every node's output to FILE (default: only errors, on stderr)")
     parser.add_argument("--domain-id", type=count(1, 101), default=None, help="ROS_DOMAIN_ID (1..101; default: inherited)")
+    parser.add_argument("--in-process", action="store_true",
+                        help="play without ROS in this process: a seed repeats the game exactly (no --record, "
+                             "--markers, --log or --domain-id)")
     parser.set_defaults(run=run)
 
 
@@ -120,6 +127,11 @@ def _check_args(args: argparse.Namespace) -> None:
         raise GameError(f"--real-time-factor must be 0 or more, got {args.real_time_factor}", 2)
     if not 0 <= args.seed < 2 ** 31:
         raise GameError(f"--seed must be in 0..{2 ** 31 - 1}, got {args.seed}", 2)
+    if args.in_process:
+        ros_only = [flag for flag, value in (("--record", args.record), ("--markers", args.markers or None),
+                                             ("--log", args.log), ("--domain-id", args.domain_id)) if value is not None]
+        if ros_only:
+            raise GameError(f"{', '.join(ros_only)} need the node graph: leave out --in-process (or them)", 2)
     if args.log is not None and not args.log.parent.is_dir():
         raise GameError(f"--log {args.log}: directory {args.log.parent} does not exist", 2)
     if args.record is not None:
@@ -149,9 +161,12 @@ def run(args: argparse.Namespace) -> int:
             raise GameError("--gui needs a display (DISPLAY is not set); leave --gui out to play headless", 2)
         rtf = args.real_time_factor if args.real_time_factor is not None else (1.0 if args.gui else 0.0)
         prepare_speed_map(say)
-        with tempfile.TemporaryDirectory(prefix="air_hockey_game_") as tmp:
-            env = ros_environment(domain_id=args.domain_id, ros_home=Path(tmp))
-            result = _play(args, settings, env, rtf, say)
+        if args.in_process:
+            result = _play_in_process(args, settings, rtf, say)
+        else:
+            with tempfile.TemporaryDirectory(prefix="air_hockey_game_") as tmp:
+                env = ros_environment(domain_id=args.domain_id, ros_home=Path(tmp))
+                result = _play(args, settings, env, rtf, say)
     except GameError as exc:
         print(f"air-hockey game: error: {exc}", file=sys.stderr)
         return exc.code
@@ -207,6 +222,20 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
     return result
 
 
+def _play_in_process(args, settings, rtf: float, say) -> dict:
+    from air_hockey_agent.sim.game_loop import InProcessGame
+    game = InProcessGame(args.seed, gui=args.gui)
+    try:
+        say(f"in process, without ROS (real-time factor {rtf:g}, seed {args.seed}): {args.duration:g} s of "
+            "simulated time" + (f" or {args.goals} goals" if args.goals else ""))
+        result = game.run(args.duration, args.goals, say, settings["progress_period"], rtf)
+    finally:
+        game.close()
+    if not args.json:
+        print(game.board.table(None), flush=True)
+    return result
+
+
 def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
     """Wait until every process logged that it is ready; a process that exits first fails the game."""
     deadline = time.monotonic() + timeout
@@ -225,4 +254,4 @@ def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(run(argparse.Namespace(duration=60.0, goals=0, real_time_factor=None, seed=0, gui=False, record=None,
-                                    json=False, log=None, domain_id=None, markers=False)))
+                                    json=False, log=None, domain_id=None, markers=False, in_process=False)))

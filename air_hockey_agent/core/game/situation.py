@@ -119,3 +119,14 @@ def build_situation(robot: str, t: float, estimate: Sequence[float], sample_time
             order = np.argsort(times, kind="stable")
             times, states = times[order], np.vstack([states, extra])[order]
     return Situation(t, to_own_frame(np.asarray(estimate, float), robot), times, states, impact_times)
+
+
+def situation_from_prediction(robot: str, estimate: Sequence[float], prediction) -> Situation:
+    """:func:`build_situation` from a tracker's
+    :class:`~air_hockey_agent.core.estimation.agent_prediction.AgentPrediction` (what ``puck/prediction``
+    carries) and the ``estimate`` it starts from; table frame in, ``robot``'s own frame out."""
+    t0, pred = prediction.stamp, prediction.prediction
+    times = [t0 + t for t, _, _ in pred.samples]
+    samples = np.array([s for _, s, _ in pred.samples], float).reshape(-1, 6)
+    impacts = [(t0 + t, x, y) for t, _, x, y, _ in pred.impacts]
+    return build_situation(robot, t0, estimate, times, samples, impacts)

@@ -1,0 +1,235 @@
+"""The two-robot game in one process, without ROS: the same agent, sim, tracker and referee code as the
+nodes, called in a fixed order on the simulated clock, so a seed repeats a game exactly.
+
+``air-hockey game --in-process`` runs it. Per physics step (1 kHz, ``config/sim.yaml``): the world
+steps; the mallet contacts are counted; on a joint-state tick each robot's arm bookkeeping, tactics and
+the referee get the joints (as ``/<robot>/joint_states``); on a mocap tick the OptiTrack stand-in's
+pose goes to the referee and to the tracker, whose prediction becomes each robot's situation (as
+``puck/prediction``); on its tick the referee applies the rules and puts puck and robots back (as
+through ``table_sim``'s services); on their tick the tactics decide, and a command is planned and
+handed to the arm at once (as ``hit_command`` -> ``joint_trajectory``, without the transport's
+delay). Both robots read one tracker: in the node graph each robot has its own, fed the same frames
+with the same parameters (``config/tracker.yaml`` and the simulated table's physics,
+``config/tracker_sim_table.yaml``), so they hold the same estimate.
+
+Differences from the node graph, all timing: messages arrive at once (the node graph's lockstep lets
+an agent lag the simulation by up to 20 ms) and a refused command's answer reaches the tactics in the
+same step. Frames: table frame for the tracker and the referee, each robot's own frame for its
+tactics and planner (README "Frames and units").
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.estimation.synthetic import MocapImperfections
+from air_hockey_agent.core.frames import pose_to_measurement, quaternion_from_yaw
+from air_hockey_agent.core.game.referee import Decision, Referee, RefereeSettings
+from air_hockey_agent.core.game.scoreboard import Scoreboard
+from air_hockey_agent.core.game.situation import Situation, situation_from_prediction
+from air_hockey_agent.core.game.tactics.base import NAMES
+from air_hockey_agent.core.motion.arm_commander import ArmCommander
+from air_hockey_agent.core.motion.joint_trajectory import received_at
+from air_hockey_agent.core.motion.kinematics import ArmKinematics, in_order
+from air_hockey_agent.core.motion.planner import Command
+from air_hockey_agent.sim.params import ROBOTS
+from air_hockey_agent.sim.runner import Every, SimRunner
+from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld, arm_joint_order
+
+JOINT_NAMES = ARM_JOINTS + STRIKER_JOINTS  # as table_sim's joint_states name them
+
+
+@dataclass
+class GameConfig:
+    """The parameters of every part, as the node graph loads them (``air-hockey game`` passes the same
+    overrides: seed, the referee's unattended restart, the simulated table's puck physics)."""
+
+    sim: dict
+    tracker: dict
+    agent: dict
+    motion: dict
+    referee: dict
+
+    @classmethod
+    def load(cls, seed: int) -> "GameConfig":
+        from air_hockey_agent.agent_params import load_agent_params
+        from air_hockey_agent.motion_params import load_motion_params
+        from air_hockey_agent.params import load_node_params
+        from air_hockey_agent.paths import config_file
+        from air_hockey_agent import referee_params
+        from air_hockey_agent.sim.params import load_sim_params
+        from air_hockey_agent.tracker_params import SIM_TABLE_FILE, load_tracker_params
+        physics = config_file(SIM_TABLE_FILE)
+        sim = {**load_sim_params(), "seed": seed, "gui": False}
+        referee = {**load_node_params(referee_params.PARAM_FILES, referee_params.NODE_NAME,
+                                      referee_params.REFEREE_PARAMS),
+                   "seed": seed, "restart_after_fault": True, "sim": True}
+        agent = {**load_agent_params(), "puck_params_file": str(physics)}
+        return cls(sim, load_tracker_params([physics]), agent, load_motion_params(), referee)
+
+
+class Player:
+    """One robot's agent: its tactics (selector) and its arm's command bookkeeping and planner."""
+
+    def __init__(self, robot: str, config: GameConfig, log: Callable[[str], None] | None) -> None:
+        from air_hockey_agent.agent_params import build_selector
+        from air_hockey_agent.motion_params import build_planner
+        self.robot = robot
+        self.selector, self.kin = build_selector({**config.agent, "robot": robot}, robot, log=log)
+        m = config.motion
+        self.arm = ArmCommander(build_planner(m, robot), m["planning_delay"], m["max_tracking_error"])
+        self.stale_estimate = config.agent["stale_estimate"]
+        self.tick = Every(config.agent["rate"])
+        self.situation: Situation | None = None
+        self.mallet: np.ndarray | None = None
+        self.mallet_velocity: np.ndarray | None = None
+
+    def on_joints(self, t: float, values: np.ndarray, velocities: np.ndarray) -> None:
+        """Joint positions [rad] and velocities [rad/s] in JOINT_NAMES order at ``t`` [s]."""
+        q = in_order(JOINT_NAMES, values, self.kin.joint_names)
+        dq = in_order(JOINT_NAMES, velocities, self.kin.joint_names)
+        self.mallet, self.mallet_velocity = self.kin.planar_motion(q, dq)
+        joints = self.arm.planner.kin.joint_names
+        self.arm.measure(t, in_order(JOINT_NAMES, values, joints), in_order(JOINT_NAMES, velocities, joints))
+
+    def decide(self, now: float, status: int, world: TableWorld) -> str:
+        """The tactics' decision at ``now`` [s]; a command is planned and handed to the arm at once.
+        Returns the current tactic's name."""
+        fresh = self.situation is not None and now - self.situation.t <= self.stale_estimate
+        decision = self.selector.step(now, status, self.situation if fresh else None, self.mallet,
+                                      self.mallet_velocity)
+        proposal = decision.command
+        if proposal is not None:
+            plan = self.arm.plan(Command(np.asarray(proposal.point, float), np.asarray(proposal.velocity, float),
+                                         proposal.time), now)
+            if plan.ok:
+                self._send(plan, now, world)
+            self.selector.on_status(now, plan.outcome, float(plan.max_speed), now)
+        return NAMES[self.selector.current]
+
+    def _send(self, plan, now: float, world: TableWorld) -> None:
+        """The accepted plan to the simulated arm, as table_sim executes a received trajectory."""
+        times, q, dq = self.arm.accept(plan, now)
+        names = self.arm.planner.kin.joint_names
+        order = arm_joint_order(names)
+        current_q, current_dq = np.empty(len(names)), np.empty(len(names))
+        current_q[order], current_dq[order] = world.joint_state(self.robot)
+        world.follow(self.robot, received_at(names, now, times, q, dq, now, current_q, current_dq))
+
+
+class InProcessGame:
+    """One game on the pybullet table; :meth:`run` plays it and returns the scoreboard's result."""
+
+    def __init__(self, seed: int, gui: bool = False, log: Callable[[str], None] | None = None) -> None:
+        from air_hockey_agent.paths import model_path
+        self.config = c = GameConfig.load(seed)
+        self.world = TableWorld(SimSettings.from_params(c.sim), gui=gui)
+        self.runner = SimRunner(self.world, c.sim["mocap_rate"], MocapImperfections.from_params(c.sim),
+                                np.random.default_rng(seed), c.sim["clock_rate"], c.sim["joint_state_rate"],
+                                c.sim["mocap_table_pose"])
+        self.ekf = PuckEKF.from_params(c.tracker)
+        self.players = {robot: Player(robot, c, log) for robot in ROBOTS}
+        self.referee = Referee(RefereeSettings.from_params(c.referee), np.random.default_rng(seed))
+        self.referee_tick = Every(c.referee["rate"])
+        self.referee_kin = ArmKinematics(model_path("iiwa14_striker.urdf"))
+        self.mallets: dict[str, tuple[float, float]] = {}
+        self.board = Scoreboard(ROBOTS)
+
+    def close(self) -> None:
+        self.world.close()
+
+    def run(self, duration: float, goals: int = 0, progress: Callable[[str], None] | None = None,
+            progress_period: float = 10.0, real_time_factor: float = 0.0) -> dict:
+        """Play ``duration`` [s] of simulated time (or until ``goals`` goals, 0: off); ``progress`` gets a
+        line every ``progress_period`` [s] of wall time; ``real_time_factor`` > 0 paces the simulation."""
+        self._start()
+        wall0, sim0 = time.monotonic(), self.world.time
+        next_report = wall0 + progress_period
+        try:
+            while self.board.played < duration and not (goals and self.board.goals >= goals):
+                self.step()
+                now = time.monotonic()
+                if real_time_factor > 0.0:
+                    ahead = (self.world.time - sim0) / real_time_factor - (now - wall0)
+                    if ahead > 0.0:
+                        time.sleep(ahead)
+                if progress is not None and now >= next_report:
+                    progress(self.board.progress())
+                    next_report = now + progress_period
+        except KeyboardInterrupt:
+            if progress is not None:
+                progress("interrupted: ending the game")
+        return self.board.result(None)
+
+    def _start(self) -> None:
+        """As ``air-hockey game`` does through the referee: reset (robots home, the puck put on a random
+        side), then start once the referee has seen the puck (within ``lost_timeout``)."""
+        self._act(self.referee.reset(self.world.time))
+        deadline = self.world.time + self.config.referee["lost_timeout"]
+        while True:
+            self.step()
+            ok, message = self.referee.start(self.world.time)
+            if ok:
+                break
+            if self.world.time > deadline:
+                raise RuntimeError(f"the referee did not start the game: {message}")
+        self.board.start()
+
+    def step(self) -> None:
+        """One physics step and everything that falls due at its time."""
+        out = self.runner.step()
+        t = out.time
+        self.board.on_clock(t)
+        for contact in out.contacts:
+            self.board.on_contact(contact.robot)
+        if out.joint_states:
+            self._joints(t)
+        if out.mocap is not None:
+            self._frame(*out.mocap)
+        if self.referee_tick.due(t) is not None:
+            decision = self.referee.update(t, self.mallets)
+            if decision is not None:
+                self._act(decision)
+            s = self.referee.state
+            self.board.on_status(s.score[ROBOTS[0]], s.score[ROBOTS[1]], s.last_event, s.reason, s.last_event_time)
+        for robot, player in self.players.items():
+            if player.tick.due(t) is not None:
+                self.board.on_tactic(robot, player.decide(t, self.referee.state.status, self.world))
+
+    def _joints(self, t: float) -> None:
+        for robot, player in self.players.items():
+            q, dq = self.world.joint_state(robot)
+            sq, sdq = self.world.striker_state(robot)
+            values, velocities = np.concatenate([q, sq]), np.concatenate([dq, sdq])
+            player.on_joints(t, values, velocities)
+            arm = in_order(JOINT_NAMES, values, self.referee_kin.joint_names)
+            self.mallets[robot] = self.referee_kin.tip_in_table(arm, self.config.referee[f"robot_base.{robot}"])
+
+    def _frame(self, stamp: float, pose: tuple) -> None:
+        """A mocap frame: (x, y, z) [m] and yaw [rad] in the mocap frame at ``stamp`` [s]."""
+        x, y, z, yaw = pose
+        measurement = pose_to_measurement((x, y, z), quaternion_from_yaw(yaw), self.config.tracker["mocap_table_pose"],
+                                          "optitrack")
+        if measurement is not None:
+            self.referee.observe_puck(stamp, measurement[0], measurement[1])
+        self.ekf.process(stamp, measurement)
+        if not self.ekf.initialised:
+            return
+        p = self.config.tracker
+        prediction = predict_for_agents(self.ekf, p["prediction_horizon"], p["prediction_sample_period"],
+                                        p["defend_line_offset"])
+        for robot, player in self.players.items():
+            player.situation = situation_from_prediction(robot, self.ekf.x, prediction)
+
+    def _act(self, decision: Decision) -> None:
+        """What table_sim does for the referee: robots home, the puck put down at rest."""
+        if decision.reset_robots:
+            self.world.reset_robots()
+        if decision.reset_puck is not None:
+            x, y = decision.reset_puck
+            self.world.move_puck([x, y, 0.0, 0.0, 0.0, 0.0])

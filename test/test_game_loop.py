@@ -1,0 +1,94 @@
+"""The game in one process (sim/game_loop.py) and the ROS-free pieces the nodes now share with it:
+the arm's command bookkeeping (core/motion/arm_commander.py) and the tracker's prediction for the
+agents (core/estimation/agent_prediction.py)."""
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.game.situation import build_situation, situation_from_prediction
+from air_hockey_agent.core.motion.arm_commander import ArmCommander
+from air_hockey_agent.core.motion.planner import ACCEPTED, INVALID, Command
+from air_hockey_agent.motion_params import build_planner, load_motion_params
+from air_hockey_agent.sim.params import load_sim_params
+from air_hockey_agent.tracker_params import load_tracker_params
+
+
+@pytest.fixture(scope="module")
+def commander():
+    params = load_motion_params()
+    return lambda: ArmCommander(build_planner(params, "iiwa_front"), 0.03, 0.2)
+
+
+def test_arm_commander_starts_ahead_from_the_plan_or_the_measured_posture(commander):
+    arm = commander()
+    assert arm.plan(Command(np.array([-0.6, 0.0]), np.zeros(2), 1.0), 0.0).outcome == INVALID  # no joints yet
+    q0 = np.array(load_sim_params()["home_joint_positions"], float)  # the simulated arms' home
+    arm.measure(0.0, q0, np.zeros(7))
+    start = arm.start_state(0.0)
+    assert start.t == pytest.approx(0.03) and np.allclose(start.q, q0) and not np.any(start.dq)
+    plan = arm.plan(Command(np.array([-0.7, 0.1]), np.zeros(2), 1.0), 0.0)
+    assert plan.outcome == ACCEPTED, plan.message
+    times, q, dq = arm.accept(plan, 0.0)
+    assert times[0] == pytest.approx(0.03) and np.allclose(q[0], q0) and np.all(np.diff(times) > 0)
+    # a later command starts from the running plan's state 30 ms on, not from the measured posture
+    mid = arm.start_state(0.2)
+    assert np.allclose(mid.q, arm.running.sample(0.23)[0]) and np.allclose(mid.dq, arm.running.sample(0.23)[1])
+    assert np.any(mid.dq) and not np.allclose(mid.q, q0)
+    # the arm is not where the plan says (a reset): the plan is dropped with the error, and the next
+    # motion starts from the measured posture at rest
+    assert arm.measure(0.2, arm.running.sample(0.2)[0], np.zeros(7)) is None and arm.running is not None
+    error = arm.measure(0.25, q0 + 0.5, np.zeros(7))
+    assert error > 0.2 and arm.running is None
+    assert np.allclose(arm.start_state(0.25).q, q0 + 0.5)
+
+
+def test_prediction_for_agents_matches_the_filter_and_the_message_the_node_built():
+    params = load_tracker_params()
+    ekf = PuckEKF.from_params(params)
+    ekf.reset([0.2, -0.1, -1.5, 0.8, 0.0, 3.0], 10.0)
+    out = predict_for_agents(ekf, 1.0, 0.02, 0.3)
+    half = ekf.model.table.length / 2
+    assert out.defend_lines == {"iiwa_front": pytest.approx(-half + 0.3), "iiwa_back": pytest.approx(half - 0.3)}
+    assert out.sample_period == pytest.approx(2 / params["frequency"])  # whole model steps nearest 0.02 s
+    direct = ekf.predict(1.0, [-half + 0.3, half - 0.3, -half, half], 2)
+    assert np.allclose(out.prediction.state, direct.state) and len(out.prediction.impacts) == len(direct.impacts) >= 1
+    assert -half + 0.3 in out.prediction.crossings  # the puck flies toward iiwa_front's line
+    # the situation the tactics get equals the one the tactics node builds from the message's fields
+    pred = out.prediction
+    n = len(pred.samples)
+    from_message = build_situation("iiwa_back", 10.0, ekf.x, 10.0 + out.sample_period * np.arange(1, n + 1),
+                                   np.array([s for _, s, _ in pred.samples]),
+                                   [(10.0 + t, x, y) for t, _, x, y, _ in pred.impacts])
+    here = situation_from_prediction("iiwa_back", ekf.x, out)
+    assert np.allclose(here.times, from_message.times) and np.allclose(here.states, from_message.states)
+    assert np.allclose(here.puck, from_message.puck) and here.puck[0] == pytest.approx(-0.2)  # back's own frame
+
+
+def _fingerprint(game) -> tuple:
+    world = game.world
+    joints = tuple(np.round(np.concatenate(world.joint_state(r)), 12).tobytes() for r in ("iiwa_front", "iiwa_back"))
+    return np.round(world.puck_state(), 12).tobytes(), joints
+
+
+@pytest.mark.integration
+def test_in_process_game_repeats_exactly_and_both_robots_play():
+    """A seed repeats the game to the bit (puck and arm states at the end, the tally), another seed
+    gives another game, and in 20 s both robots hit the puck with more than one tactic."""
+    from air_hockey_agent.sim.game_loop import InProcessGame
+    results = []
+    for seed in (3, 3, 4):
+        game = InProcessGame(seed)
+        try:
+            duration = 20.0 if seed == 3 else 2.0
+            results.append((game.run(duration), _fingerprint(game)))
+        finally:
+            game.close()
+    (first, end1), (again, end2), (_, other) = results
+    assert first == again and end1 == end2
+    assert other[0] != end1[0]
+    assert first["duration_s"] == pytest.approx(20.0, abs=0.01)
+    assert first["hits"]["iiwa_front"] >= 1 and first["hits"]["iiwa_back"] >= 1, first
+    assert not any(k.startswith("robot_fault") for k in first["faults"]), first
+    for robot in ("iiwa_front", "iiwa_back"):
+        assert {"smash", "cut"} & set(first["tactics"][robot]), first
