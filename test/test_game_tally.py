@@ -79,3 +79,18 @@ def test_scoreboard_counts_events_once_and_names_faults_without_numbers():
     assert board.robot_faults == 1 and r["duration_s"] == 12.5
     assert fault_key(EVENT_ROBOT_FAULT, "iiwa_back's mallet crossed the centre line (0.071 m)") == \
         "robot_fault: iiwa_back's mallet crossed the centre line"
+
+
+def test_scoreboard_total_adds_up_games():
+    robots = ("iiwa_front", "iiwa_back")
+    one = {"duration_s": 60.0, "score": {"iiwa_front": 1, "iiwa_back": 0}, "hits": {"iiwa_front": 3, "iiwa_back": 2},
+           "faults": {"puck_stuck: x": 1}, "tactics": {"iiwa_front": {"ready": 2}, "iiwa_back": {"cut": 1}},
+           "recording": None}
+    two = {"duration_s": 30.5, "score": {"iiwa_front": 0, "iiwa_back": 2}, "hits": {"iiwa_front": 1, "iiwa_back": 4},
+           "faults": {"puck_stuck: x": 2, "puck_out: y": 1}, "tactics": {"iiwa_front": {"ready": 1, "smash": 1},
+                                                                        "iiwa_back": {}}, "recording": None}
+    total = Scoreboard.total(robots, [one, two]).result(None)
+    assert total == {"duration_s": 90.5, "score": {"iiwa_front": 1, "iiwa_back": 2},
+                     "hits": {"iiwa_front": 4, "iiwa_back": 6}, "faults": {"puck_stuck: x": 3, "puck_out: y": 1},
+                     "tactics": {"iiwa_front": {"ready": 3, "smash": 1}, "iiwa_back": {"cut": 1}}, "recording": None}
+    assert one["faults"] == {"puck_stuck: x": 1}  # the inputs are not changed

@@ -28,11 +28,26 @@ def test_air_hockey_help_lists_commands():
     (["--real-time-factor", "-1"], "--real-time-factor must be 0 or more"),
     (["--record", "/nonexistent/dir/out.mcap"], "does not exist"),
     (["--in-process", "--record", "/tmp/x.mcap", "--domain-id", "7"], "--record, --domain-id need the node graph"),
+    (["--games", "3"], "--games needs --in-process"),
 ])
 def test_game_refuses_bad_arguments_in_one_line(args, message):
     result = run([str(BIN / "air-hockey"), "game", *args])
     assert result.returncode == 2
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.integration
+def test_in_process_games_add_up_in_one_json_object():
+    result = run([str(BIN / "air-hockey"), "game", "--in-process", "--games", "2", "--seed", "5", "--duration", "2",
+                  "--json"], timeout=300)
+    assert result.returncode == 0, result.stderr[-2000:]
+    out = json.loads(result.stdout)
+    assert [g["seed"] for g in out["games"]] == [5, 6]
+    assert out["total"]["duration_s"] == pytest.approx(sum(g["duration_s"] for g in out["games"]))
+    assert out["total"]["duration_s"] >= 4.0
+    for robot in ("iiwa_front", "iiwa_back"):
+        assert out["total"]["hits"][robot] == sum(g["hits"][robot] for g in out["games"])
+    assert "Traceback" not in result.stderr
 
 
 @pytest.mark.integration

@@ -112,6 +112,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--log", type=Path, default=None, metavar="FILE",
                         help="write every node's output to FILE (default: only errors, on stderr)")
     parser.add_argument("--domain-id", type=count(1, 101), default=None, help="ROS_DOMAIN_ID (1..101; default: inherited)")
+    parser.add_argument("--games", type=count(1), default=1,
+                        help="with --in-process: play this many games, seeds SEED, SEED+1, ..., and add them up "
+                             "(default 1)")
     parser.add_argument("--in-process", action="store_true",
                         help="play without ROS in this process: a seed repeats the game exactly (no --record, "
                              "--markers, --log or --domain-id)")
@@ -127,6 +130,10 @@ def _check_args(args: argparse.Namespace) -> None:
         raise GameError(f"--real-time-factor must be 0 or more, got {args.real_time_factor}", 2)
     if not 0 <= args.seed < 2 ** 31:
         raise GameError(f"--seed must be in 0..{2 ** 31 - 1}, got {args.seed}", 2)
+    if args.games > 1 and not args.in_process:
+        raise GameError("--games needs --in-process (the node graph plays one game per run)", 2)
+    if not 0 <= args.seed + args.games - 1 < 2 ** 31:
+        raise GameError(f"--seed {args.seed} with --games {args.games}: the seeds must stay in 0..{2 ** 31 - 1}", 2)
     if args.in_process:
         ros_only = [flag for flag, value in (("--record", args.record), ("--markers", args.markers or None),
                                              ("--log", args.log), ("--domain-id", args.domain_id)) if value is not None]
@@ -223,17 +230,29 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
 
 
 def _play_in_process(args, settings, rtf: float, say) -> dict:
+    """One game, or with ``--games`` several (one JSON object: ``{"games": [...], "total": {...}}``, each
+    game's result with its ``"seed"``)."""
+    from air_hockey_agent.core.game.scoreboard import Scoreboard
     from air_hockey_agent.sim.game_loop import InProcessGame
-    game = InProcessGame(args.seed, gui=args.gui)
-    try:
-        say(f"in process, without ROS (real-time factor {rtf:g}, seed {args.seed}): {args.duration:g} s of "
-            "simulated time" + (f" or {args.goals} goals" if args.goals else ""))
-        result = game.run(args.duration, args.goals, say, settings["progress_period"], rtf)
-    finally:
-        game.close()
+    results = []
+    for seed in range(args.seed, args.seed + args.games):
+        game = InProcessGame(seed, gui=args.gui)
+        try:
+            say(f"in process, without ROS (real-time factor {rtf:g}, seed {seed}): {args.duration:g} s of "
+                "simulated time" + (f" or {args.goals} goals" if args.goals else ""))
+            results.append(game.run(args.duration, args.goals, say, settings["progress_period"], rtf))
+        finally:
+            game.close()
+        if not args.json:
+            print(game.board.table(None), flush=True)
+    if args.games == 1:
+        return results[0]
+    total = Scoreboard.total(ROBOTS, results)
     if not args.json:
-        print(game.board.table(None), flush=True)
-    return result
+        print(f"{args.games} games, seeds {args.seed}-{args.seed + args.games - 1}: "
+              + total.table(None).replace("game over after", "in all", 1), flush=True)
+    return {"games": [{"seed": seed, **r} for seed, r in zip(range(args.seed, args.seed + args.games), results)],
+            "total": total.result(None)}
 
 
 def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
@@ -254,4 +273,4 @@ def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(run(argparse.Namespace(duration=60.0, goals=0, real_time_factor=None, seed=0, gui=False, record=None,
-                                    json=False, log=None, domain_id=None, markers=False, in_process=False)))
+                                    json=False, log=None, domain_id=None, markers=False, in_process=False, games=1)))

@@ -85,6 +85,20 @@ class Scoreboard:
                 "faults": dict(self.faults), "tactics": {r: dict(c) for r, c in self.tactics.items()},
                 "recording": recording}
 
+    @classmethod
+    def total(cls, robots: Sequence[str], results: Sequence[dict]) -> "Scoreboard":
+        """The tally of several games (:meth:`result` dicts) as one board: durations, scores, hits,
+        faults and tactic entries summed."""
+        board = cls(robots)
+        board.sim_time = sum(r["duration_s"] for r in results)
+        for r in results:
+            for robot in board.robots:
+                board.score[robot] += r["score"][robot]
+                board.hits[robot] += r["hits"][robot]
+                board.tactics[robot].update(r["tactics"][robot])
+            board.faults.update(r["faults"])
+        return board
+
     def progress(self) -> str:
         front, back = self.robots
         return (f"sim {self.played:6.1f} s  score {front} {self.score[front]} : {self.score[back]} {back}  "
