@@ -28,16 +28,14 @@ from std_srvs.srv import Trigger
 from air_hockey_msgs.msg import GameStatus, MalletContact, PuckState, TacticState
 from air_hockey_msgs.srv import ForceTactic, SetPuckState
 from air_hockey_agent.core.game.strategy.scoring import TrialResult, TrialWatcher
-from air_hockey_agent.core.game.strategy.trials import TrialSettings, make_trial
-from air_hockey_agent.core.game.tactics.base import NAMES
+from air_hockey_agent.core.game.strategy.trials import PARK, TrialSettings, make_trial
+from air_hockey_agent.core.game.tactics.base import TACTIC_IDS
 from air_hockey_agent.nodes.messages import to_seconds
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.strategy_params import PARAM_FILES, STRATEGY_PARAMS
 from air_hockey_agent.sim.params import load_sim_params
 
 ROBOT = "iiwa_front"
-TACTIC_IDS = {name: tactic for tactic, name in NAMES.items()}
-PARK = (0.6, 0.0)  # [m] where the puck waits between trials: the opponent's half, away from its mallet
 WALL_CHECK_PERIOD = 0.05  # [s] wall time between checks for the services at start and for wall_timeout
 
 

@@ -19,6 +19,7 @@ STRATEGIES = ("smash_straight", "smash_left", "smash_right", "cut", "prepare", "
 FORCED = {"smash_straight": ("smash", "straight"), "smash_left": ("smash", "left_bank"),
           "smash_right": ("smash", "right_bank"), "cut": ("cut", ""), "prepare": ("prepare", ""),
           "repel": ("repel", "")}
+PARK = (0.6, 0.0)  # [m] where the puck waits between trials: the opponent's half, away from its mallet
 
 
 @dataclass(frozen=True)

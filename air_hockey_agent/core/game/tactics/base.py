@@ -18,6 +18,7 @@ from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 
 INIT, HOME, READY, SMASH, CUT, PREPARE, REPEL = range(7)  # air_hockey_msgs/HitCommand.TACTIC_*
 NAMES = {INIT: "init", HOME: "home", READY: "ready", SMASH: "smash", CUT: "cut", PREPARE: "prepare", REPEL: "repel"}
+TACTIC_IDS = {name: tactic for tactic, name in NAMES.items()}
 
 
 @dataclass(frozen=True)
