@@ -29,7 +29,7 @@ from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.core.frames import pose_to_measurement, quaternion_from_yaw
-from air_hockey_agent.core.game.referee import Decision, Referee, RefereeSettings
+from air_hockey_agent.core.game.referee import RUNNING, Decision, Referee, RefereeSettings
 from air_hockey_agent.core.game.scoreboard import Scoreboard
 from air_hockey_agent.core.game.situation import Situation, situation_from_prediction
 from air_hockey_agent.core.game.tactics.base import NAMES
@@ -123,9 +123,12 @@ class Player:
 
 
 class InProcessGame:
-    """One game on the pybullet table; :meth:`run` plays it and returns the scoreboard's result."""
+    """One game on the pybullet table; :meth:`run` plays it and returns the scoreboard's result.
+    ``robots``: the robots with an agent (the others hold their home pose); ``refereed`` False: no
+    referee, the game always running (the strategy test's setting)."""
 
-    def __init__(self, seed: int, gui: bool = False, log: Callable[[str], None] | None = None) -> None:
+    def __init__(self, seed: int, gui: bool = False, log: Callable[[str], None] | None = None,
+                 robots: tuple[str, ...] = ROBOTS, refereed: bool = True) -> None:
         from air_hockey_agent.paths import model_path
         self.config = c = GameConfig.load(seed)
         self.world = TableWorld(SimSettings.from_params(c.sim), gui=gui)
@@ -133,8 +136,8 @@ class InProcessGame:
                                 np.random.default_rng(seed), c.sim["clock_rate"], c.sim["joint_state_rate"],
                                 c.sim["mocap_table_pose"])
         self.ekf = PuckEKF.from_params(c.tracker)
-        self.players = {robot: Player(robot, c, log) for robot in ROBOTS}
-        self.referee = Referee(RefereeSettings.from_params(c.referee), np.random.default_rng(seed))
+        self.players = {robot: Player(robot, c, log) for robot in robots}
+        self.referee = Referee(RefereeSettings.from_params(c.referee), np.random.default_rng(seed)) if refereed else None
         self.referee_tick = Every(c.referee["rate"])
         self.referee_kin = ArmKinematics(model_path("iiwa14_striker.urdf"))
         self.mallets: dict[str, tuple[float, float]] = {}
@@ -180,8 +183,14 @@ class InProcessGame:
                 raise RuntimeError(f"the referee did not start the game: {message}")
         self.board.start()
 
-    def step(self) -> None:
-        """One physics step and everything that falls due at its time."""
+    @property
+    def status(self) -> int:
+        """The referee's game status (always running without a referee)."""
+        return RUNNING if self.referee is None else self.referee.state.status
+
+    def step(self):
+        """One physics step and everything that falls due at its time; returns the step's
+        :class:`~air_hockey_agent.sim.runner.StepOutput`."""
         out = self.runner.step()
         t = out.time
         self.board.on_clock(t)
@@ -191,7 +200,7 @@ class InProcessGame:
             self._joints(t)
         if out.mocap is not None:
             self._frame(*out.mocap)
-        if self.referee_tick.due(t) is not None:
+        if self.referee is not None and self.referee_tick.due(t) is not None:
             decision = self.referee.update(t, self.mallets)
             if decision is not None:
                 self._act(decision)
@@ -199,14 +208,18 @@ class InProcessGame:
             self.board.on_status(s.score[ROBOTS[0]], s.score[ROBOTS[1]], s.last_event, s.reason, s.last_event_time)
         for robot, player in self.players.items():
             if player.tick.due(t) is not None:
-                self.board.on_tactic(robot, player.decide(t, self.referee.state.status, self.world))
+                self.board.on_tactic(robot, player.decide(t, self.status, self.world))
+        return out
 
     def _joints(self, t: float) -> None:
-        for robot, player in self.players.items():
+        for robot in ROBOTS:
             q, dq = self.world.joint_state(robot)
             sq, sdq = self.world.striker_state(robot)
             values, velocities = np.concatenate([q, sq]), np.concatenate([dq, sdq])
-            player.on_joints(t, values, velocities)
+            if robot in self.players:
+                self.players[robot].on_joints(t, values, velocities)
+            if self.referee is None:
+                continue
             arm = in_order(JOINT_NAMES, values, self.referee_kin.joint_names)
             self.mallets[robot] = self.referee_kin.tip_in_table(arm, self.config.referee[f"robot_base.{robot}"])
 
@@ -215,7 +228,7 @@ class InProcessGame:
         x, y, z, yaw = pose
         measurement = pose_to_measurement((x, y, z), quaternion_from_yaw(yaw), self.config.tracker["mocap_table_pose"],
                                           "optitrack")
-        if measurement is not None:
+        if measurement is not None and self.referee is not None:
             self.referee.observe_puck(stamp, measurement[0], measurement[1])
         self.ekf.process(stamp, measurement)
         if not self.ekf.initialised:

@@ -7,7 +7,9 @@ A trial's initial state depends only on the seed, the strategy and the trial's i
 number of workers. Trials that a crashed or hung worker did not finish are run once more and then
 counted as failures with their reason. Prints a table next to the thesis's fig. 5.7, or with
 ``--json`` exactly one JSON object; ``--plot DIR`` writes the bar chart (fig. 5.7) and the smash
-spread (fig. 5.8) as PNG.
+spread (fig. 5.8) as PNG. ``--in-process`` plays the trials without ROS
+(:mod:`air_hockey_agent.sim.strategy_loop`; workers are processes of this tool): a run repeats exactly,
+whatever the number of workers.
 """
 from __future__ import annotations
 
@@ -51,6 +53,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--log", type=Path, default=None, metavar="FILE", help="write every node's output to FILE")
     parser.add_argument("--domain-id", type=count(1, 101), default=None,
                         help="first ROS_DOMAIN_ID of the workers (1..101; default: derived from the process id)")
+    parser.add_argument("--in-process", action="store_true",
+                        help="play the trials without ROS (the same agent code; repeats exactly; no --log or "
+                             "--domain-id)")
     parser.set_defaults(run=run)
 
 
@@ -113,7 +118,35 @@ def _run_trials(pending: list[tuple[str, int]], args, results: dict, progress, t
     return [w.error for w in workers if w.error]
 
 
+def _run_in_process(pending: list[tuple[str, int]], args, results: dict, progress, total: int) -> list[str]:
+    """The trials in chunks on fresh tables (sim/strategy_loop.py), on ``--workers`` processes."""
+    from concurrent.futures import ProcessPoolExecutor, as_completed
+    import multiprocessing
+    from air_hockey_agent.sim.strategy_loop import chunks, run_chunk
+    errors = []
+
+    def store(share, records) -> None:
+        for (strategy, index), record in zip(share, records):
+            results[(strategy, index)] = record
+        progress(len(results), total)
+
+    if args.workers == 1:
+        for chunk, share in chunks(pending):
+            store(share, run_chunk(args.seed, chunk, share))
+        return errors
+    with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        futures = {pool.submit(run_chunk, args.seed, chunk, share): share for chunk, share in chunks(pending)}
+        for future in as_completed(futures):
+            try:
+                store(futures[future], future.result())
+            except Exception as exc:  # a worker that died: its trials are run once more, then failures
+                errors.append(f"{type(exc).__name__}: {exc}")
+    return errors
+
+
 def _check(args) -> str:
+    if args.in_process and (args.log is not None or args.domain_id is not None):
+        return "--log and --domain-id need the node graph: leave out --in-process (or them)"
     if args.domain_id is not None and not (1 <= args.domain_id and args.domain_id + args.workers - 1 <= 101):
         return f"--domain-id must leave room for {args.workers} domains in 1..101, got {args.domain_id}"
     if args.log is not None and not args.log.parent.is_dir():
@@ -139,12 +172,14 @@ def run(args: argparse.Namespace) -> int:
     progress = Progress("[strategy-test] trials", args.json)
     start = time.monotonic()
     log = open(args.log, "w", buffering=1) if args.log is not None else None
+    play = (lambda pending: _run_in_process(pending, args, results, progress, len(trials))) if args.in_process else \
+        (lambda pending: _run_trials(pending, args, results, progress, len(trials), domain0, log))
     try:
-        errors = _run_trials(trials, args, results, progress, len(trials), domain0, log)
+        errors = play(trials)
         missing = [t for t in trials if t not in results]
         if missing:
             say(f"{len(missing)} trials unfinished ({'; '.join(errors) or 'worker stopped'}); running them once more")
-            errors += _run_trials(missing, args, results, progress, len(trials), domain0, log)
+            errors += play(missing)
     finally:
         if log is not None:
             log.close()
