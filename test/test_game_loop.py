@@ -92,3 +92,20 @@ def test_in_process_game_repeats_exactly_and_both_robots_play():
     assert not any(k.startswith("robot_fault") for k in first["faults"]), first
     for robot in ("iiwa_front", "iiwa_back"):
         assert {"smash", "cut"} & set(first["tactics"][robot]), first
+
+
+@pytest.mark.integration
+def test_in_process_strategy_trials_repeat_exactly_and_score_real_hits():
+    """The strategy test's chunk of trials on a fresh table twice: the same records; the smash and the
+    repel are touched by the robot (contacts from the simulation) and scored."""
+    from air_hockey_agent.sim.strategy_loop import chunk_seed, chunks, run_chunk
+    trials = [("smash_straight", 0), ("repel", 0), ("prepare", 1)]
+    first, again = run_chunk(0, 0, trials), run_chunk(0, 0, trials)
+    assert first == again
+    assert [(r["strategy"], r["index"]) for r in first] == trials
+    assert first[0]["hit"] and first[1]["hit"] and not any(r["error"] for r in first), first
+    assert first[0]["tactic"].startswith("smash: ") and first[2]["tactic"].startswith("prepare: ")
+    # chunks are cut from the run's list alone (not by workers), each with its own table seed
+    listed = [(s, i) for i in range(25) for s in ("cut", "repel")]
+    assert [(c, len(share)) for c, share in chunks(listed)] == [(0, 20), (1, 20), (2, 10)]
+    assert chunk_seed(0, 0) != chunk_seed(0, 1) and chunk_seed(0, 1) == chunk_seed(0, 1)
