@@ -3,7 +3,8 @@ import numpy as np
 import pytest
 
 from air_hockey_agent.core.estimation.ekf import PuckEKF
-from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, count_lost_frames, evaluate_stream, horizon_key
+from air_hockey_agent.core.estimation.evaluation import (EvaluationTotals, count_lost_frames, evaluate_stream, horizon_key,
+                                                         stream_frame_period)
 from air_hockey_agent.core.puck.prediction import predict_fast
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
 from air_hockey_agent.tracker_params import load_tracker_params
@@ -34,6 +35,28 @@ def test_lost_frames_are_counted_from_intervals_but_not_across_track_breaks():
     dt = 1 / 120
     stamps = [0, dt, 3 * dt, 4 * dt, 4 * dt, 10 * dt, 10 * dt + 5.0]  # 1 + 5 missing; a 5 s break; a repeat
     assert count_lost_frames(stamps, dt, max_gap=2.0) == 6
+
+
+@pytest.mark.parametrize("rate", [240.0, 100.0])
+def test_a_stream_at_another_rate_than_the_model_counts_its_own_lost_frames(params, rate):
+    """A mocap stream need not run at the filter's 120 Hz: 40 frames dropped from a 240 Hz or 100 Hz
+    grid (37 single frames and a run of 3) with 0.2 ms stamp jitter count as 40 lost frames (against
+    the model's 1/120 s, a 240 Hz stream's single losses counted as none), and every valid pose at
+    t + h is compared, as at 120 Hz."""
+    rng = np.random.default_rng(4)
+    n = 2400
+    dropped = set(rng.choice(np.arange(10, n - 20, 3), 37, replace=False).tolist()) | {n - 9, n - 8, n - 7}
+    grid = [k for k in range(n) if k not in dropped]
+    stamps = 100.0 + np.array(grid) / rate + rng.normal(0.0, 2e-4, len(grid))
+    frames = [(float(t), (0.1 + rng.normal(0, 1e-4), 0.2 + rng.normal(0, 1e-4), 0.0)) for t in stamps]
+    assert stream_frame_period(stamps, 2.0, 1 / 120) == pytest.approx(1 / rate, rel=0.03)
+    ekf = PuckEKF.from_params(params)
+    totals = EvaluationTotals((0.5,))
+    evaluate_stream(ekf, frames, totals)
+    assert totals.lost_frames == 40
+    first = next(i for i, t in enumerate(stamps) if t >= stamps[0] + 2 / rate)  # the filter holds a state here
+    reachable = sum(1 for t in stamps[first:] if t + 0.5 <= stamps[-1] - 1 / rate)
+    assert totals.summary()["horizons"]["0.5"]["n"] >= 0.97 * reachable
 
 
 def test_accuracy_targets_met_on_a_session_like_the_lab_recordings(params):
