@@ -30,7 +30,7 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)  # the whole of stdout is one JSON document
     assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "rejected_fraction",
-                           "reinit_per_s", "nis", "nis_by_regime", "by_path"}
+                           "reinit_per_s", "nis", "nis_by_regime", "by_path", "thesis_style"}
     assert set(report["nis"]) == {"median", "mean"}
     assert set(report["by_path"]) == set(report["horizons"])
     for key, paths in report["by_path"].items():
@@ -43,6 +43,25 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert set(report["horizons"]["1.0"]) == {"mean_m", "median_m", "p95_m", "n"}
     assert report["bags"] == 2 and report["frames"] > 1000
     assert report["horizons"]["0.5"]["median_m"] <= 3e-3 and report["horizons"]["1.0"]["median_m"] <= 8e-3
+
+
+def test_thesis_style_columns_are_sysids_over_the_same_trajectories(bags):
+    """eval-prediction's trajectory-level columns (thesis tables 5.2-5.4) are the ones sysid reports: with
+    the default parameters at 1.0 s, sysid's "before" loss pooled over its training and validation
+    trajectories (weighted by comparisons) and the lower of their minima are eval-prediction's."""
+    out = cli("eval-prediction", bags / "a", "--json")
+    assert out.returncode == 0, out.stderr
+    thesis = json.loads(out.stdout)["thesis_style"]
+    assert thesis["trajectories"] >= 3 and set(thesis) == {"trajectories", "0.5", "1.0", "1.5"}
+    ident = cli("sysid", bags / "a", "--json", timeout=300)
+    assert ident.returncode == 0, ident.stderr
+    before = json.loads(ident.stdout)["before"]
+    train, validation = before["train"], before["validation"]
+    n = train["n"] + validation["n"]
+    assert thesis["1.0"]["n"] == n
+    assert thesis["1.0"]["loss_m"] == pytest.approx((train["loss_m"] * train["n"] + validation["loss_m"] * validation["n"]) / n, rel=1e-9)
+    assert thesis["1.0"]["min_m"] == pytest.approx(min(train["min_m"], validation["min_m"]), rel=1e-9)
+    assert thesis["0.5"]["loss_m"] < thesis["1.0"]["loss_m"] < thesis["1.5"]["loss_m"]
 
 
 def test_bad_bags_give_one_line_errors_and_exit_2_while_good_bags_count(bags, tmp_path):

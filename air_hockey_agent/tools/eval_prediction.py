@@ -9,8 +9,11 @@ over all comparisons and their number; frames, lost frames, rejected outliers, t
 the poses, re-initialisations per second and the normalised innovation squared (NIS), also by regime
 (rest, flight, impact). Where the error comes from: the median per horizon by the predicted path (JSON
 "by_path"): started at rest (a later motion is a hit no model foresees), or through no, one, or two and
-more rim impacts. A bag that cannot be used gives a one-line error on stderr and exit code 2; the other
-bags are still evaluated.
+more rim impacts. And the thesis's own columns (tables 5.2-5.4; JSON "thesis_style"), computed as
+``air-hockey sysid`` reports them: the bags preprocessed into cut trajectories (thesis sec. 4.5.1,
+``config/sysid.yaml``), per horizon the loss (mean error over all their comparisons) and the min and
+median over trajectories of each trajectory's mean error. A bag that cannot be used gives a one-line
+error on stderr and exit code 2; the other bags are still evaluated.
 """
 from __future__ import annotations
 
@@ -21,9 +24,10 @@ from pathlib import Path
 
 from air_hockey_agent.bags.reader import BagError
 from air_hockey_agent.core.estimation.ekf import PuckEKF
-from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
+from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream, horizon_key
 from air_hockey_agent.bags.trajectories import bag_measurements
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.sysid_params import load_sysid_params
 from air_hockey_agent.tracker_params import load_tracker_params
 from air_hockey_agent.tools.argtypes import number
 from air_hockey_agent.tools.recordings import add_pose_topic_arguments
@@ -51,6 +55,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     try:
         params = load_tracker_params(args.params_file)
+        preprocessing = load_sysid_params(args.params_file)
     except (ParameterFileError, ParameterValueError) as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
@@ -71,8 +76,25 @@ def run(args: argparse.Namespace) -> int:
         if not args.json:
             print(f"{bag}: {len(frames)} frames", file=sys.stderr)
     summary = totals.summary()
+    summary["thesis_style"] = thesis_style(args, params, preprocessing)
     print(json.dumps(summary) if args.json else format_table(summary))
     return 2 if failed else 0
+
+
+def thesis_style(args: argparse.Namespace, params: dict, preprocessing: dict) -> dict:
+    """The thesis's trajectory-level columns per horizon, as sysid reports them: ``{"trajectories": n,
+    "<h>": {"loss_m", "min_m", "median_m", "n"}}`` over the bags' cut trajectories (None without any)."""
+    from air_hockey_agent.bags.trajectories import load_trajectories
+    from air_hockey_agent.core.identification.sysid import loss_report
+    loaded = load_trajectories(args.bags, args.topic, params, preprocessing, frame=args.frame,
+                               table_frame=args.table_frame)  # a bad bag was reported by the first pass
+    out: dict = {"trajectories": len(loaded.trajectories)}
+    for h in args.horizons:
+        r = loss_report(params, loaded.trajectories, h) if loaded.trajectories else None
+        out[horizon_key(h)] = ({"loss_m": r.loss, "min_m": r.min, "median_m": r.median, "n": r.comparisons}
+                               if r is not None and r.comparisons else
+                               {"loss_m": None, "min_m": None, "median_m": None, "n": 0})
+    return out
 
 
 def format_table(summary: dict) -> str:
@@ -94,7 +116,19 @@ def format_table(summary: dict) -> str:
                          f"{s['p95_m'] * 1e3:>9.2f} {s['n']:>8}")
         else:
             lines.append(f"{key:>11} {'-':>10} {'-':>12} {'-':>9} {0:>8}")
-    return "\n".join(lines + _path_table(summary["by_path"]))
+    return "\n".join(lines + _path_table(summary["by_path"]) + _thesis_table(summary["thesis_style"]))
+
+
+def _thesis_table(thesis: dict) -> list[str]:
+    """Loss, min and median over trajectories [mm] per horizon (thesis tables 5.2-5.4, sysid's columns)."""
+    lines = [f"thesis-style, over {thesis['trajectories']} cut trajectories (as sysid reports it)",
+             f"{'horizon [s]':>11} {'loss [mm]':>10} {'traj. min [mm]':>15} {'traj. median [mm]':>18} {'n':>8}"]
+    for key, r in thesis.items():
+        if key == "trajectories":
+            continue
+        cells = [("-" if r[f] is None else f"{r[f] * 1e3:.2f}") for f in ("loss_m", "min_m", "median_m")]
+        lines.append(f"{key:>11} {cells[0]:>10} {cells[1]:>15} {cells[2]:>18} {r['n']:>8}")
+    return lines
 
 
 PATH_TITLES = {"rest": "from rest", "no_impact": "no rim impact", "one_impact": "one rim impact",
