@@ -1,6 +1,8 @@
 """Console scripts: `air-hockey --help`, node --help, the game launcher."""
 import json
 import os
+import re
+import shlex
 import signal
 import subprocess
 import sys
@@ -52,13 +54,17 @@ def test_in_process_games_add_up_in_one_json_object():
 
 @pytest.mark.integration
 def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_path):
-    """As fast as possible, 30 s of simulated time: both robots touch the puck (contacts reported by the
-    simulation), the JSON result has the documented keys, the recording holds the visualizer's markers
-    until 30 s after the start (the clock ran before it while the nodes came up), and every node process
-    is gone afterwards."""
-    bag = tmp_path / "game.mcap"
-    result = run([str(BIN / "air-hockey"), "game", "--duration", "30", "--seed", "2", "--json", "--record", str(bag),
-                  "--domain-id", ros_env["ROS_DOMAIN_ID"]], env=ros_env, timeout=400)
+    """The README's recorded game and its check (README "The game", run here with --json and a private
+    domain): as fast as possible, 30 s of simulated time: both robots touch the puck (contacts reported
+    by the simulation), the JSON result has the documented keys, the recording holds the visualizer's
+    markers until 30 s after the start (the clock ran before it while the nodes came up), and every node
+    process is gone afterwards."""
+    game_line, check_line = readme_game_block()
+    assert game_line[:3] == ["game", "--duration", "30"] and check_line[:2] == ["game-check", "game"]
+    bag = tmp_path / game_line[game_line.index("--record") + 1]
+    game_line[game_line.index("--record") + 1] = str(bag)
+    result = run([str(BIN / "air-hockey"), *game_line, "--json", "--domain-id", ros_env["ROS_DOMAIN_ID"]],
+                 env=ros_env, timeout=400)
     assert result.returncode == 0, result.stderr[-2000:]
     lines = result.stdout.strip().splitlines()
     assert len(lines) == 1
@@ -69,7 +75,7 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
     assert not any(k.startswith("robot_fault") for k in game["faults"]), game
     assert Path(game["recording"]).is_dir() and any(Path(game["recording"]).glob("*.mcap"))
     assert "Traceback" not in result.stderr
-    plots = tmp_path / "plots"
+    plots = tmp_path / check_line[check_line.index("--plot") + 1]
     checked = run([str(BIN / "air-hockey"), "game-check", game["recording"], "--json", "--plot", str(plots)])
     assert checked.returncode == 0, checked.stderr[-2000:]
     drawn = plots / f"{Path(game['recording']).name}_arms.png"
@@ -87,6 +93,16 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
             "iiwa_front/hit", "iiwa_back/hit"} <= shown, shown
     leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|referee|tactics|puck_tracker|trajectory_generator|visualizer)"])
     assert leftovers.stdout.strip() == ""
+
+
+def readme_game_block() -> tuple[list[str], list[str]]:
+    """The arguments after ``.venv/bin/air-hockey`` of the README's recorded game and its game-check."""
+    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    section = text[text.index("### The game"):]
+    block = re.search(r"tested by test/test_node_cli.py -->\n```bash\n(.*?)```", section, re.S).group(1)
+    lines = [shlex.split(line.split("  #")[0]) for line in block.splitlines() if line.strip()]
+    assert all(line[0] == ".venv/bin/air-hockey" for line in lines) and len(lines) == 2
+    return lines[0][1:], lines[1][1:]
 
 
 def _marker_stamps(bag: str) -> tuple[list[float], set[str]]:

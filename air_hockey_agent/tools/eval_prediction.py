@@ -24,7 +24,7 @@ from pathlib import Path
 
 from air_hockey_agent.bags.reader import BagError
 from air_hockey_agent.core.estimation.ekf import PuckEKF
-from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream, horizon_key
+from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
 from air_hockey_agent.bags.trajectories import bag_measurements
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.sysid_params import load_sysid_params
@@ -85,15 +85,14 @@ def thesis_style(args: argparse.Namespace, params: dict, preprocessing: dict) ->
     """The thesis's trajectory-level columns per horizon, as sysid reports them: ``{"trajectories": n,
     "<h>": {"loss_m", "min_m", "median_m", "n"}}`` over the bags' cut trajectories (None without any)."""
     from air_hockey_agent.bags.trajectories import load_trajectories
-    from air_hockey_agent.core.identification.sysid import loss_report
+    from air_hockey_agent.core.identification.sysid import position_loss_reports
     loaded = load_trajectories(args.bags, args.topic, params, preprocessing, frame=args.frame,
                                table_frame=args.table_frame)  # a bad bag was reported by the first pass
+    reports = position_loss_reports(params, loaded.trajectories, args.horizons)
     out: dict = {"trajectories": len(loaded.trajectories)}
-    for h in args.horizons:
-        r = loss_report(params, loaded.trajectories, h) if loaded.trajectories else None
-        out[horizon_key(h)] = ({"loss_m": r.loss, "min_m": r.min, "median_m": r.median, "n": r.comparisons}
-                               if r is not None and r.comparisons else
-                               {"loss_m": None, "min_m": None, "median_m": None, "n": 0})
+    for key, r in reports.items():
+        out[key] = ({"loss_m": r.loss, "min_m": r.min, "median_m": r.median, "n": r.comparisons} if r.comparisons
+                    else {"loss_m": None, "min_m": None, "median_m": None, "n": 0})
     return out
 
 

@@ -106,6 +106,24 @@ def loss_report(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory
     return combine([partial_loss(params, trajectories, horizon, loss, stride)], loss)
 
 
+def position_loss_reports(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory],
+                          horizons: Sequence[float]) -> dict[str, LossReport]:
+    """:func:`loss_report` (position loss) at several horizons [s] from one filter pass per trajectory;
+    keyed by :func:`horizon_key`."""
+    ekf = PuckEKF.from_params(params)
+    parts = {horizon_key(h): PartialLoss() for h in horizons}
+    for traj in trajectories:
+        totals = EvaluationTotals(tuple(horizons))
+        evaluate_stream(ekf, traj.frames(), totals)
+        for key, part in parts.items():
+            errors = totals.errors[key]
+            if errors:
+                part.trajectory_means.append(float(np.mean(errors)))
+                part.error_sum += float(np.sum(errors))
+                part.count += len(errors)
+    return {key: combine([part]) for key, part in parts.items()}
+
+
 @dataclass
 class Identification:
     best: dict            # parameter name -> value
