@@ -19,7 +19,7 @@ import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import prediction_series
-from air_hockey_agent.core.identification.sysid import loss_report
+from air_hockey_agent.core.identification.sysid import position_loss_reports
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 from air_hockey_agent.tracker_params import load_tracker_params
@@ -124,7 +124,7 @@ def _error_vs_horizon(out: Path, trajectories, sets: dict) -> Path:
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for (name, params), color in zip(sets.items(), ("tab:orange", "tab:green")):
-        reports = [loss_report(params, trajectories, float(h)) for h in HORIZON_GRID]
+        reports = list(position_loss_reports(params, trajectories, [float(h) for h in HORIZON_GRID]).values())
         ax.plot(HORIZON_GRID, [r.loss * 1e3 for r in reports], "o-", color=color, label=f"mean ({name})")
         ax.plot(HORIZON_GRID, [r.median * 1e3 for r in reports], "s--", color=color,
                 label=f"median of trajectory means ({name})")
