@@ -31,6 +31,7 @@ def test_air_hockey_help_lists_commands():
     (["--record", "/nonexistent/dir/out.mcap"], "does not exist"),
     (["--in-process", "--record", "/tmp/x.mcap", "--domain-id", "7"], "--record, --domain-id need the node graph"),
     (["--games", "3"], "--games needs --in-process"),
+    (["--in-process", "--workers", "2"], "--workers needs --in-process and --games"),
 ])
 def test_game_refuses_bad_arguments_in_one_line(args, message):
     result = run([str(BIN / "air-hockey"), "game", *args])
@@ -40,10 +41,12 @@ def test_game_refuses_bad_arguments_in_one_line(args, message):
 
 @pytest.mark.integration
 def test_in_process_games_add_up_in_one_json_object():
-    result = run([str(BIN / "air-hockey"), "game", "--in-process", "--games", "2", "--seed", "5", "--duration", "2",
-                  "--json"], timeout=300)
-    assert result.returncode == 0, result.stderr[-2000:]
+    """Two games on two worker processes: their sum, and the same games as played one after the other."""
+    command = [str(BIN / "air-hockey"), "game", "--in-process", "--games", "2", "--seed", "5", "--duration", "2", "--json"]
+    result, serial = run([*command, "--workers", "2"], timeout=300), run(command, timeout=300)
+    assert result.returncode == 0 and serial.returncode == 0, result.stderr[-2000:] + serial.stderr[-2000:]
     out = json.loads(result.stdout)
+    assert out == json.loads(serial.stdout)
     assert [g["seed"] for g in out["games"]] == [5, 6]
     assert out["total"]["duration_s"] == pytest.approx(sum(g["duration_s"] for g in out["games"]))
     assert out["total"]["duration_s"] >= 4.0

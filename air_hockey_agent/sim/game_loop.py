@@ -246,3 +246,14 @@ class InProcessGame:
         if decision.reset_puck is not None:
             x, y = decision.reset_puck
             self.world.move_puck([x, y, 0.0, 0.0, 0.0, 0.0])
+
+
+def play_game(seed: int, duration: float, goals: int = 0, gui: bool = False, real_time_factor: float = 0.0,
+              progress_period: float = 10.0, progress: Callable[[str], None] | None = None) -> dict:
+    """One game of ``duration`` [s] (or ``goals`` goals) with ``seed``; the scoreboard's result. A
+    module-level function, so worker processes can run it."""
+    game = InProcessGame(seed, gui=gui)
+    try:
+        return game.run(duration, goals, progress, progress_period, real_time_factor)
+    finally:
+        game.close()

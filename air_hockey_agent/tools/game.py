@@ -115,6 +115,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--games", type=count(1), default=1,
                         help="with --in-process: play this many games, seeds SEED, SEED+1, ..., and add them up "
                              "(default 1)")
+    parser.add_argument("--workers", type=count(1, 16), default=1,
+                        help="with --in-process --games: games played at once, each in its own process (default 1)")
     parser.add_argument("--in-process", action="store_true",
                         help="play without ROS in this process: a seed repeats the game exactly (no --record, "
                              "--markers, --log or --domain-id)")
@@ -132,6 +134,10 @@ def _check_args(args: argparse.Namespace) -> None:
         raise GameError(f"--seed must be in 0..{2 ** 31 - 1}, got {args.seed}", 2)
     if args.games > 1 and not args.in_process:
         raise GameError("--games needs --in-process (the node graph plays one game per run)", 2)
+    if args.workers > 1 and not (args.in_process and args.games > 1):
+        raise GameError("--workers needs --in-process and --games (each game on its own process)", 2)
+    if args.workers > 1 and args.gui:
+        raise GameError("--workers and --gui: one window per game is not offered; leave one out", 2)
     if not 0 <= args.seed + args.games - 1 < 2 ** 31:
         raise GameError(f"--seed {args.seed} with --games {args.games}: the seeds must stay in 0..{2 ** 31 - 1}", 2)
     if args.in_process:
@@ -230,29 +236,37 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
 
 
 def _play_in_process(args, settings, rtf: float, say) -> dict:
-    """One game, or with ``--games`` several (one JSON object: ``{"games": [...], "total": {...}}``, each
-    game's result with its ``"seed"``)."""
+    """One game, or with ``--games`` several, on ``--workers`` processes (one JSON object: ``{"games":
+    [...], "total": {...}}``, each game's result with its ``"seed"``, in seed order)."""
     from air_hockey_agent.core.game.scoreboard import Scoreboard
-    from air_hockey_agent.sim.game_loop import InProcessGame
-    results = []
-    for seed in range(args.seed, args.seed + args.games):
-        game = InProcessGame(seed, gui=args.gui)
-        try:
-            say(f"in process, without ROS (real-time factor {rtf:g}, seed {seed}): {args.duration:g} s of "
-                "simulated time" + (f" or {args.goals} goals" if args.goals else ""))
-            results.append(game.run(args.duration, args.goals, say, settings["progress_period"], rtf))
-        finally:
-            game.close()
-        if not args.json:
-            print(game.board.table(None), flush=True)
+    from air_hockey_agent.sim.game_loop import play_game
+    seeds = list(range(args.seed, args.seed + args.games))
+    say(f"in process, without ROS (real-time factor {rtf:g}, seed{'s' if len(seeds) > 1 else ''} "
+        f"{seeds[0]}{f'-{seeds[-1]}' if len(seeds) > 1 else ''}"
+        + (f", {args.workers} workers" if args.workers > 1 else "") + f"): {args.duration:g} s of simulated time"
+        + (f" or {args.goals} goals" if args.goals else "") + " per game")
+    run_args = (args.duration, args.goals, args.gui, rtf, settings["progress_period"])
+    if args.workers == 1:
+        results = [play_game(seed, *run_args, progress=say) for seed in seeds]
+    else:
+        import multiprocessing
+        from concurrent.futures import ProcessPoolExecutor
+        with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+            futures = [pool.submit(play_game, seed, *run_args) for seed in seeds]
+            results = []
+            for seed, future in zip(seeds, futures):
+                results.append(future.result())
+                say(f"seed {seed}: {Scoreboard.total(ROBOTS, results[-1:]).progress().split('score ', 1)[1]}")
+    if not args.json:
+        for r in results:
+            print(Scoreboard.total(ROBOTS, [r]).table(None), flush=True)
     if args.games == 1:
         return results[0]
     total = Scoreboard.total(ROBOTS, results)
     if not args.json:
-        print(f"{args.games} games, seeds {args.seed}-{args.seed + args.games - 1}: "
+        print(f"{args.games} games, seeds {seeds[0]}-{seeds[-1]}: "
               + total.table(None).replace("game over after", "in all", 1), flush=True)
-    return {"games": [{"seed": seed, **r} for seed, r in zip(range(args.seed, args.seed + args.games), results)],
-            "total": total.result(None)}
+    return {"games": [{"seed": seed, **r} for seed, r in zip(seeds, results)], "total": total.result(None)}
 
 
 def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
@@ -273,4 +287,4 @@ def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(run(argparse.Namespace(duration=60.0, goals=0, real_time_factor=None, seed=0, gui=False, record=None,
-                                    json=False, log=None, domain_id=None, markers=False, in_process=False, games=1)))
+                                    json=False, log=None, domain_id=None, markers=False, in_process=False, games=1, workers=1)))
