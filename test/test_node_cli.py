@@ -56,6 +56,27 @@ def test_in_process_games_add_up_in_one_json_object():
 
 
 @pytest.mark.integration
+def test_sigterm_stops_in_process_games_and_their_workers_at_once():
+    """SIGTERM (kill, timeout) during games on worker processes: exit 143 within seconds, no worker left
+    (a pool left to finish would have played every queued 60 s game first)."""
+    proc = subprocess.Popen([str(BIN / "air-hockey"), "game", "--in-process", "--games", "4", "--workers", "2",
+                             "--duration", "60"], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    deadline = time.monotonic() + 60
+    workers = []
+    while time.monotonic() < deadline and len(workers) < 2:  # the two spawned workers (and the resource tracker)
+        time.sleep(0.5)
+        workers = [int(p) for p in run(["pgrep", "-f", "-P", str(proc.pid), "spawn_main"]).stdout.split()]
+    assert len(workers) == 2, "the workers did not start"
+    time.sleep(2.0)
+    proc.send_signal(signal.SIGTERM)
+    _, err = proc.communicate(timeout=30)
+    assert proc.returncode == 143, err[-2000:]
+    assert "Traceback" not in err
+    time.sleep(1.0)
+    assert not [w for w in workers if os.path.exists(f"/proc/{w}")]
+
+
+@pytest.mark.integration
 def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_path):
     """The README's recorded game and its check (README "The game", run here with --json and a private
     domain): as fast as possible, 30 s of simulated time: both robots touch the puck (contacts reported

@@ -249,14 +249,13 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
     if args.workers == 1:
         results = [play_game(seed, *run_args, progress=say) for seed in seeds]
     else:
-        import multiprocessing
-        from concurrent.futures import ProcessPoolExecutor
-        with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-            futures = [pool.submit(play_game, seed, *run_args) for seed in seeds]
-            results = []
-            for seed, future in zip(seeds, futures):
-                results.append(future.result())
-                say(f"seed {seed}: {Scoreboard.total(ROBOTS, results[-1:]).progress().split('score ', 1)[1]}")
+        from air_hockey_agent.tools.worker_pool import run_in_processes
+
+        def done(index: int, result) -> None:
+            if isinstance(result, Exception):
+                raise GameError(f"game with seed {seeds[index]} failed: {type(result).__name__}: {result}")
+            say(f"seed {seeds[index]}: {Scoreboard.total(ROBOTS, [result]).progress().split('score ', 1)[1]}")
+        results = run_in_processes(play_game, [(seed, *run_args) for seed in seeds], args.workers, done)
     if not args.json:
         for r in results:
             print(Scoreboard.total(ROBOTS, [r]).table(None), flush=True)

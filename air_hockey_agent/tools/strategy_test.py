@@ -120,27 +120,24 @@ def _run_trials(pending: list[tuple[str, int]], args, results: dict, progress, t
 
 def _run_in_process(pending: list[tuple[str, int]], args, results: dict, progress, total: int) -> list[str]:
     """The trials in chunks on fresh tables (sim/strategy_loop.py), on ``--workers`` processes."""
-    from concurrent.futures import ProcessPoolExecutor, as_completed
-    import multiprocessing
     from air_hockey_agent.sim.strategy_loop import chunks, run_chunk
-    errors = []
+    from air_hockey_agent.tools.worker_pool import run_in_processes
+    errors: list[str] = []
+    jobs = [(args.seed, chunk, share) for chunk, share in chunks(pending)]
 
-    def store(share, records) -> None:
-        for (strategy, index), record in zip(share, records):
-            results[(strategy, index)] = record
+    def store(index: int, records) -> None:
+        if isinstance(records, Exception):  # its trials are run once more, then counted as failures
+            errors.append(f"{type(records).__name__}: {records}")
+            return
+        for (strategy, trial), record in zip(jobs[index][2], records):
+            results[(strategy, trial)] = record
         progress(len(results), total)
 
     if args.workers == 1:
-        for chunk, share in chunks(pending):
-            store(share, run_chunk(args.seed, chunk, share))
-        return errors
-    with ProcessPoolExecutor(args.workers, mp_context=multiprocessing.get_context("spawn")) as pool:
-        futures = {pool.submit(run_chunk, args.seed, chunk, share): share for chunk, share in chunks(pending)}
-        for future in as_completed(futures):
-            try:
-                store(futures[future], future.result())
-            except Exception as exc:  # a worker that died: its trials are run once more, then failures
-                errors.append(f"{type(exc).__name__}: {exc}")
+        for index, job in enumerate(jobs):
+            store(index, run_chunk(*job))
+    else:
+        run_in_processes(run_chunk, jobs, args.workers, store)
     return errors
 
 
