@@ -26,6 +26,7 @@ from air_hockey_agent.bags.reader import BagError
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
 from air_hockey_agent.bags.trajectories import bag_measurements
+from air_hockey_agent.core.identification.preprocess import preprocess
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.sysid_params import load_sysid_params
 from air_hockey_agent.tracker_params import load_tracker_params
@@ -61,6 +62,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     ekf = PuckEKF.from_params(params)
     totals = EvaluationTotals(tuple(args.horizons), rest_speed=params["regime_rest_speed"])
+    cut: list = []  # the bags' trajectories cut as sysid cuts them (thesis sec. 4.5.1)
     failed = 0
     for bag in args.bags:
         try:
@@ -73,23 +75,22 @@ def run(args: argparse.Namespace) -> int:
             print(f"{PROG}: warning: {bag}: {warning}", file=sys.stderr)
         frames = [(r.stamp, m) for r, m in zip(records, measurements)]
         evaluate_stream(ekf, frames, totals)
+        cut += preprocess([r.stamp for r in records], measurements, ekf.settings.dt, preprocessing,
+                          params["glitch_speed"]).trajectories  # as sysid cuts them, from the poses read once
         if not args.json:
             print(f"{bag}: {len(frames)} frames", file=sys.stderr)
     summary = totals.summary()
-    summary["thesis_style"] = thesis_style(args, params, preprocessing)
+    summary["thesis_style"] = thesis_style(params, cut, args.horizons)
     print(json.dumps(summary) if args.json else format_table(summary))
     return 2 if failed else 0
 
 
-def thesis_style(args: argparse.Namespace, params: dict, preprocessing: dict) -> dict:
+def thesis_style(params: dict, trajectories: list, horizons) -> dict:
     """The thesis's trajectory-level columns per horizon, as sysid reports them: ``{"trajectories": n,
-    "<h>": {"loss_m", "min_m", "median_m", "n"}}`` over the bags' cut trajectories (None without any)."""
-    from air_hockey_agent.bags.trajectories import load_trajectories
+    "<h>": {"loss_m", "min_m", "median_m", "n"}}`` over cut ``trajectories`` (None without any)."""
     from air_hockey_agent.core.identification.sysid import position_loss_reports
-    loaded = load_trajectories(args.bags, args.topic, params, preprocessing, frame=args.frame,
-                               table_frame=args.table_frame)  # a bad bag was reported by the first pass
-    reports = position_loss_reports(params, loaded.trajectories, args.horizons)
-    out: dict = {"trajectories": len(loaded.trajectories)}
+    reports = position_loss_reports(params, trajectories, horizons)
+    out: dict = {"trajectories": len(trajectories)}
     for key, r in reports.items():
         out[key] = ({"loss_m": r.loss, "min_m": r.min, "median_m": r.median, "n": r.comparisons} if r.comparisons
                     else {"loss_m": None, "min_m": None, "median_m": None, "n": 0})
