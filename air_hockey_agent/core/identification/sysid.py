@@ -53,6 +53,14 @@ class PartialLoss:
     count: int = 0
     trajectory_means: list = field(default_factory=list)
 
+    def add(self, errors: Sequence[float], nll: Sequence[float] = ()) -> None:
+        """One trajectory's comparisons: position errors [m] and, for the loglik loss, their -ln p."""
+        if errors:
+            self.trajectory_means.append(float(np.mean(errors)))
+            self.error_sum += float(np.sum(errors))
+            self.nll_sum += float(np.sum(nll))
+            self.count += len(errors)
+
 
 def partial_loss(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory], horizon: float,
                  loss: str = "position", stride: int = 1) -> PartialLoss:
@@ -63,12 +71,7 @@ def partial_loss(params: Mapping[str, Any], trajectories: Sequence[GridTrajector
     for traj in trajectories:
         totals = EvaluationTotals((horizon,), loglik=loss == "loglik", stride=stride)
         evaluate_stream(ekf, traj.frames(), totals)
-        errors = totals.errors[key]
-        if errors:
-            part.trajectory_means.append(float(np.mean(errors)))
-            part.error_sum += float(np.sum(errors))
-            part.nll_sum += float(np.sum(totals.nll[key]))
-            part.count += len(errors)
+        part.add(totals.errors[key], totals.nll[key])
     return part
 
 
@@ -116,11 +119,7 @@ def position_loss_reports(params: Mapping[str, Any], trajectories: Sequence[Grid
         totals = EvaluationTotals(tuple(horizons))
         evaluate_stream(ekf, traj.frames(), totals)
         for key, part in parts.items():
-            errors = totals.errors[key]
-            if errors:
-                part.trajectory_means.append(float(np.mean(errors)))
-                part.error_sum += float(np.sum(errors))
-                part.count += len(errors)
+            part.add(totals.errors[key])
     return {key: combine([part]) for key, part in parts.items()}
 
 
