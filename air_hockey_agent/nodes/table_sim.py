@@ -31,13 +31,12 @@ from std_srvs.srv import Trigger
 from trajectory_msgs.msg import JointTrajectory as JointTrajectoryMsg
 
 from air_hockey_agent.core.frames import quaternion_from_yaw
-from air_hockey_agent.core.motion.joint_trajectory import received_at
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.nodes.messages import state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.sim.params import PARAM_FILES, ROBOTS, SIM_PARAMS
 from air_hockey_agent.sim.runner import Every, SimRunner
-from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld, arm_joint_order
+from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld
 from air_hockey_agent.tools.ros_env import display_available
 
 
@@ -162,19 +161,12 @@ class TableSimNode(AirHockeyNode):
     def on_trajectory(self, robot: str, msg: JointTrajectoryMsg) -> None:
         topic = f"/{robot}/joint_trajectory"
         try:
-            names = list(msg.joint_names)
-            order = arm_joint_order(names)
-            q, dq = np.empty(len(names)), np.empty(len(names))  # current state in the message's joint order
-            q[order], dq[order] = self.world.joint_state(robot)
             start = to_seconds(msg.header.stamp)
             start = self.world.time if start <= 0.0 else start
             times = [pt.time_from_start.sec + pt.time_from_start.nanosec * 1e-9 for pt in msg.points]
             has_velocities = all(len(pt.velocities) for pt in msg.points) and msg.points
-            traj = received_at(
-                names, start, times, [list(pt.positions) for pt in msg.points],
-                [list(pt.velocities) for pt in msg.points] if has_velocities else None,
-                self.world.time, q, dq)
-            self.world.follow(robot, traj)
+            self.world.receive(robot, list(msg.joint_names), start, times, [list(pt.positions) for pt in msg.points],
+                               [list(pt.velocities) for pt in msg.points] if has_velocities else None)
             self.warn_if_late(topic, start + times[0])
         except ValueError as exc:  # TrajectoryError included
             self.get_logger().error(f"{topic}: trajectory ignored: {exc}")

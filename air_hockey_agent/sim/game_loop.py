@@ -34,12 +34,11 @@ from air_hockey_agent.core.game.scoreboard import Scoreboard
 from air_hockey_agent.core.game.situation import Situation, situation_from_prediction
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.motion.arm_commander import ArmCommander
-from air_hockey_agent.core.motion.joint_trajectory import received_at
 from air_hockey_agent.core.motion.kinematics import ArmKinematics, in_order
 from air_hockey_agent.core.motion.planner import Command
 from air_hockey_agent.sim.params import ROBOTS
 from air_hockey_agent.sim.runner import Every, SimRunner
-from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld, arm_joint_order
+from air_hockey_agent.sim.world import ARM_JOINTS, STRIKER_JOINTS, SimSettings, TableWorld
 
 JOINT_NAMES = ARM_JOINTS + STRIKER_JOINTS  # as table_sim's joint_states name them
 
@@ -115,11 +114,7 @@ class Player:
     def _send(self, plan, now: float, world: TableWorld) -> None:
         """The accepted plan to the simulated arm, as table_sim executes a received trajectory."""
         times, q, dq = self.arm.accept(plan, now)
-        names = self.arm.planner.kin.joint_names
-        order = arm_joint_order(names)
-        current_q, current_dq = np.empty(len(names)), np.empty(len(names))
-        current_q[order], current_dq[order] = world.joint_state(self.robot)
-        world.follow(self.robot, received_at(names, now, times, q, dq, now, current_q, current_dq))
+        world.receive(self.robot, self.arm.planner.kin.joint_names, now, times, q, dq)
 
 
 class InProcessGame:

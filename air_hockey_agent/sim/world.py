@@ -28,7 +28,7 @@ import pybullet
 from pybullet_utils.bullet_client import BulletClient
 
 from air_hockey_agent.core.frames import quaternion_from_yaw, yaw_from_quaternion
-from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory, TrajectoryError
+from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory, TrajectoryError, received_at
 from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.contacts import ContactLog, MalletContact
@@ -241,6 +241,16 @@ class TableWorld:
         trajectory.positions, trajectory.velocities = trajectory.positions[:, order], trajectory.velocities[:, order]
         trajectory.joint_names = ARM_JOINTS
         self.robots[name].trajectory = trajectory
+
+    def receive(self, name: str, joint_names: Sequence[str], start: float, times: Sequence[float],
+                positions: Sequence[Sequence[float]], velocities: Sequence[Sequence[float]] | None) -> None:
+        """Execute on robot ``name`` a trajectory (points at ``start + times`` [s], in ``joint_names``
+        order) received now, as ros2_control's controller does (:func:`received_at`: from the current
+        state to the first point still ahead). Raises :class:`TrajectoryError` for a malformed one."""
+        q, dq = np.empty(len(joint_names)), np.empty(len(joint_names))  # current state in the message's order
+        order = arm_joint_order(joint_names)
+        q[order], dq[order] = self.joint_state(name)
+        self.follow(name, received_at(joint_names, start, times, positions, velocities, self.time, q, dq))
 
     def reset_robots(self) -> None:
         """Put every robot at its home configuration, at rest, holding it."""
