@@ -254,7 +254,7 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
         def done(index: int, result) -> None:
             if isinstance(result, Exception):
                 raise GameError(f"game with seed {seeds[index]} failed: {type(result).__name__}: {result}")
-            say(f"seed {seeds[index]}: {Scoreboard.total(ROBOTS, [result]).progress().split('score ', 1)[1]}")
+            say(f"seed {seeds[index]}: {Scoreboard.total(ROBOTS, [result]).progress()}")
         results = run_in_processes(play_game, [(seed, *run_args) for seed in seeds], args.workers, done)
     if not args.json:
         for r in results:
