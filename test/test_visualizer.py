@@ -77,6 +77,25 @@ def test_unknown_shape_kinds_and_colours_are_refused(style):
 
 
 @pytest.mark.integration
+def test_the_game_scene_draws_what_it_was_given_in_the_table_frame(defaults, style):
+    """The plain-value scene the node and the in-process recorder fill: iiwa_back's command (its own
+    frame) drawn at the table frame's (-x, -y) until its hit time; mallets with their tactics; the score."""
+    game = scene.GameScene(TableGeometry.from_params(defaults), style)
+    assert {s.ns for s in game.shapes(0.0)} == {"table"}
+    game.measurement, game.estimate = (0.3, 0.0), (0.3, 0.0, 0.0, 1.0, 0.0)
+    game.prediction = ([(0.3, 0.0), (0.5, 0.0)], [(0.5, 0.0)])
+    game.mallets["iiwa_front"], game.tactics["iiwa_front"] = (-0.8, 0.1), "ready"
+    game.commands["iiwa_back"] = scene.SceneCommand((-0.6, 0.2), (2.0, 0.0), (0.98, 0.0), hit_time=5.0)
+    game.status = scene.status_text("running", 1, 0, "")
+    shapes = game.shapes(4.0)
+    sphere = next(s for s in shapes if s.ns == "iiwa_back/hit" and s.kind == "sphere")
+    assert sphere.position[:2] == pytest.approx((0.6, -0.2))
+    label = next(s for s in shapes if s.ns == "iiwa_front/mallet" and s.kind == "text")
+    assert label.text == "ready" and label.position[:2] == (-0.8, 0.1)
+    assert {"measurement", "puck", "prediction", "score"} <= {s.ns for s in shapes}
+    assert not [s for s in game.shapes(5.1) if s.ns == "iiwa_back/hit"]  # the hit was made or missed
+
+
 def test_the_node_draws_commands_in_the_table_frame_and_survives_bad_messages(launcher, rclpy_node):
     """iiwa_back's hit command comes in its own frame (x toward iiwa_front): drawn at the table frame's
     (-x, -y). A command with an unknown tactic and joint states without the arm's joints are logged

@@ -12,6 +12,7 @@ import math
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
+from air_hockey_agent.core.frames import ROBOT_YAW, robot_to_table
 from air_hockey_agent.core.table import TableGeometry
 
 Point2 = tuple[float, float]
@@ -154,3 +155,72 @@ def status_text(status: str, score_front: int, score_back: int, reason: str) -> 
     """The score line: status, score seen from iiwa_front's side, and the referee's last reason."""
     line = f"{status}   iiwa_front {score_front} : {score_back} iiwa_back"
     return f"{line}\n{reason}" if reason else line
+
+
+@dataclass(frozen=True)
+class SceneCommand:
+    """A robot's latest command in its own frame (README "Frames and units"): mallet point [m] and
+    velocity [m/s] at ``hit_time`` [s], the puck's target [m]; a zero velocity is a position command."""
+
+    point: Point2
+    velocity: Point2
+    target: Point2
+    hit_time: float
+
+    @property
+    def is_hit(self) -> bool:
+        return self.velocity[0] != 0.0 or self.velocity[1] != 0.0  # the tactics' Proposal.is_hit
+
+
+@dataclass
+class GameScene:
+    """What the visualizer knows of a game, as plain values in the table frame, and the scene it draws:
+    the latest measurement (x, y) [m], the estimate (x, y, theta, vx, vy), the prediction's path and
+    rim impacts, each robot's mallet (x, y) and tactic, each robot's latest command, the score line.
+    The ``visualizer`` node fills it from messages; the in-process game's recorder from the game."""
+
+    table: TableGeometry
+    style: SceneStyle
+    measurement: Point2 | None = None
+    estimate: tuple[float, float, float, float, float] | None = None
+    prediction: tuple[Sequence[Point2], Sequence[Point2]] | None = None
+    mallets: dict[str, Point2] = field(default_factory=dict)
+    tactics: dict[str, str] = field(default_factory=dict)
+    commands: dict[str, SceneCommand] = field(default_factory=dict)
+    status: str | None = None
+
+    def __post_init__(self) -> None:
+        self._table_shapes = table_shapes(self.table, self.style)
+
+    def shapes(self, now: float) -> list[Shape]:
+        """Every shape of the scene at ``now`` [s]: table, puck, mallets, visible commands, score."""
+        shapes = list(self._table_shapes) + self.puck_shapes()
+        for robot in ROBOT_YAW:  # iiwa_front, then iiwa_back
+            shapes += self.robot_shapes(robot, now)
+        if self.status is not None:
+            shapes.append(score_shape(self.table, self.status, self.style))
+        return shapes
+
+    def puck_shapes(self) -> list[Shape]:
+        shapes, style = [], self.style
+        if self.measurement is not None:
+            shapes.append(measurement_shape(*self.measurement, style))
+        if self.estimate is not None:
+            x, y, theta, vx, vy = self.estimate
+            shapes += puck_shapes(x, y, theta, vx, vy, self.table.puck_radius, style)
+        if self.prediction is not None:
+            shapes += prediction_shapes(*self.prediction, style)
+        return shapes
+
+    def robot_shapes(self, robot: str, now: float) -> list[Shape]:
+        shapes = []
+        if robot in self.mallets:
+            shapes += mallet_shapes(robot, *self.mallets[robot], self.tactics.get(robot, ""), self.style)
+        cmd = self.commands.get(robot)
+        if cmd is not None and command_visible(cmd.is_hit, now, cmd.hit_time):
+            # the robot frame shares the table frame's origin: velocities turn like points
+            point = robot_to_table(*cmd.point, 0.0, robot)[:2]
+            velocity = robot_to_table(*cmd.velocity, 0.0, robot)[:2]
+            target = robot_to_table(*cmd.target, 0.0, robot)[:2]
+            shapes += hit_shapes(robot, point, velocity, target, cmd.is_hit, self.style)
+        return shapes

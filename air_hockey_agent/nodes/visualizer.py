@@ -11,7 +11,6 @@ array starts by deleting the previous one. The shapes are made in ``core/scene.p
 """
 from __future__ import annotations
 
-import numpy as np
 from geometry_msgs.msg import Point, PoseStamped
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
@@ -19,7 +18,7 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from air_hockey_msgs.msg import GameStatus, HitCommand, PuckPrediction, PuckState, TacticState
 from air_hockey_agent.core import scene
-from air_hockey_agent.core.frames import TABLE_FRAME, quaternion_from_yaw, robot_to_table
+from air_hockey_agent.core.frames import TABLE_FRAME, quaternion_from_yaw
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.motion.kinematics import ArmKinematics
 from air_hockey_agent.core.table import TableGeometry
@@ -56,17 +55,8 @@ class VisualizerNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         p = self.params
-        self.table = TableGeometry.from_params(p)
-        self.style = scene_style(p)
-        self.table_shapes = scene.table_shapes(self.table, self.style)
+        self.scene = scene.GameScene(TableGeometry.from_params(p), scene_style(p))
         self.kinematics = ArmKinematics(model_path("iiwa14_striker.urdf"))
-        self.joints: dict[str, np.ndarray] = {}
-        self.tactics: dict[str, str] = {}
-        self.commands: dict[str, HitCommand] = {}
-        self.measurement: tuple[float, float] | None = None
-        self.estimate: PuckState | None = None
-        self.prediction: PuckPrediction | None = None
-        self.status: GameStatus | None = None
         self.pub = self.create_publisher(MarkerArray, "/visualization/markers", 10)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         tracker = p["tracker"]
@@ -98,75 +88,43 @@ class VisualizerNode(AirHockeyNode):
                                         throttle_duration_sec=1.0)
         return call
 
-    # --- inputs -------------------------------------------------------------------------------
+    # --- inputs: messages -> the scene's plain values ---------------------------------------------
     def on_pose(self, msg: PoseStamped) -> None:
         z = pose_measurement(msg, self.params["mocap_table_pose"])
-        self.measurement = None if z is None else (z[0], z[1])
+        self.scene.measurement = None if z is None else (z[0], z[1])
 
     def on_estimate(self, msg: PuckState) -> None:
-        self.estimate = msg
+        self.scene.estimate = (msg.x, msg.y, msg.theta, msg.vx, msg.vy)
 
     def on_prediction(self, msg: PuckPrediction) -> None:
-        self.prediction = msg
+        path = [(msg.initial.x, msg.initial.y)] + [(s.x, s.y) for s in msg.states]
+        self.scene.prediction = (path, [(i.x, i.y) for i in msg.impacts])
 
     def on_status(self, msg: GameStatus) -> None:
-        self.status = msg
+        self.scene.status = scene.status_text(STATUS_NAMES.get(msg.status, "?"), msg.score_front, msg.score_back,
+                                              msg.reason)
 
     def on_joints(self, robot: str, msg: JointState) -> None:
         q = joint_vector(self.kinematics, robot, msg, self.get_logger())
         if q is not None:
-            self.joints[robot] = q
+            self.scene.mallets[robot] = self.kinematics.tip_in_table(q, self.params[f"robot_base.{robot}"])
 
     def on_tactic(self, robot: str, msg: TacticState) -> None:
-        self.tactics[robot] = msg.name
+        self.scene.tactics[robot] = msg.name
 
     def on_command(self, robot: str, msg: HitCommand) -> None:
         if msg.tactic not in NAMES:
             raise ValueError(f"unknown tactic {msg.tactic}")
-        self.commands[robot] = msg
+        self.scene.commands[robot] = scene.SceneCommand((msg.hit_point.x, msg.hit_point.y),
+                                                        (msg.hit_velocity.x, msg.hit_velocity.y),
+                                                        (msg.target.x, msg.target.y), to_seconds(msg.hit_time))
 
     # --- output -------------------------------------------------------------------------------
     def publish_scene(self) -> None:
         now = self.get_clock().now().nanoseconds * 1e-9
-        shapes = list(self.table_shapes) + self.puck_shapes()
-        for robot in ROBOTS:
-            shapes += self.robot_shapes(robot, now)
-        if self.status is not None:
-            s = self.status
-            text = scene.status_text(STATUS_NAMES.get(s.status, "?"), s.score_front, s.score_back, s.reason)
-            shapes.append(scene.score_shape(self.table, text, self.style))
         stamp = to_stamp(now)
-        self.pub.publish(MarkerArray(markers=[Marker(action=Marker.DELETEALL)] + [marker(s, stamp) for s in shapes]))
-
-    def puck_shapes(self) -> list[scene.Shape]:
-        shapes, style = [], self.style
-        if self.measurement is not None:
-            shapes.append(scene.measurement_shape(*self.measurement, style))
-        e = self.estimate
-        if e is not None:
-            shapes += scene.puck_shapes(e.x, e.y, e.theta, e.vx, e.vy, self.table.puck_radius, style)
-        pr = self.prediction
-        if pr is not None:
-            path = [(pr.initial.x, pr.initial.y)] + [(s.x, s.y) for s in pr.states]
-            shapes += scene.prediction_shapes(path, [(i.x, i.y) for i in pr.impacts], style)
-        return shapes
-
-    def robot_shapes(self, robot: str, now: float) -> list[scene.Shape]:
-        shapes = []
-        q = self.joints.get(robot)
-        if q is not None:
-            x, y = self.kinematics.tip_in_table(q, self.params[f"robot_base.{robot}"])
-            shapes += scene.mallet_shapes(robot, x, y, self.tactics.get(robot, ""), self.style)
-        cmd = self.commands.get(robot)
-        if cmd is not None:
-            hit = cmd.hit_velocity.x != 0.0 or cmd.hit_velocity.y != 0.0  # the tactics' Proposal.is_hit
-            if scene.command_visible(hit, now, to_seconds(cmd.hit_time)):
-                # the robot frame shares the table frame's origin: velocities turn like points
-                point = robot_to_table(cmd.hit_point.x, cmd.hit_point.y, 0.0, robot)[:2]
-                velocity = robot_to_table(cmd.hit_velocity.x, cmd.hit_velocity.y, 0.0, robot)[:2]
-                target = robot_to_table(cmd.target.x, cmd.target.y, 0.0, robot)[:2]
-                shapes += scene.hit_shapes(robot, point, velocity, target, hit, self.style)
-        return shapes
+        self.pub.publish(MarkerArray(markers=[Marker(action=Marker.DELETEALL)]
+                                     + [marker(s, stamp) for s in self.scene.shapes(now)]))
 
 
 def main(argv: list[str] | None = None) -> int:
