@@ -95,6 +95,50 @@ def test_in_process_game_repeats_exactly_and_both_robots_play():
 
 
 @pytest.mark.integration
+def test_a_recorded_in_process_game_is_the_same_game_and_holds_the_node_graphs_topics(tmp_path):
+    """Recording changes nothing in the game (the same tally and end state as unrecorded); the bag holds
+    every topic the node graph's recording holds, game-check reads it (both arms, their trajectories),
+    the tactic messages are the scoreboard's tactic entries, and the markers are the visualizer's scene."""
+    from air_hockey_agent.bags.reader import bag_topics, iter_raw
+    from air_hockey_agent.bags.types import typestore
+    from air_hockey_agent.sim.game_loop import JOINT_NAMES, InProcessGame
+    from air_hockey_agent.sim.game_record import GameRecorder
+    from air_hockey_agent.sim.game_topics import MARKER_TOPICS, RECORDED_TOPICS
+    from air_hockey_agent.tools.game_check import check_bag
+    runs = []
+    for record in (None, tmp_path / "game"):
+        game = InProcessGame(8)
+        try:
+            if record is None:
+                runs.append((game.run(3.0), _fingerprint(game)))
+                continue
+            with GameRecorder(record, JOINT_NAMES) as game.recorder:
+                runs.append((game.run(3.0), _fingerprint(game)))
+        finally:
+            game.close()
+    assert runs[0] == runs[1]
+    result, bag = runs[1][0], tmp_path / "game"
+    assert bag_topics(bag) == {**RECORDED_TOPICS, **MARKER_TOPICS}
+    store, topics = typestore(), bag_topics(bag)
+    messages: dict[str, list] = {}
+    for topic, log_ns, raw in iter_raw(bag, dict.fromkeys(topics)):
+        messages.setdefault(topic, []).append((log_ns, store.deserialize_cdr(raw, topics[topic])))
+    for robot in ("iiwa_front", "iiwa_back"):
+        assert len(messages[f"/{robot}/tactic"]) == sum(result["tactics"][robot].values())
+        assert len(messages[f"/{robot}/hit_command"]) == len(messages[f"/{robot}/trajectory_status"])
+    assert messages["/game_status"][-1][1].status == 2  # running
+    end = messages["/iiwa_front/joint_states"][-1][1].header.stamp
+    assert end.sec + end.nanosec * 1e-9 >= 3.0
+    markers = messages["/visualization/markers"][-1][1].markers
+    assert markers[0].action == 3 and {"table", "puck", "iiwa_front/mallet", "iiwa_back/mallet", "score"} <= {
+        m.ns for m in markers}
+    planners = {r: build_planner(load_motion_params(), r) for r in ("iiwa_front", "iiwa_back")}
+    checked = check_bag(bag, planners)
+    assert set(checked) == {"iiwa_front", "iiwa_back"}
+    assert all(r["trajectories"] >= 1 and r["worst_outside_m"] == 0.0 for r in checked.values()), checked
+
+
+@pytest.mark.integration
 def test_in_process_strategy_trials_repeat_exactly_and_score_real_hits():
     """The strategy test's chunk of trials on a fresh table twice: the same records; the smash and the
     repel are touched by the robot (contacts from the simulation) and scored."""

@@ -29,7 +29,9 @@ def test_air_hockey_help_lists_commands():
     (["--goals", "-2"], "--goals must be 0"),
     (["--real-time-factor", "-1"], "--real-time-factor must be 0 or more"),
     (["--record", "/nonexistent/dir/out.mcap"], "does not exist"),
-    (["--in-process", "--record", "/tmp/x.mcap", "--domain-id", "7"], "--record, --domain-id need the node graph"),
+    (["--in-process", "--markers", "--domain-id", "7"], "--markers, --domain-id need the node graph"),
+    (["--in-process", "--log", "/tmp/game.log"], "--log needs the node graph"),
+    (["--in-process", "--games", "2", "--record", "/tmp/x.mcap"], "--record with --games: one recording per run"),
     (["--games", "3"], "--games needs --in-process"),
     (["--in-process", "--workers", "2"], "--workers needs --in-process and --games"),
 ])

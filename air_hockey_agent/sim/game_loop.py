@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import time
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Callable
 
 import numpy as np
@@ -96,25 +97,34 @@ class Player:
         joints = self.arm.planner.kin.joint_names
         self.arm.measure(t, in_order(JOINT_NAMES, values, joints), in_order(JOINT_NAMES, velocities, joints))
 
-    def decide(self, now: float, status: int, world: TableWorld) -> str:
-        """The tactics' decision at ``now`` [s]; a command is planned and handed to the arm at once.
+    def decide(self, now: float, status: int, world: TableWorld, recorder=None) -> str:
+        """The tactics' decision at ``now`` [s]; a command is planned and handed to the arm at once (and
+        with ``recorder``, a :class:`~air_hockey_agent.sim.game_record.GameRecorder`, recorded).
         Returns the current tactic's name."""
         fresh = self.situation is not None and now - self.situation.t <= self.stale_estimate
         decision = self.selector.step(now, status, self.situation if fresh else None, self.mallet,
                                       self.mallet_velocity)
         proposal = decision.command
         if proposal is not None:
+            wall = time.perf_counter()
             plan = self.arm.plan(Command(np.asarray(proposal.point, float), np.asarray(proposal.velocity, float),
                                          proposal.time), now)
-            if plan.ok:
-                self._send(plan, now, world)
+            planning_time = time.perf_counter() - wall
+            motion = self._send(plan, now, world) if plan.ok else None
+            if recorder is not None:
+                recorder.on_command(now, self.robot, proposal, plan, planning_time, motion)
             self.selector.on_status(now, plan.outcome, float(plan.max_speed), now)
+        if recorder is not None:
+            recorder.on_tactic(now, self.robot, self.selector)
         return NAMES[self.selector.current]
 
-    def _send(self, plan, now: float, world: TableWorld) -> None:
-        """The accepted plan to the simulated arm, as table_sim executes a received trajectory."""
+    def _send(self, plan, now: float, world: TableWorld) -> tuple:
+        """The accepted plan to the simulated arm, as table_sim executes a received trajectory; returns
+        the motion as sent: (times [s] from now, q, dq, joint names)."""
         times, q, dq = self.arm.accept(plan, now)
-        world.receive(self.robot, self.arm.planner.kin.joint_names, now, times, q, dq)
+        joints = self.arm.planner.kin.joint_names
+        world.receive(self.robot, joints, now, times, q, dq)
+        return times, q, dq, joints
 
 
 class InProcessGame:
@@ -137,6 +147,7 @@ class InProcessGame:
         self.referee_kin = ArmKinematics(model_path("iiwa14_striker.urdf"))
         self.mallets: dict[str, tuple[float, float]] = {}
         self.board = Scoreboard(ROBOTS)
+        self.recorder = None  # a GameRecorder (sim/game_record.py) to record the game
 
     def close(self) -> None:
         self.world.close()
@@ -201,9 +212,13 @@ class InProcessGame:
                 self._act(decision)
             s = self.referee.state
             self.board.on_status(s.score[ROBOTS[0]], s.score[ROBOTS[1]], s.last_event, s.reason, s.last_event_time)
+            if self.recorder is not None:
+                self.recorder.on_status(t, s)
         for robot, player in self.players.items():
             if player.tick.due(t) is not None:
-                self.board.on_tactic(robot, player.decide(t, self.status, self.world))
+                self.board.on_tactic(robot, player.decide(t, self.status, self.world, self.recorder))
+        if self.recorder is not None:
+            self.recorder.on_step(out, self.world)
         return out
 
     def _joints(self, t: float) -> None:
@@ -225,12 +240,16 @@ class InProcessGame:
                                           "optitrack")
         if measurement is not None and self.referee is not None:
             self.referee.observe_puck(stamp, measurement[0], measurement[1])
-        self.ekf.process(stamp, measurement)
+        flags = self.ekf.process(stamp, measurement)
+        if self.recorder is not None:
+            self.recorder.on_mocap(measurement)
         if not self.ekf.initialised:
             return
         p = self.config.tracker
         prediction = predict_for_agents(self.ekf, p["prediction_horizon"], p["prediction_sample_period"],
                                         p["defend_line_offset"])
+        if self.recorder is not None:
+            self.recorder.on_estimate(self.ekf, flags, prediction)
         for robot, player in self.players.items():
             player.situation = situation_from_prediction(robot, self.ekf.x, prediction)
 
@@ -244,11 +263,18 @@ class InProcessGame:
 
 
 def play_game(seed: int, duration: float, goals: int = 0, gui: bool = False, real_time_factor: float = 0.0,
-              progress_period: float = 10.0, progress: Callable[[str], None] | None = None) -> dict:
-    """One game of ``duration`` [s] (or ``goals`` goals) with ``seed``; the scoreboard's result. A
-    module-level function, so worker processes can run it."""
+              progress_period: float = 10.0, progress: Callable[[str], None] | None = None,
+              record: Path | None = None) -> dict:
+    """One game of ``duration`` [s] (or ``goals`` goals) with ``seed``; the scoreboard's result. With
+    ``record``, the game is also written to that MCAP bag directory (:mod:`air_hockey_agent.sim.game_record`;
+    the result's ``"recording"``). A module-level function, so worker processes can run it."""
     game = InProcessGame(seed, gui=gui)
     try:
-        return game.run(duration, goals, progress, progress_period, real_time_factor)
+        if record is None:
+            return game.run(duration, goals, progress, progress_period, real_time_factor)
+        from air_hockey_agent.sim.game_record import GameRecorder
+        with GameRecorder(record, JOINT_NAMES) as game.recorder:
+            result = game.run(duration, goals, progress, progress_period, real_time_factor)
+        return {**result, "recording": str(record)}
     finally:
         game.close()

@@ -21,3 +21,8 @@ def save_figure(fig, path: Path, dpi: int = 110) -> Path:
     plt.close(fig)
     os.replace(tmp, path)
     return path
+
+
+def output_bag_directory(out: Path) -> Path:
+    """The bag directory an ``OUT.mcap`` (or ``OUT``) argument names: ``OUT`` (rosbag2 writes a directory)."""
+    return out.with_suffix("") if out.suffix == ".mcap" else out

@@ -11,7 +11,8 @@ stopped at the end, on Ctrl-C, or when any node dies.
 
 ``--in-process`` plays the same game without ROS in this process (:mod:`air_hockey_agent.sim.game_loop`:
 the same agent, simulation, tracker and referee code called in a fixed order), so a seed repeats a
-game exactly, and faster; nothing is published or recorded.
+game exactly, and faster; nothing is published, and ``--record`` writes the same topics as the node graph's
+(:mod:`air_hockey_agent.sim.game_record`).
 """
 from __future__ import annotations
 
@@ -26,26 +27,16 @@ from pathlib import Path
 from air_hockey_agent.params import ParamSpec, load_defaults
 from air_hockey_agent.paths import config_file
 from air_hockey_agent.tools import interrupt
+from air_hockey_agent.tools.files import output_bag_directory
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.ros_env import display_available, node_executable, ros_environment
 from air_hockey_agent.tools.argtypes import count
+from air_hockey_agent.sim.game_topics import MARKER_TOPICS, RECORDED_TOPICS
 
 ROBOTS = ("iiwa_front", "iiwa_back")
 SHARED_NODES = ("table_sim", "referee")
 VIEW_NODE = "visualizer"
-MARKER_TOPICS = {"/visualization/markers": "visualization_msgs/msg/MarkerArray"}  # the visualizer's
 PER_ROBOT_NODES = ("puck_tracker", "tactics", "trajectory_generator")
-RECORDED_TOPICS = {
-    "/optitrack/puck": "geometry_msgs/msg/PoseStamped",
-    "/sim/puck_true_state": "air_hockey_msgs/msg/PuckState",
-    "/sim/contacts": "air_hockey_msgs/msg/MalletContact",
-    "/game_status": "air_hockey_msgs/msg/GameStatus",
-    **{f"/{r}/{t}": m for r in ROBOTS for t, m in (
-        ("joint_states", "sensor_msgs/msg/JointState"), ("puck/state", "air_hockey_msgs/msg/PuckState"),
-        ("tactic", "air_hockey_msgs/msg/TacticState"), ("hit_command", "air_hockey_msgs/msg/HitCommand"),
-        ("trajectory_status", "air_hockey_msgs/msg/TrajectoryStatus"),
-        ("joint_trajectory", "trajectory_msgs/msg/JointTrajectory"))},
-}
 
 GAME_PARAMS = (
     ParamSpec("startup_timeout", float, "[s] time for all nodes to come up", 1.0, 600.0),
@@ -118,8 +109,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--workers", type=count(1, 16), default=1,
                         help="with --in-process --games: games played at once, each in its own process (default 1)")
     parser.add_argument("--in-process", action="store_true",
-                        help="play without ROS in this process: a seed repeats the game exactly (no --record, "
-                             "--markers, --log or --domain-id)")
+                        help="play without ROS in this process: a seed repeats the game exactly (--record "
+                             "records one game; no --markers, --log or --domain-id)")
     parser.set_defaults(run=run)
 
 
@@ -141,14 +132,17 @@ def _check_args(args: argparse.Namespace) -> None:
     if not 0 <= args.seed + args.games - 1 < 2 ** 31:
         raise GameError(f"--seed {args.seed} with --games {args.games}: the seeds must stay in 0..{2 ** 31 - 1}", 2)
     if args.in_process:
-        ros_only = [flag for flag, value in (("--record", args.record), ("--markers", args.markers or None),
-                                             ("--log", args.log), ("--domain-id", args.domain_id)) if value is not None]
+        ros_only = [flag for flag, value in (("--markers", args.markers or None), ("--log", args.log),
+                                             ("--domain-id", args.domain_id)) if value is not None]
         if ros_only:
-            raise GameError(f"{', '.join(ros_only)} need the node graph: leave out --in-process (or them)", 2)
+            raise GameError(f"{', '.join(ros_only)} need{'s' if len(ros_only) == 1 else ''} the node graph: leave out "
+                            "--in-process (or them)", 2)
+        if args.record is not None and args.games > 1:
+            raise GameError("--record with --games: one recording per run; record one game (its seed) at a time", 2)
     if args.log is not None and not args.log.parent.is_dir():
         raise GameError(f"--log {args.log}: directory {args.log.parent} does not exist", 2)
     if args.record is not None:
-        bag = args.record.with_suffix("") if args.record.suffix == ".mcap" else args.record
+        bag = output_bag_directory(args.record)
         if bag.exists():
             raise GameError(f"--record {args.record}: {bag} exists already, not overwriting", 2)
         if not bag.parent.is_dir():
@@ -246,7 +240,9 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
         + (f", {args.workers} workers" if args.workers > 1 else "") + f"): {args.duration:g} s of simulated time"
         + (f" or {args.goals} goals" if args.goals else "") + " per game")
     run_args = (args.duration, args.goals, args.gui, rtf, settings["progress_period"])
-    if args.workers == 1:
+    if args.record is not None:
+        results = [play_game(seeds[0], *run_args, progress=say, record=output_bag_directory(args.record))]
+    elif args.workers == 1:
         results = [play_game(seed, *run_args, progress=say) for seed in seeds]
     else:
         from air_hockey_agent.tools.worker_pool import run_in_processes
@@ -258,7 +254,7 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
         results = run_in_processes(play_game, [(seed, *run_args) for seed in seeds], args.workers, done)
     if not args.json:
         for r in results:
-            print(Scoreboard.total(ROBOTS, [r]).table(None), flush=True)
+            print(Scoreboard.total(ROBOTS, [r]).table(r.get("recording")), flush=True)
     if args.games == 1:
         return results[0]
     total = Scoreboard.total(ROBOTS, results)

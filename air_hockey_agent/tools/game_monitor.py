@@ -51,7 +51,8 @@ class GameMonitor:
         self.writer, self.bag = None, None
         if record is not None:
             from air_hockey_agent.bags.writer import BagWriter
-            self.bag = record.with_suffix("") if record.suffix == ".mcap" else record
+            from air_hockey_agent.tools.files import output_bag_directory
+            self.bag = output_bag_directory(record)
             self.writer = BagWriter(self.bag, dict(topics), "mcap").__enter__()
             for topic, msgtype in topics.items():
                 self.node.create_subscription(message_class(msgtype), topic,

@@ -19,6 +19,7 @@ from pathlib import Path
 
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
 from air_hockey_agent.tools.argtypes import count, number
+from air_hockey_agent.tools.files import output_bag_directory
 
 DEFAULT_TOPICS = {
     "/optitrack/puck": "geometry_msgs/msg/PoseStamped",
@@ -50,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     if args.all and args.topics:
         print("air-hockey record: error: give --topics or --all, not both", file=sys.stderr)
         return 2
-    out = args.out.with_suffix("") if args.out.suffix == ".mcap" else args.out
+    out = output_bag_directory(args.out)
     if out.exists():
         print(f"air-hockey record: error: {out}: exists already, not overwriting", file=sys.stderr)
         return 2
