@@ -28,6 +28,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("static_speed", float, "[m/s] puck at rest below this speed", 0.0, 1.0),
     ParamSpec("drift_speed", float, "[m/s] puck hit where it lies below this speed", 0.0, 1.0),
     ParamSpec("smash_puck_speed", float, "[m/s] smash a puck slower than this", 0.0, 5.0),
+    ParamSpec("beyond_smash_speed", float,
+              "[m/s] smash a puck beyond the smash area's far edge when it is this slow at the hit time", 0.0, 5.0),
     ParamSpec("approach_speed", float, "[m/s] puck approaches when vx < -this", 0.0, 1.0),
     ParamSpec("min_plan_time", float,
               "[s] shortest time before a crossing a defence is planned for (or a running smash or push re-aimed for)", 0.0, 2.0),

@@ -466,6 +466,27 @@ def test_a_smash_at_a_creeping_puck_aims_where_it_will_be_and_stays_with_it(sele
     assert np.allclose(still.puck, [-0.5, 0.1])
 
 
+def test_a_slow_puck_leaving_the_smash_area_toward_the_line_is_smashed_beyond_it(model, settings):
+    """A puck at 0.2 m/s leaving the smash area toward the centre line is smashed where it will be, beyond the
+    area's far edge and still moving (faster than static_speed); held to a puck at rest there (the rule
+    before beyond_smash_speed), the robot waits while it creeps on into the neutral zone."""
+    import dataclasses
+    start = [settings.x_at_depth(0.6), 0.05, 0.2, 0.02, 0.0, 0.0]
+    decisions = {}
+    for beyond in (settings.static_speed, settings.smash_puck_speed):
+        st = dataclasses.replace(settings, beyond_smash_speed=beyond)
+        reach = flat_reach(st)
+        sel = TacticsSelector(st, reach, ShotPredictor(model, st, DT, reach.max_speed))
+        sit = situation(model, start, horizon=1.5)
+        decisions[beyond] = (sel.step(0.0, RUNNING, sit), sit)
+    assert decisions[settings.static_speed][0].tactic == READY
+    smash, sit = decisions[settings.smash_puck_speed]
+    assert smash.tactic == SMASH and smash.command is not None
+    at_hit = sit.expected(smash.command.time, settings.drift_speed)
+    assert settings.beyond_smash_area(smash.command.puck[0])
+    assert math.hypot(at_hit[2], at_hit[3]) > settings.static_speed
+
+
 def test_a_prepare_re_aimed_at_a_creeping_puck_keeps_its_hit_time(selector, model, settings):
     """The same for Prepare: a creeping puck's push is re-aimed when it strays from where it was expected (a
     game re-planned one 14 times in a row at 0.03 m/s) at the same time."""

@@ -25,6 +25,7 @@ class TacticsSettings:
     static_speed: float
     drift_speed: float
     smash_puck_speed: float
+    beyond_smash_speed: float
     approach_speed: float
     min_plan_time: float
     repel_time: tuple[float, float]

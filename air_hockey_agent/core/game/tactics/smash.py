@@ -7,8 +7,9 @@ is aimed with the puck model and the fastest speed the arm allows along its dire
 (:class:`~air_hockey_agent.core.game.shots.ShotPredictor`), and the most likely goal is played. A puck
 creeping faster than ``drift_speed`` is also taken where it will be, not where it lies.
 
-A puck at rest beyond the smash area's far edge (between it and the centre line) is shot from where it
-lies. The arm's reach ends there (a resting puck up to 0.85 m deep at y = 0, ``config/motion.yaml``
+A puck beyond the smash area's far edge (between it and the centre line) is shot where the prediction
+puts it at the hit time when it is slower than ``beyond_smash_speed`` there (a slow puck leaving the area
+toward the line, or one at rest). The arm's reach ends there (a resting puck up to 0.85 m deep at y = 0, ``config/motion.yaml``
 max_reach), so it can mostly push such a puck only forward: of the strategy test's 29 Prepare positions there (seed 0), 5 had
 a push that stops in the area, and the others were pushed toward the line, out of reach, until the
 referee's possession limit gave the puck away. Where no shot reaches the goal line (no room ahead of
@@ -45,7 +46,7 @@ class Smash(Tactic):
         speed = math.hypot(puck[2], puck[3])
         if speed > st.smash_puck_speed:
             return None
-        if not (st.in_smash_area(puck[0], puck[1]) or (speed <= st.static_speed and st.beyond_smash_area(puck[0]))):
+        if not (st.in_smash_area(puck[0], puck[1]) or (speed <= st.beyond_smash_speed and st.beyond_smash_area(puck[0]))):
             return None
         shot = ctx.shots.pick([s for s in self._shots(puck, ctx) if approach_clear(puck, s.hit_point, s.mallet_speed * s.direction, ctx)])
         if shot is None:
