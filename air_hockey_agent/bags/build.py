@@ -1,5 +1,6 @@
 """rosbags messages from plain values: nested mappings of field names, every field left out at its
-default (zero, empty, False), so a writer names only what it sets, as with an rclpy message.
+default (zero, empty, False), so a writer names only what it sets, as with an rclpy message; and the
+fields of the messages more than one tool writes (a header, a mocap pose, a puck state).
 
 ``build("geometry_msgs/msg/PoseStamped", {"header": {"stamp": stamp_fields(1.5), "frame_id": "optitrack"}})``
 gives the rosbags object :class:`air_hockey_agent.bags.writer.BagWriter` serialises. A field name the
@@ -23,6 +24,28 @@ def stamp_fields(seconds: float) -> dict[str, int]:
     """builtin_interfaces/Time fields of ``seconds`` (>= 0), rounded to the nanosecond."""
     ns = int(round(seconds * 1e9))
     return {"sec": ns // 1_000_000_000, "nanosec": ns % 1_000_000_000}
+
+
+def header_fields(seconds: float, frame_id: str = "") -> dict:
+    """std_msgs/Header fields: stamp ``seconds`` [s], ``frame_id``."""
+    return {"stamp": stamp_fields(seconds), "frame_id": frame_id}
+
+
+def pose_fields(seconds: float, frame_id: str, x: float, y: float, z: float, yaw: float) -> dict:
+    """geometry_msgs/PoseStamped fields of a planar pose: position [m], ``yaw`` [rad] about z."""
+    from air_hockey_agent.core.frames import quaternion_from_yaw
+    qx, qy, qz, qw = quaternion_from_yaw(yaw)
+    return {"header": header_fields(seconds, frame_id), "pose": {
+        "position": {"x": float(x), "y": float(y), "z": float(z)}, "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}}
+
+
+def puck_state_fields(seconds: float, state, covariance=None, flags: int = 0, frame_id: str = "table") -> dict:
+    """air_hockey_msgs/PuckState fields of (x, y, vx, vy, theta, omega) at ``seconds`` [s] with its 6x6
+    ``covariance`` (None: zeros)."""
+    x, y, vx, vy, theta, omega = (float(v) for v in state)
+    cov = np.zeros(36) if covariance is None else np.asarray(covariance, float).reshape(36)
+    return {"header": header_fields(seconds, frame_id), "x": x, "y": y, "vx": vx, "vy": vy, "theta": theta,
+            "omega": omega, "covariance": cov, "flags": flags}
 
 
 def build(type_name: str, data: Mapping[str, Any] | None = None) -> Any:

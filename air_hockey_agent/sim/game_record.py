@@ -19,7 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
-from air_hockey_agent.bags.build import build, stamp_fields
+from air_hockey_agent.bags.build import build, header_fields, pose_fields, puck_state_fields, stamp_fields
 from air_hockey_agent.bags.writer import BagWriter
 from air_hockey_agent.core import scene
 from air_hockey_agent.core.frames import TABLE_FRAME, quaternion_from_yaw
@@ -36,10 +36,6 @@ MARKER_KINDS = {"arrow": 0, "cube": 1, "sphere": 2, "cylinder": 3, "line_strip":
 MARKER_DELETEALL = 3  # visualization_msgs/Marker action
 
 
-def _header(t: float, frame_id: str = "") -> dict:
-    return {"stamp": stamp_fields(t), "frame_id": frame_id}
-
-
 def _xyz(values) -> dict:
     return dict(zip("xyz", (float(v) for v in values)))
 
@@ -47,18 +43,11 @@ def _xyz(values) -> dict:
 def marker_fields(shape: scene.Shape, t: float) -> dict:
     """visualization_msgs/Marker fields of a scene shape (table frame) at ``t`` [s]."""
     qx, qy, qz, qw = quaternion_from_yaw(shape.yaw)
-    return {"header": _header(t, TABLE_FRAME), "ns": shape.ns, "id": shape.id, "type": MARKER_KINDS[shape.kind],
+    return {"header": header_fields(t, TABLE_FRAME), "ns": shape.ns, "id": shape.id, "type": MARKER_KINDS[shape.kind],
             "text": shape.text, "pose": {"position": _xyz(shape.position), "orientation": {"x": qx, "y": qy, "z": qz,
                                                                                           "w": qw}},
             "scale": _xyz(shape.scale), "color": dict(zip("rgba", shape.color)),
             "points": [_xyz(p) for p in shape.points]}
-
-
-def puck_state_fields(t: float, state, covariance, flags: int = 0) -> dict:
-    """air_hockey_msgs/PuckState fields (table frame) of (x, y, vx, vy, theta, omega) at ``t`` [s]."""
-    x, y, vx, vy, theta, omega = (float(v) for v in state)
-    return {"header": _header(t, TABLE_FRAME), "x": x, "y": y, "vx": vx, "vy": vy, "theta": theta, "omega": omega,
-            "covariance": np.asarray(covariance, float).reshape(36), "flags": flags}
 
 
 class GameRecorder:
@@ -99,16 +88,14 @@ class GameRecorder:
             for robot in ROBOTS:
                 self.on_joints(t, robot, world)
         for c in out.contacts:
-            self._write("/sim/contacts", t, {"header": _header(c.time, TABLE_FRAME), "robot": c.robot,
+            self._write("/sim/contacts", t, {"header": header_fields(c.time, TABLE_FRAME), "robot": c.robot,
                                              "duration": c.duration, "x": c.x, "y": c.y, "vx": c.vx, "vy": c.vy,
                                              "speed": math.hypot(c.vx, c.vy)})
         if out.true_state is not None:
-            self._write("/sim/puck_true_state", t, puck_state_fields(t, out.true_state, np.zeros(36)))
+            self._write("/sim/puck_true_state", t, puck_state_fields(t, out.true_state))
         if out.mocap is not None:
             stamp, (x, y, z, yaw) = out.mocap
-            qx, qy, qz, qw = quaternion_from_yaw(yaw)
-            self._write("/optitrack/puck", t, {"header": _header(stamp, "optitrack"), "pose": {
-                "position": {"x": x, "y": y, "z": z}, "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}}})
+            self._write("/optitrack/puck", t, pose_fields(stamp, "optitrack", x, y, z, yaw))
         if self.marker_tick.due(t) is not None:
             shapes = self.scene.shapes(t)
             self._write("/visualization/markers", t, {"markers": [{"action": MARKER_DELETEALL}]
@@ -118,7 +105,7 @@ class GameRecorder:
         q, dq = world.joint_state(robot)
         sq, sdq = world.striker_state(robot)
         values = np.concatenate([q, sq])
-        self._write(f"/{robot}/joint_states", t, {"header": _header(t), "name": list(self.joint_names),
+        self._write(f"/{robot}/joint_states", t, {"header": header_fields(t), "name": list(self.joint_names),
                                                    "position": values, "velocity": np.concatenate([dq, sdq])})
         arm = in_order(self.joint_names, values, self.kinematics.joint_names)
         self.scene.mallets[robot] = self.kinematics.tip_in_table(arm, self.bases[robot])
@@ -148,7 +135,7 @@ class GameRecorder:
         if key == self._status:
             return
         self._status = key
-        data = {"header": _header(t, TABLE_FRAME), "status": state.status, "score_front": state.score[ROBOTS[0]],
+        data = {"header": header_fields(t, TABLE_FRAME), "status": state.status, "score_front": state.score[ROBOTS[0]],
                 "score_back": state.score[ROBOTS[1]], "last_event": state.last_event, "reason": state.reason}
         if state.last_event != 0:  # GameStatus.EVENT_NONE
             data["last_event_stamp"] = stamp_fields(state.last_event_time)
@@ -163,7 +150,7 @@ class GameRecorder:
         if self._tactics.get(robot) == key:
             return
         self._tactics[robot] = key
-        self._write(f"/{robot}/tactic", t, {"header": _header(t), "robot": robot, "tactic": selector.current,
+        self._write(f"/{robot}/tactic", t, {"header": header_fields(t), "robot": robot, "tactic": selector.current,
                                             "name": NAMES[selector.current], "forced": selector.forced is not None,
                                             "reason": selector.reason})
         self.scene.tactics[robot] = NAMES[selector.current]
@@ -174,9 +161,9 @@ class GameRecorder:
         point, velocity, target = (tuple(float(v) for v in a) for a in (proposal.point, proposal.velocity,
                                                                            proposal.target))
         self._write(f"/{robot}/hit_command", t, {
-            "header": _header(t, robot), "tactic": proposal.tactic, "hit_point": _xyz(point),
+            "header": header_fields(t, robot), "tactic": proposal.tactic, "hit_point": _xyz(point),
             "hit_velocity": _xyz(velocity), "hit_time": stamp_fields(proposal.time), "target": _xyz(target)})
-        status = {"header": _header(t), "command_stamp": stamp_fields(t), "tactic": proposal.tactic,
+        status = {"header": header_fields(t), "command_stamp": stamp_fields(t), "tactic": proposal.tactic,
                   "outcome": plan.outcome, "reason": plan.message, "hit_speed": float(plan.hit_speed),
                   "max_hit_speed": float(plan.max_speed), "planning_time": planning_time}
         if math.isfinite(plan.hit_time):
@@ -185,6 +172,6 @@ class GameRecorder:
         self.scene.commands[robot] = scene.SceneCommand(point, velocity, target, float(proposal.time))
         if motion is not None:
             times, q, dq, joints = motion
-            self._write(f"/{robot}/joint_trajectory", t, {"header": _header(t), "joint_names": list(joints), "points": [
+            self._write(f"/{robot}/joint_trajectory", t, {"header": header_fields(t), "joint_names": list(joints), "points": [
                 {"positions": qi, "velocities": dqi, "time_from_start": stamp_fields(ti)}
                 for ti, qi, dqi in zip(times, q, dq)]})

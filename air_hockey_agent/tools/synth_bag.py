@@ -27,10 +27,10 @@ from pathlib import Path
 
 import numpy as np
 
-from air_hockey_agent.bags.types import typestore
+from air_hockey_agent.bags.build import build, pose_fields, puck_state_fields
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
 from air_hockey_agent.core.estimation.ekf import PuckEKF
-from air_hockey_agent.core.frames import quaternion_from_yaw, table_to_mocap
+from air_hockey_agent.core.frames import table_to_mocap
 from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
 from air_hockey_agent.core.estimation.synthetic import MOCAP_FIELDS, MocapImperfections, ShotRanges, synthetic_session
 from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
@@ -143,21 +143,12 @@ def _truth_source(source: str, params_files, session, table, seed: int):
 
 def _messages(frames, start_time: float, table_pose):
     """(topic, log time [ns], message) in stamp order: the pose in the mocap frame and the truth."""
-    types = typestore().types
-    pose_cls, state_cls = types["geometry_msgs/msg/PoseStamped"], types["air_hockey_msgs/msg/PuckState"]
-    header_cls, time_cls = types["std_msgs/msg/Header"], types["builtin_interfaces/msg/Time"]
-    point_cls, quat_cls, pose3_cls = (types["geometry_msgs/msg/Point"], types["geometry_msgs/msg/Quaternion"],
-                                      types["geometry_msgs/msg/Pose"])
     for f in frames:
-        stamp_ns = int(round((start_time + f.stamp) * 1e9))
-        stamp = time_cls(sec=stamp_ns // 1_000_000_000, nanosec=stamp_ns % 1_000_000_000)
-        x, y, vx, vy, theta, omega = (float(v) for v in f.truth)
-        yield TRUTH_TOPIC, stamp_ns, state_cls(header=header_cls(stamp=stamp, frame_id="table"), x=x, y=y, vx=vx,
-                                               vy=vy, theta=theta, omega=omega, covariance=np.zeros(36), flags=0)
+        stamp = start_time + f.stamp
+        stamp_ns = int(round(stamp * 1e9))
+        yield TRUTH_TOPIC, stamp_ns, build("air_hockey_msgs/msg/PuckState", puck_state_fields(stamp, f.truth))
         if f.measurement is None:
             continue
         mx, my, myaw = table_to_mocap(*(float(v) for v in f.measurement), table_pose)
-        qx, qy, qz, qw = quaternion_from_yaw(myaw)
-        pose = pose3_cls(position=point_cls(x=mx, y=my, z=float(table_pose[2])),
-                         orientation=quat_cls(x=qx, y=qy, z=qz, w=qw))
-        yield POSE_TOPIC, stamp_ns, pose_cls(header=header_cls(stamp=stamp, frame_id="optitrack"), pose=pose)
+        yield POSE_TOPIC, stamp_ns, build("geometry_msgs/msg/PoseStamped",
+                                          pose_fields(stamp, "optitrack", mx, my, float(table_pose[2]), myaw))
