@@ -73,6 +73,39 @@ def test_expected_carries_a_creeping_puck_on_beyond_the_horizon_and_holds_a_rest
     np.testing.assert_allclose(sit.expected(0.8, 0.06)[:4], [*start[:2], 0.0, 0.0])
 
 
+def test_lazy_ranking_orders_exactly_as_scoring_everything_and_scores_only_what_it_needs():
+    """LazyRanked against a stable sort of every exact key (ties in candidate order, dropped candidates
+    left out): the same items in the same order; the best item costs fewer exact scorings than there
+    are candidates."""
+    from air_hockey_agent.core.game.tactics.outcome import LazyRanked
+    rng = np.random.default_rng(3)
+    for trial in range(50):
+        n = int(rng.integers(1, 40))
+        exact_keys = [(int(rng.integers(-3, 4)), -float(rng.integers(0, 3))) for _ in range(n)]
+        dropped = rng.random(n) < 0.2
+        bounds = [(k[0] + int(rng.integers(0, 3)), k[1]) for k in exact_keys]
+        calls = []
+
+        def exact(i):
+            calls.append(i)
+            return None if dropped[i] else (exact_keys[i], (i,))
+        lazy = LazyRanked([(bounds[i], lambda i=i: exact(i)) for i in range(n)])
+        expected = sorted([i for i in range(n) if not dropped[i]], key=lambda i: exact_keys[i], reverse=True)
+        assert lazy.item(0) == (None if not expected else (expected[0],))
+        first_cost = len(calls)
+        got, i = [], 0
+        while (item := lazy.item(i)) is not None:
+            got.append(item[0])
+            i += 1
+        assert got == expected, trial
+        assert sorted(calls) == list(range(n))  # each scored once, all of them by the end
+        assert first_cost <= n
+    # tight bounds: the best of 30 candidates costs one scoring
+    scored = []
+    lazy = LazyRanked([((k,), lambda k=k: scored.append(k) or ((k,), (k,))) for k in range(30)])
+    assert lazy.item(0) == (29,) and scored == [29]
+
+
 def test_own_frame_of_the_back_robot_is_the_table_turned_by_pi():
     s = to_own_frame(np.array([0.5, -0.2, 1.0, 0.3, 0.1, 2.0]), "iiwa_back")
     np.testing.assert_allclose(s, [-0.5, 0.2, -1.0, -0.3, 0.1 - math.pi, 2.0])

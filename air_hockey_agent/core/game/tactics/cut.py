@@ -26,7 +26,7 @@ import numpy as np
 from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import CUT, Context, Proposal, Tactic
-from air_hockey_agent.core.game.tactics.outcome import Ranked, worst_margin
+from air_hockey_agent.core.game.tactics.outcome import LazyRanked, Ranked, aimed_case, margin_steps
 
 CACHE_SIZE = 16
 KEY_TIME = 0.02       # [s] predicted defend-line crossings closer than this in time ...
@@ -55,7 +55,7 @@ class Cut(Tactic):
         if key not in self._cache:
             if len(self._cache) >= CACHE_SIZE:
                 self._cache.clear()
-            self._cache[key] = Ranked(self._ranked(situation, ctx, c.time))
+            self._cache[key] = LazyRanked(self._ranked(situation, ctx, c.time))
         best = self._cache[key].first(
             lambda t, push, run_on: t - ctx.now >= st.min_plan_time + ctx.lead_extra,
             lambda t, push, run_on: not ctx.shots.rebounds_into_mallet(push, run_on, st.recontact_watch))
@@ -72,12 +72,13 @@ class Cut(Tactic):
         return Proposal(CUT, push.hit_point, push.mallet_velocity, t, reason, puck=puck[:2], target=push.rest,
                         later_ok=True)
 
-    def _ranked(self, situation: Situation, ctx: Context, crossing_time: float) -> list[tuple[float, Push, float]]:
-        """(contact time, contact, mallet follow-through [m]) the arm can make, best first: by how deep inside the smash area the puck
-        stops in the worst of the aimed normal and the normal off by the aim noise either way; among
-        equals the earlier contact, then the slower mallet."""
+    def _ranked(self, situation: Situation, ctx: Context, crossing_time: float) -> list[tuple]:
+        """The contacts the arm can make, for :class:`LazyRanked`: each item is (contact time, contact,
+        mallet follow-through [m]), ranked by how deep inside the smash area the puck stops in the worst of
+        the aimed normal and the normal off by the aim noise either way; among equals the earlier
+        contact, then the slower mallet."""
         st = ctx.settings
-        scored = []
+        candidates = []
         first = ctx.now + st.min_plan_time
         for t in np.linspace(first, crossing_time, st.cut_contact_steps):
             puck = situation.at(float(t))
@@ -86,12 +87,12 @@ class Cut(Tactic):
                 continue
             head_on = -puck[2:4] / u_in  # the normal of a head-on contact (mallet to puck)
             for turn in np.linspace(-st.cut_normal_range, st.cut_normal_range, st.cut_normal_steps):
-                scored += self._contacts(puck, _rotate(head_on, float(turn)), float(t), ctx)
-        scored.sort(key=lambda item: item[0], reverse=True)
-        return [item[1:] for item in scored]
+                candidates += self._contacts(puck, _rotate(head_on, float(turn)), float(t), ctx)
+        return candidates
 
     def _contacts(self, puck: np.ndarray, n: np.ndarray, t: float, ctx: Context) -> list[tuple]:
-        """The scored contacts with normal ``n`` at time ``t``: one per catch fraction the arm allows."""
+        """The contacts with normal ``n`` at time ``t``, one per catch fraction the arm allows, as (key bound,
+        exact key and item) for :class:`LazyRanked`."""
         st = ctx.settings
         closing = -float(puck[2:4] @ n)  # [m/s] the puck's speed toward the mallet along n
         if closing <= 0.0:
@@ -109,7 +110,14 @@ class Cut(Tactic):
             def contact(turn: float, speed: float = speed) -> Push:  # the mallet gives way along its normal
                 normal = _rotate(n, turn)
                 return ctx.shots.contact(puck, normal, -speed * normal, st.prepare_end_speed, st.prepare_horizon)
-            scored = worst_margin(st, contact, lambda push: push.enters_goal)
-            if scored is not None:
-                out.append(((scored[0], -t, -speed), t, scored[1], run_on if speed > 0.0 else 0.0))
+            aimed = aimed_case(st, contact, lambda push: push.enters_goal, lambda push: margin_steps(st, push))
+            if aimed is None:
+                continue
+            bound, _, worst = aimed
+            follow = run_on if speed > 0.0 else 0.0
+
+            def exact(worst=worst, speed=speed, follow=follow) -> tuple | None:
+                scored = worst()
+                return None if scored is None else ((scored[0], -t, -speed), (t, scored[1], follow))
+            out.append(((bound, -t, -speed), exact))
         return out

@@ -28,7 +28,7 @@ from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import (PREPARE, Context, Proposal, Tactic, approach_clear,
                                                     self_timed_hit_time)
-from air_hockey_agent.core.game.tactics.outcome import Ranked, worst_case, worst_margin
+from air_hockey_agent.core.game.tactics.outcome import LazyRanked, Ranked, aimed_case, margin_steps
 
 CACHE_SIZE = 64
 KEY_POSITION = 0.005  # [m] puck positions closer than this share a chosen push
@@ -73,42 +73,50 @@ class Prepare(Tactic):
         if key not in self._cache:
             if len(self._cache) >= CACHE_SIZE:
                 self._cache.clear()
-            self._cache[key] = Ranked(ranking(puck, ctx))
+            self._cache[key] = LazyRanked(ranking(puck, ctx))
         st = ctx.settings
         best = self._cache[key].first(
             lambda p, run_on: approach_clear(puck, p.hit_point, p.mallet_velocity, ctx),
             lambda p, run_on: not ctx.shots.rebounds_into_mallet(p, run_on, st.recontact_watch))
         return None if best is None else best[0]
 
-    def _ranked(self, puck: np.ndarray, ctx: Context) -> list[tuple[Push, float]]:
-        """(push, follow-through [m]) for every push the arm can make that keeps the puck on the own half,
-        best first: by how deep inside the smash area it stops in the worst of the aimed direction and the
-        direction off by ``aim_noise`` either way (negative: outside; then the nearest to the area), the
-        slower first among equals."""
+    def _ranked(self, puck: np.ndarray, ctx: Context) -> list[tuple]:
+        """Every push the arm can make that keeps the puck on the own half, for :class:`LazyRanked`: each
+        item is (push, follow-through [m]), ranked by how deep inside the smash area it stops in the worst
+        of the aimed direction and the direction off by ``aim_noise`` either way (negative: outside; then
+        the nearest to the area), the slower first among equals."""
         st = ctx.settings
-        scored = []
-        for v, run_on, push in self._pushes(puck, ctx):
-            scored_push = worst_margin(st, push, lambda pushed: pushed.crosses_centre or pushed.enters_goal)
-            if scored_push is not None:
-                scored.append((scored_push[0], -v, scored_push[1], run_on))
-        scored.sort(key=lambda item: item[:2], reverse=True)
-        return [(push, run_on) for _, _, push, run_on in scored]
+        return self._candidates(puck, ctx, lambda pushed: pushed.crosses_centre or pushed.enters_goal,
+                                lambda pushed: margin_steps(st, pushed), lambda worst, v: (worst, -v))
 
-    def _clears(self, puck: np.ndarray, ctx: Context) -> list[tuple[Push, float]]:
-        """(push, follow-through [m]) for every push that sends the puck across the centre line and not into
-        the own goal with the aim noise either way: first those whose puck stops ``clear_depth`` or more past
-        the line in the worst case, slowest first; then the others, farthest first."""
+    def _clears(self, puck: np.ndarray, ctx: Context) -> list[tuple]:
+        """Every push that sends the puck across the centre line and not into the own goal with the aim
+        noise either way, for :class:`LazyRanked` (items: (push, follow-through [m])): first those whose
+        puck stops ``clear_depth`` or more past the line in the worst case, slowest first; then the others,
+        farthest first."""
         st = ctx.settings
-        scored = []
+
+        def key(worst: float, v: float) -> tuple:
+            deep = worst >= st.clear_depth
+            return deep, (-v if deep else worst)
+        return self._candidates(puck, ctx, lambda pushed: pushed.enters_goal or not pushed.crosses_centre,
+                                lambda pushed: float(pushed.rest[0]), key)
+
+    def _candidates(self, puck: np.ndarray, ctx: Context, rejected, score, key) -> list[tuple]:
+        """(key bound, exact key and item) of every push (:meth:`_pushes`): ``key(worst score, speed)`` of
+        the aimed push's score bounds that of the worst case (``key`` must not decrease with the score)."""
+        candidates = []
         for v, run_on, push in self._pushes(puck, ctx):
-            worst = worst_case(st, push, lambda pushed: pushed.enters_goal or not pushed.crosses_centre,
-                               lambda pushed: float(pushed.rest[0]))
-            if worst is not None:
-                depth, aimed = worst
-                deep = depth >= st.clear_depth
-                scored.append(((deep, -v if deep else depth), aimed, run_on))
-        scored.sort(key=lambda item: item[0], reverse=True)
-        return [(push, run_on) for _, push, run_on in scored]
+            aimed = aimed_case(ctx.settings, push, rejected, score)
+            if aimed is None:
+                continue
+            bound, _, worst = aimed
+
+            def exact(worst=worst, v=v, run_on=run_on) -> tuple | None:
+                scored = worst()
+                return None if scored is None else (key(scored[0], v), (scored[1], run_on))
+            candidates.append((key(bound, v), exact))
+        return candidates
 
     @staticmethod
     def _pushes(puck: np.ndarray, ctx: Context):
