@@ -31,7 +31,6 @@ def test_air_hockey_help_lists_commands():
     (["--record", "/nonexistent/dir/out.mcap"], "does not exist"),
     (["--in-process", "--markers", "--domain-id", "7"], "--markers, --domain-id need the node graph"),
     (["--in-process", "--log", "/tmp/game.log"], "--log needs the node graph"),
-    (["--in-process", "--games", "2", "--record", "/tmp/x.mcap"], "--record with --games: one recording per run"),
     (["--games", "3"], "--games needs --in-process"),
     (["--in-process", "--workers", "2"], "--workers needs --in-process and --games"),
 ])
@@ -42,13 +41,20 @@ def test_game_refuses_bad_arguments_in_one_line(args, message):
 
 
 @pytest.mark.integration
-def test_in_process_games_add_up_in_one_json_object():
-    """Two games on two worker processes: their sum, and the same games as played one after the other."""
+def test_in_process_games_add_up_in_one_json_object(tmp_path):
+    """Two games on two worker processes, recorded: their sum, one bag per game that game-check reads, and
+    the same games as played one after the other, unrecorded."""
     command = [str(BIN / "air-hockey"), "game", "--in-process", "--games", "2", "--seed", "5", "--duration", "2", "--json"]
-    result, serial = run([*command, "--workers", "2"], timeout=300), run(command, timeout=300)
+    result = run([*command, "--workers", "2", "--record", str(tmp_path / "games.mcap")], timeout=300)
+    serial = run(command, timeout=300)
     assert result.returncode == 0 and serial.returncode == 0, result.stderr[-2000:] + serial.stderr[-2000:]
-    out = json.loads(result.stdout)
-    assert out == json.loads(serial.stdout)
+    out, unrecorded = json.loads(result.stdout), json.loads(serial.stdout)
+    bags = [tmp_path / "games" / f"seed_{seed}" for seed in (5, 6)]
+    assert [g.pop("recording") for g in out["games"]] == [str(b) for b in bags]
+    assert [g.pop("recording") for g in unrecorded["games"]] == [None, None]
+    assert out == unrecorded
+    checked = run([str(BIN / "air-hockey"), "game-check", *map(str, bags), "--json"], timeout=300)
+    assert checked.returncode == 0 and set(json.loads(checked.stdout)) >= {str(b) for b in bags}, checked.stdout[-2000:]
     assert [g["seed"] for g in out["games"]] == [5, 6]
     assert out["total"]["duration_s"] == pytest.approx(sum(g["duration_s"] for g in out["games"]))
     assert out["total"]["duration_s"] >= 4.0

@@ -110,7 +110,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="with --in-process --games: games played at once, each in its own process (default 1)")
     parser.add_argument("--in-process", action="store_true",
                         help="play without ROS in this process: a seed repeats the game exactly (--record "
-                             "records one game; no --markers, --log or --domain-id)")
+                             "records it; with --games, OUT is a directory of one bag per game, seed_<SEED>; "
+                             "no --markers, --log or --domain-id)")
     parser.set_defaults(run=run)
 
 
@@ -137,8 +138,6 @@ def _check_args(args: argparse.Namespace) -> None:
         if ros_only:
             raise GameError(f"{', '.join(ros_only)} need{'s' if len(ros_only) == 1 else ''} the node graph: leave out "
                             "--in-process (or them)", 2)
-        if args.record is not None and args.games > 1:
-            raise GameError("--record with --games: one recording per run; record one game (its seed) at a time", 2)
     if args.log is not None and not args.log.parent.is_dir():
         raise GameError(f"--log {args.log}: directory {args.log.parent} does not exist", 2)
     if args.record is not None:
@@ -240,10 +239,9 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
         + (f", {args.workers} workers" if args.workers > 1 else "") + f"): {args.duration:g} s of simulated time"
         + (f" or {args.goals} goals" if args.goals else "") + " per game")
     run_args = (args.duration, args.goals, args.gui, rtf, settings["progress_period"])
-    if args.record is not None:
-        results = [play_game(seeds[0], *run_args, progress=say, record=output_bag_directory(args.record))]
-    elif args.workers == 1:
-        results = [play_game(seed, *run_args, progress=say) for seed in seeds]
+    bags = _game_bags(args.record, seeds)
+    if args.workers == 1:
+        results = [play_game(seed, *run_args, progress=say, record=bag) for seed, bag in zip(seeds, bags)]
     else:
         from air_hockey_agent.tools.worker_pool import run_in_processes
 
@@ -251,7 +249,8 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
             if isinstance(result, Exception):
                 raise GameError(f"game with seed {seeds[index]} failed: {type(result).__name__}: {result}")
             say(f"seed {seeds[index]}: {Scoreboard.total(ROBOTS, [result]).progress()}")
-        results = run_in_processes(play_game, [(seed, *run_args) for seed in seeds], args.workers, done)
+        results = run_in_processes(play_game, [(seed, *run_args, None, bag) for seed, bag in zip(seeds, bags)],
+                                   args.workers, done)
     if not args.json:
         for r in results:
             print(Scoreboard.total(ROBOTS, [r]).table(r.get("recording")), flush=True)
@@ -262,6 +261,19 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
         print(f"{args.games} games, seeds {seeds[0]}-{seeds[-1]}: "
               + total.table(None).replace("game over after", "in all", 1), flush=True)
     return {"games": [{"seed": seed, **r} for seed, r in zip(seeds, results)], "total": total.result(None)}
+
+
+def _game_bags(record: Path | None, seeds: list[int]) -> list[Path | None]:
+    """Where each in-process game is recorded: nowhere without ``--record``; one game in ``OUT``; several
+    in the new directory ``OUT``, one bag ``seed_<SEED>`` each (the games already played stay when the run is
+    interrupted)."""
+    if record is None:
+        return [None] * len(seeds)
+    out = output_bag_directory(record)
+    if len(seeds) == 1:
+        return [out]
+    out.mkdir()
+    return [out / f"seed_{seed}" for seed in seeds]
 
 
 def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
