@@ -26,7 +26,7 @@ import numpy as np
 from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import CUT, Context, Proposal, Tactic
-from air_hockey_agent.core.game.tactics.outcome import LazyRanked, Ranked, aimed_case, margin_steps
+from air_hockey_agent.core.game.tactics.outcome import LazyRanked, Ranked, lazy_candidate, margin_steps
 
 CACHE_SIZE = 16
 KEY_TIME = 0.02       # [s] predicted defend-line crossings closer than this in time ...
@@ -110,14 +110,11 @@ class Cut(Tactic):
             def contact(turn: float, speed: float = speed) -> Push:  # the mallet gives way along its normal
                 normal = _rotate(n, turn)
                 return ctx.shots.contact(puck, normal, -speed * normal, st.prepare_end_speed, st.prepare_horizon)
-            aimed = aimed_case(st, contact, lambda push: push.enters_goal, lambda push: margin_steps(st, push))
-            if aimed is None:
-                continue
-            bound, _, worst = aimed
             follow = run_on if speed > 0.0 else 0.0
-
-            def exact(worst=worst, speed=speed, follow=follow) -> tuple | None:
-                scored = worst()
-                return None if scored is None else ((scored[0], -t, -speed), (t, scored[1], follow))
-            out.append(((bound, -t, -speed), exact))
+            candidate = lazy_candidate(st, contact, lambda push: push.enters_goal,
+                                       lambda push: margin_steps(st, push),
+                                       lambda score, speed=speed: (score, -t, -speed),
+                                       lambda push, follow=follow: (t, push, follow))
+            if candidate is not None:
+                out.append(candidate)
         return out

@@ -28,32 +28,28 @@ def area_margin(st: TacticsSettings, point: np.ndarray) -> float:
     return min(depth - st.smash_depth[0], st.smash_depth[1] - depth, half_width - abs(point[1]))
 
 
-def aimed_case(st: TacticsSettings, contact: Callable[[float], Push], rejected: Callable[[Push], bool],
-               score: Callable[[Push], float]):
-    """The contact aimed as planned (``contact(0)``): (its ``score``, an upper bound of the worst case;
-    the aimed contact; a function returning :func:`worst_case`'s answer); None when it is ``rejected``."""
+def lazy_candidate(st: TacticsSettings, contact: Callable[[float], Push], rejected: Callable[[Push], bool],
+                   score: Callable[[Push], float], key: Callable[[float], tuple], item: Callable[[Push], tuple]):
+    """One contact as a :class:`LazyRanked` candidate, scored by its worst case: the smallest ``score`` over
+    the contact aimed as planned (``contact(0)``) and turned by the aim noise either way, dropped when any
+    of them is ``rejected``. Returns (``key`` of the aimed contact's score, which bounds the worst case's
+    when ``key`` does not decrease with the score; ``exact()``: (``key`` of the worst score, ``item`` of the
+    aimed contact), or None), or None when the aimed contact is rejected: only it is predicted here, the
+    two turned ones when ``exact`` is called."""
     aimed = contact(0.0)
     if rejected(aimed):
         return None
     first = score(aimed)
 
-    def worst() -> tuple[float, Push] | None:
+    def exact() -> tuple[tuple, tuple] | None:
         scores = [first]
         for turn in (-st.aim_noise, st.aim_noise):
             push = contact(turn)
             if rejected(push):
                 return None
             scores.append(score(push))
-        return min(scores), aimed
-    return first, aimed, worst
-
-
-def worst_case(st: TacticsSettings, contact: Callable[[float], Push], rejected: Callable[[Push], bool],
-               score: Callable[[Push], float]) -> tuple[float, Push] | None:
-    """(the smallest ``score``, the aimed contact) over the contact aimed as planned (``contact(0)``) and
-    turned by the aim noise either way; None when any of them is ``rejected``."""
-    aimed = aimed_case(st, contact, rejected, score)
-    return None if aimed is None else aimed[2]()
+        return key(min(scores)), item(aimed)
+    return key(first), exact
 
 
 def margin_steps(st: TacticsSettings, push: Push) -> int:

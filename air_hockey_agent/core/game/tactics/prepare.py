@@ -28,7 +28,7 @@ from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import (PREPARE, Context, Proposal, Tactic, approach_clear,
                                                     self_timed_hit_time)
-from air_hockey_agent.core.game.tactics.outcome import LazyRanked, Ranked, aimed_case, margin_steps
+from air_hockey_agent.core.game.tactics.outcome import LazyRanked, Ranked, lazy_candidate, margin_steps
 
 CACHE_SIZE = 64
 KEY_POSITION = 0.005  # [m] puck positions closer than this share a chosen push
@@ -105,18 +105,10 @@ class Prepare(Tactic):
     def _candidates(self, puck: np.ndarray, ctx: Context, rejected, score, key) -> list[tuple]:
         """(key bound, exact key and item) of every push (:meth:`_pushes`): ``key(worst score, speed)`` of
         the aimed push's score bounds that of the worst case (``key`` must not decrease with the score)."""
-        candidates = []
-        for v, run_on, push in self._pushes(puck, ctx):
-            aimed = aimed_case(ctx.settings, push, rejected, score)
-            if aimed is None:
-                continue
-            bound, _, worst = aimed
-
-            def exact(worst=worst, v=v, run_on=run_on) -> tuple | None:
-                scored = worst()
-                return None if scored is None else (key(scored[0], v), (scored[1], run_on))
-            candidates.append((key(bound, v), exact))
-        return candidates
+        candidates = [lazy_candidate(ctx.settings, push, rejected, score, lambda worst, v=v: key(worst, v),
+                                     lambda pushed, run_on=run_on: (pushed, run_on))
+                      for v, run_on, push in self._pushes(puck, ctx)]
+        return [c for c in candidates if c is not None]
 
     @staticmethod
     def _pushes(puck: np.ndarray, ctx: Context):
