@@ -12,13 +12,16 @@ import math
 from dataclasses import dataclass, field
 from typing import Mapping, Sequence
 
-from air_hockey_agent.core.frames import ROBOT_YAW, robot_to_table
+from air_hockey_agent.core.frames import ROBOT_YAW, quaternion_from_yaw, robot_to_table
 from air_hockey_agent.core.table import TableGeometry
 
 Point2 = tuple[float, float]
 Point3 = tuple[float, float, float]
 Color = tuple[float, float, float, float]
-KINDS = ("cube", "cylinder", "sphere", "arrow", "line_strip", "line_list", "sphere_list", "text")
+# each kind of shape and its visualization_msgs/Marker type constant
+MARKER_TYPES = {"cube": 1, "cylinder": 3, "sphere": 2, "arrow": 0, "line_strip": 4, "line_list": 5, "sphere_list": 7,
+                "text": 9}
+KINDS = tuple(MARKER_TYPES)
 
 
 @dataclass(frozen=True)
@@ -56,6 +59,15 @@ class SceneStyle:
 
     def color(self, name: str) -> Color:
         return self.colors[name]
+
+
+def marker_fields(shape: Shape) -> dict:
+    """The visualization_msgs/Marker fields of ``shape`` (action ADD), the header left to the caller."""
+    qx, qy, qz, qw = quaternion_from_yaw(shape.yaw)
+    return {"ns": shape.ns, "id": shape.id, "type": MARKER_TYPES[shape.kind], "text": shape.text,
+            "pose": {"position": dict(zip("xyz", shape.position)), "orientation": {"x": qx, "y": qy, "z": qz, "w": qw}},
+            "scale": dict(zip("xyz", shape.scale)), "color": dict(zip("rgba", shape.color)),
+            "points": [dict(zip("xyz", p)) for p in shape.points]}
 
 
 def table_shapes(table: TableGeometry, style: SceneStyle) -> list[Shape]:

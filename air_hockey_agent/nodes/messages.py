@@ -5,14 +5,12 @@ import importlib
 import math
 
 import numpy as np
-from air_hockey_msgs.msg import GameStatus, PuckState
+from air_hockey_msgs.msg import PuckState
 from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import PoseStamped
 
 from air_hockey_agent.core.frames import pose_to_measurement
 
-STATUS_NAMES = {GameStatus.STATUS_STOPPED: "stopped", GameStatus.STATUS_PAUSED: "paused",
-                GameStatus.STATUS_RUNNING: "running"}  # GameStatus.status as a word, for logs and labels
 
 
 def to_seconds(stamp: Time) -> float:

@@ -22,8 +22,8 @@ from std_srvs.srv import Trigger
 from air_hockey_msgs.msg import GameStatus
 from air_hockey_msgs.srv import SetPuckState
 from air_hockey_agent.core.motion.kinematics import ArmKinematics
-from air_hockey_agent.core.game.referee import EVENT_NONE, NOT_YET, Decision, Referee, RefereeSettings
-from air_hockey_agent.nodes.messages import STATUS_NAMES, joint_vector, pose_measurement, to_seconds, to_stamp
+from air_hockey_agent.core.game.referee import EVENT_NONE, NOT_YET, STATUS_NAMES, Decision, Referee, RefereeSettings
+from air_hockey_agent.nodes.messages import joint_vector, pose_measurement, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.referee_params import PARAM_FILES, REFEREE_PARAMS
 from air_hockey_agent.sim.params import ROBOTS

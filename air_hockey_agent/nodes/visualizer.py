@@ -19,23 +19,19 @@ from visualization_msgs.msg import Marker, MarkerArray
 from air_hockey_msgs.msg import GameStatus, HitCommand, PuckPrediction, PuckState, TacticState
 from air_hockey_agent.core import scene
 from air_hockey_agent.core.frames import TABLE_FRAME, quaternion_from_yaw
+from air_hockey_agent.core.game.referee import STATUS_NAMES
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.motion.kinematics import ArmKinematics
 from air_hockey_agent.core.table import TableGeometry
-from air_hockey_agent.nodes.messages import STATUS_NAMES, joint_vector, pose_measurement, to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import joint_vector, pose_measurement, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.params import ROBOTS
 from air_hockey_agent.visualizer_params import PARAM_FILES, VISUALIZER_PARAMS, scene_style
 
-MARKER_TYPES = {"arrow": Marker.ARROW, "cube": Marker.CUBE, "sphere": Marker.SPHERE, "cylinder": Marker.CYLINDER,
-                "line_strip": Marker.LINE_STRIP, "line_list": Marker.LINE_LIST, "sphere_list": Marker.SPHERE_LIST,
-                "text": Marker.TEXT_VIEW_FACING}
-
-
 def marker(shape: scene.Shape, stamp) -> Marker:
     """visualization_msgs/Marker of a scene shape (table frame)."""
-    m = Marker(ns=shape.ns, id=shape.id, type=MARKER_TYPES[shape.kind], action=Marker.ADD, text=shape.text)
+    m = Marker(ns=shape.ns, id=shape.id, type=scene.MARKER_TYPES[shape.kind], action=Marker.ADD, text=shape.text)
     m.header.frame_id, m.header.stamp = TABLE_FRAME, stamp
     m.pose.position.x, m.pose.position.y, m.pose.position.z = shape.position
     qx, qy, qz, qw = quaternion_from_yaw(shape.yaw)

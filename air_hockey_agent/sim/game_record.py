@@ -22,7 +22,8 @@ import numpy as np
 from air_hockey_agent.bags.build import build, header_fields, pose_fields, puck_state_fields, stamp_fields
 from air_hockey_agent.bags.writer import BagWriter
 from air_hockey_agent.core import scene
-from air_hockey_agent.core.frames import TABLE_FRAME, quaternion_from_yaw
+from air_hockey_agent.core.frames import TABLE_FRAME
+from air_hockey_agent.core.game.referee import EVENT_NONE, STATUS_NAMES
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.motion.kinematics import ArmKinematics, in_order
 from air_hockey_agent.core.table import TableGeometry
@@ -30,24 +31,11 @@ from air_hockey_agent.sim.game_topics import MARKER_TOPICS, RECORDED_TOPICS
 from air_hockey_agent.sim.params import ROBOTS
 from air_hockey_agent.sim.runner import Every
 
-STATUS_WORDS = {0: "stopped", 1: "paused", 2: "running"}  # GameStatus.STATUS_*
-MARKER_KINDS = {"arrow": 0, "cube": 1, "sphere": 2, "cylinder": 3, "line_strip": 4, "line_list": 5,
-                "sphere_list": 7, "text": 9}  # visualization_msgs/Marker type constants
 MARKER_DELETEALL = 3  # visualization_msgs/Marker action
 
 
 def _xyz(values) -> dict:
     return dict(zip("xyz", (float(v) for v in values)))
-
-
-def marker_fields(shape: scene.Shape, t: float) -> dict:
-    """visualization_msgs/Marker fields of a scene shape (table frame) at ``t`` [s]."""
-    qx, qy, qz, qw = quaternion_from_yaw(shape.yaw)
-    return {"header": header_fields(t, TABLE_FRAME), "ns": shape.ns, "id": shape.id, "type": MARKER_KINDS[shape.kind],
-            "text": shape.text, "pose": {"position": _xyz(shape.position), "orientation": {"x": qx, "y": qy, "z": qz,
-                                                                                          "w": qw}},
-            "scale": _xyz(shape.scale), "color": dict(zip("rgba", shape.color)),
-            "points": [_xyz(p) for p in shape.points]}
 
 
 class GameRecorder:
@@ -99,7 +87,7 @@ class GameRecorder:
         if self.marker_tick.due(t) is not None:
             shapes = self.scene.shapes(t)
             self._write("/visualization/markers", t, {"markers": [{"action": MARKER_DELETEALL}]
-                                                      + [marker_fields(s, t) for s in shapes]})
+                                                      + [{**scene.marker_fields(s), "header": header_fields(t, TABLE_FRAME)} for s in shapes]})
 
     def on_joints(self, t: float, robot: str, world) -> None:
         q, dq = world.joint_state(robot)
@@ -137,10 +125,10 @@ class GameRecorder:
         self._status = key
         data = {"header": header_fields(t, TABLE_FRAME), "status": state.status, "score_front": state.score[ROBOTS[0]],
                 "score_back": state.score[ROBOTS[1]], "last_event": state.last_event, "reason": state.reason}
-        if state.last_event != 0:  # GameStatus.EVENT_NONE
+        if state.last_event != EVENT_NONE:
             data["last_event_stamp"] = stamp_fields(state.last_event_time)
         self._write("/game_status", t, data)
-        self.scene.status = scene.status_text(STATUS_WORDS.get(state.status, "?"), data["score_front"],
+        self.scene.status = scene.status_text(STATUS_NAMES.get(state.status, "?"), data["score_front"],
                                               data["score_back"], state.reason)
 
     # --- each robot's tactics and trajectory generator -------------------------------------------

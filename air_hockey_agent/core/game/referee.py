@@ -32,6 +32,7 @@ import numpy as np
 from air_hockey_agent.core.table import TableGeometry
 
 STOPPED, PAUSED, RUNNING = 0, 1, 2  # air_hockey_msgs/GameStatus.STATUS_*
+STATUS_NAMES = {STOPPED: "stopped", PAUSED: "paused", RUNNING: "running"}  # status as a word, for logs and labels
 (EVENT_NONE, EVENT_GOAL_FRONT, EVENT_GOAL_BACK, EVENT_PUCK_OUT, EVENT_PUCK_STUCK, EVENT_ROBOT_FAULT,
  EVENT_RESET) = range(7)  # air_hockey_msgs/GameStatus.EVENT_*
 FRONT, BACK = "iiwa_front", "iiwa_back"
