@@ -218,7 +218,7 @@ class InProcessGame:
             if player.tick.due(t) is not None:
                 self.board.on_tactic(robot, player.decide(t, self.status, self.world, self.recorder))
         if self.recorder is not None:
-            self.recorder.on_step(out, self.world)
+            self.recorder.on_step(out)
         return out
 
     def _joints(self, t: float) -> None:
@@ -228,6 +228,8 @@ class InProcessGame:
             values, velocities = np.concatenate([q, sq]), np.concatenate([dq, sdq])
             if robot in self.players:
                 self.players[robot].on_joints(t, values, velocities)
+            if self.recorder is not None:
+                self.recorder.on_joints(t, robot, values, velocities)
             if self.referee is None:
                 continue
             arm = in_order(JOINT_NAMES, values, self.referee_kin.joint_names)

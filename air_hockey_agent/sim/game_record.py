@@ -53,7 +53,8 @@ class GameRecorder:
         self.kinematics = ArmKinematics(model_path("iiwa14_striker.urdf"))
         self.bases = {robot: p[f"robot_base.{robot}"] for robot in ROBOTS}
         self.marker_tick = Every(p["rate"])
-        self._writer = BagWriter(self.path, {**RECORDED_TOPICS, **MARKER_TOPICS}, "mcap")
+        self._types = {**RECORDED_TOPICS, **MARKER_TOPICS}
+        self._writer = BagWriter(self.path, self._types, "mcap")
         self._tactics: dict[str, tuple] = {}
         self._status: tuple | None = None
 
@@ -65,16 +66,13 @@ class GameRecorder:
         return self._writer.__exit__(exc_type, exc, tb)
 
     def _write(self, topic: str, t: float, data: dict) -> None:
-        self._writer.write(topic, int(round(t * 1e9)), build(RECORDED_TOPICS.get(topic) or MARKER_TOPICS[topic], data))
+        self._writer.write(topic, int(round(t * 1e9)), build(self._types[topic], data))
 
     # --- table_sim's topics ----------------------------------------------------------------------
-    def on_step(self, out, world) -> None:
-        """A physics step's outputs (:class:`air_hockey_agent.sim.runner.StepOutput`) and, on a
-        joint-state tick, every robot's joints from ``world``; the scene at the visualizer's rate."""
+    def on_step(self, out) -> None:
+        """A physics step's outputs (:class:`air_hockey_agent.sim.runner.StepOutput`; the joints come
+        through :meth:`on_joints`) and the scene at the visualizer's rate."""
         t = out.time
-        if out.joint_states:
-            for robot in ROBOTS:
-                self.on_joints(t, robot, world)
         for c in out.contacts:
             self._write("/sim/contacts", t, {"header": header_fields(c.time, TABLE_FRAME), "robot": c.robot,
                                              "duration": c.duration, "x": c.x, "y": c.y, "vx": c.vx, "vy": c.vy,
@@ -89,12 +87,10 @@ class GameRecorder:
             self._write("/visualization/markers", t, {"markers": [{"action": MARKER_DELETEALL}]
                                                       + [{**scene.marker_fields(s), "header": header_fields(t, TABLE_FRAME)} for s in shapes]})
 
-    def on_joints(self, t: float, robot: str, world) -> None:
-        q, dq = world.joint_state(robot)
-        sq, sdq = world.striker_state(robot)
-        values = np.concatenate([q, sq])
+    def on_joints(self, t: float, robot: str, values: np.ndarray, velocities: np.ndarray) -> None:
+        """A robot's joint positions [rad] and velocities [rad/s] at ``t`` [s], in ``joint_names`` order."""
         self._write(f"/{robot}/joint_states", t, {"header": header_fields(t), "name": list(self.joint_names),
-                                                   "position": values, "velocity": np.concatenate([dq, sdq])})
+                                                   "position": values, "velocity": velocities})
         arm = in_order(self.joint_names, values, self.kinematics.joint_names)
         self.scene.mallets[robot] = self.kinematics.tip_in_table(arm, self.bases[robot])
 
