@@ -32,8 +32,8 @@ from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.ros_env import display_available, node_executable, ros_environment
 from air_hockey_agent.tools.argtypes import count
 from air_hockey_agent.sim.game_topics import MARKER_TOPICS, RECORDED_TOPICS
+from air_hockey_agent.sim.params import ROBOTS
 
-ROBOTS = ("iiwa_front", "iiwa_back")
 SHARED_NODES = ("table_sim", "referee")
 VIEW_NODE = "visualizer"
 PER_ROBOT_NODES = ("puck_tracker", "tactics", "trajectory_generator")
