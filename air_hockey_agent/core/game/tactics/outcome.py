@@ -73,9 +73,11 @@ class Ranked:
     def first(self, now_check, lasting_check) -> tuple | None:
         i = 0
         while (item := self.item(i)) is not None:
-            if now_check(*item) and (self._lasting[i] if i in self._lasting
-                                     else self._lasting.setdefault(i, lasting_check(*item))):
-                return item
+            if now_check(*item):
+                if i not in self._lasting:
+                    self._lasting[i] = lasting_check(*item)
+                if self._lasting[i]:
+                    return item
             i += 1
         return None
 
