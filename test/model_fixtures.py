@@ -24,3 +24,18 @@ def finite_difference_jacobian(m: PuckModel, state: np.ndarray, dt: float, h: fl
         diff[4] = (diff[4] + np.pi) % (2 * np.pi) - np.pi
         jac[:, i] = diff / (2 * h)
     return jac
+
+
+def session_on_testbed(ekf, shots: int, seed: int):
+    """A session on the test bed with config/synthetic.yaml's shots, effects and mocap, as synth-bag
+    --source testbed writes it."""
+    from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
+    from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
+    from air_hockey_agent.params import load_node_params
+    from air_hockey_agent.tools.synth_bag import SESSION_PARAMS
+    cfg = load_node_params(["synthetic.yaml"], "/synth_bag", SESSION_PARAMS, [])
+    ranges = ShotRanges(tuple(cfg["speed"]), tuple(cfg["spin"]), cfg["shot_duration"], cfg["pause"])
+    simulate = testbed_shots(TableEffects.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"],
+                             cfg["fine_dt"], np.random.default_rng([seed, 1]))
+    return synthetic_session(ekf.model, ranges, shots, cfg["rate"], MocapImperfections.from_params(cfg),
+                             np.random.default_rng(seed), cfg["fine_dt"], simulate)

@@ -8,6 +8,7 @@ from air_hockey_agent.core.estimation.evaluation import (EvaluationTotals, count
 from air_hockey_agent.core.puck.prediction import predict_fast
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
 from air_hockey_agent.tracker_params import load_tracker_params
+from model_fixtures import session_on_testbed
 
 SHOTS = ShotRanges(speed=(2.0, 4.0), spin=(-10.0, 10.0), duration=4.0, pause=3.0)
 REAL_LIKE = MocapImperfections(position_std=1e-4, angle_std=9.5e-3, jitter_std=2e-4, lost_rate=0.12,
@@ -197,20 +198,6 @@ def test_nis_by_regime_separates_rest_flight_and_rim_impacts(params):
     assert all(regimes[r]["n"] > 0 for r in regimes)
     assert sum(regimes[r]["n"] for r in regimes) == len(totals.nis)
     assert 1.5 < regimes["flight"]["median"] < 3.5
-
-
-def session_on_testbed(ekf, shots: int, seed: int):
-    """A session on the test bed with config/synthetic.yaml's shots, effects and mocap, as synth-bag
-    --source testbed writes it."""
-    from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
-    from air_hockey_agent.params import load_node_params
-    from air_hockey_agent.tools.synth_bag import SESSION_PARAMS
-    cfg = load_node_params(["synthetic.yaml"], "/synth_bag", SESSION_PARAMS, [])
-    ranges = ShotRanges(tuple(cfg["speed"]), tuple(cfg["spin"]), cfg["shot_duration"], cfg["pause"])
-    simulate = testbed_shots(TableEffects.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"],
-                             cfg["fine_dt"], np.random.default_rng([seed, 1]))
-    return synthetic_session(ekf.model, ranges, shots, cfg["rate"], MocapImperfections.from_params(cfg),
-                             np.random.default_rng(seed), cfg["fine_dt"], simulate)
 
 
 @pytest.mark.parametrize("seed", [10, 13])
