@@ -63,6 +63,15 @@ TRACKER_PARAMS = (
               "angle is not fused (1 dof)", 0.1, 1e6),
     ParamSpec("measurement_noise_per_speed", float, "[s] position noise std added per m/s of speed", 0.0, 1.0),
     ParamSpec("impact_noise", float, "[-] velocity/spin std after a rim impact, fraction of their size", 0.0, 10.0),
+    ParamSpec("rim_adaptation.enabled", bool, "learn this table's rim law online from the impacts seen"),
+    ParamSpec("rim_adaptation.prior_impacts", float, "[-] weight of the configured rim law, in impacts", 0.0, 1e6),
+    ParamSpec("rim_adaptation.window", float, "[s] fused frames after an impact fitted for its outcome", 0.01, 2.0),
+    ParamSpec("rim_adaptation.min_frames", int, "fused frames the window needs", 2, 1000),
+    ParamSpec("rim_adaptation.min_normal_speed", float, "[m/s] slower impacts are not learned from", 0.0, 10.0),
+    ParamSpec("rim_adaptation.max_scale", float, "[-] an impact whose ratio to the law falls beyond "
+              "[1/max_scale, max_scale] is not learned from", 1.0, 100.0),
+    ParamSpec("rim_adaptation.max_incoming_uncertainty", float, "[-] velocity std before an impact, fraction "
+              "of the speed, at most", 0.0, 10.0),
     ParamSpec("max_consecutive_rejections", int, "rejected frames in a row before re-initialising", 1, 1000),
     ParamSpec("outside_table_margin", float, "[m] drop measurements this far beyond the rims", 0.0, 10.0),
     ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),
@@ -76,6 +85,12 @@ TRACKER_PARAMS = (
     MOCAP_POSE_PARAM,
 )
 TRACKER_NODE_PARAMS = TABLE_PARAMS + TRACKER_PARAMS
+
+
+def fixed_rim_law(params: dict[str, Any]) -> dict[str, Any]:
+    """``params`` with the configured rim law kept as it is (not learned online): what sysid identifies and
+    the thesis's trajectory-level columns report (a fixed law, thesis tables 5.2-5.4)."""
+    return {**params, "rim_adaptation.enabled": False}
 
 
 def load_tracker_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:

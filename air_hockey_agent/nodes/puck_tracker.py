@@ -80,11 +80,13 @@ class PuckTrackerNode(AirHockeyNode):
     # --- services (thesis 4.1.1) -------------------------------------------------------------------
     def on_set_physical_params(self, request, response):
         # the service carries the thesis's four; the restitution slope and table acceleration stay as set
-        params = self.ekf.model.params.with_values(
+        # (the configured ones: a rim law being learned online restarts from the new values)
+        configured = self.ekf.model.params if self.ekf.adaptation is None else self.ekf.adaptation.base
+        params = configured.with_values(
             friction_surface=request.friction_surface, damping=request.damping, restitution=request.restitution,
             friction_rim=request.friction_rim)
         try:
-            self.ekf.model = self.ekf.model.with_params(params)
+            self.ekf.set_model_params(params)
         except ValueError as exc:
             response.success, response.message = False, f"refused, filter unchanged: {exc}"
             return response

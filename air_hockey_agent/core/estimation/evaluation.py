@@ -24,6 +24,7 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import FilterStats, PuckEKF
+from air_hockey_agent.core.puck.model import PuckModel
 from air_hockey_agent.core.puck.prediction import predict_fast
 
 Frame = tuple[float, "Sequence[float] | None"]  # (stamp [s], table-frame (x, y, theta) or None if lost)
@@ -137,7 +138,7 @@ def _nis_stats(nis: np.ndarray) -> dict:
             "n": int(nis.size)}
 
 
-def _regime(ekf: PuckEKF, earlier: "_FrameRecord | None", before: "_FrameRecord | None", t: float,
+def _regime(earlier: "_FrameRecord | None", before: "_FrameRecord | None", t: float,
             rest_speed: float) -> str:
     """The regime of a gated frame at ``t`` [s] from the estimates of the two frames before it: *impact*
     when the model puts a rim impact in either of the two steps (the frame after an impact is where the
@@ -147,7 +148,7 @@ def _regime(ekf: PuckEKF, earlier: "_FrameRecord | None", before: "_FrameRecord 
     for start, end in ((earlier, before.t), (before, t)):
         if start is not None and start.x is not None and start.t < end:
             x, y, vx, vy = start.x[:4]
-            if ekf.model.first_impact(x, y, vx, vy, end - start.t) is not None:
+            if start.model.first_impact(x, y, vx, vy, end - start.t) is not None:
                 return "impact"
     return "rest" if np.hypot(before.x[2], before.x[3]) < rest_speed else "flight"
 
@@ -159,6 +160,7 @@ class _FrameRecord:
     x: np.ndarray | None        # filter state at the frame's stamp, None if the filter had none there
     P: np.ndarray | None        # its covariance (kept only when asked for)
     nis: float | None           # the frame's NIS when it reached the gate
+    model: PuckModel            # the filter's model after the frame (its rim law as learned by then)
 
 
 def valid_poses(frames: Sequence[Frame], ekf: PuckEKF) -> list[bool]:
@@ -200,7 +202,7 @@ def _filter_pass(ekf: PuckEKF, frames: Iterable[Frame], keep_cov: bool) -> tuple
         ekf.process(t, z)
         has_state = ekf.initialised and ekf.stamp is not None and ekf.stamp == t
         records.append(_FrameRecord(t, np.asarray(z, float) if good else None, ekf.x.copy() if has_state else None,
-                                    ekf.P.copy() if has_state and keep_cov else None, ekf.last_nis))
+                                    ekf.P.copy() if has_state and keep_cov else None, ekf.last_nis, ekf.model))
     return records, stamps, invalid
 
 
@@ -219,7 +221,7 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
             j = _nearest(truth_t, start.t + h)
             if j is None or abs(truth_t[j] - (start.t + h)) > tolerance or truth_t[j] <= start.t:
                 continue
-            pred = predict_fast(ekf.model, start.x, start.P, truth_t[j] - start.t, ekf.settings.dt, ekf.settings.q)
+            pred = predict_fast(start.model, start.x, start.P, truth_t[j] - start.t, ekf.settings.dt, ekf.settings.q)
             residual = truth[j].z[:2] - pred.state[:2]
             errors.append(float(np.hypot(*residual)))
             if totals.rest_speed is not None:
@@ -228,7 +230,7 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
                 nll.append(_neg_log_likelihood(residual, pred.covariance[:2, :2] + ekf.settings.r[:2, :2]))
     totals.nis.extend(r.nis for r in records if r.nis is not None)
     if totals.rest_speed is not None:
-        totals.nis_regimes.extend(_regime(ekf, earlier, before, record.t, totals.rest_speed) for earlier, before, record
+        totals.nis_regimes.extend(_regime(earlier, before, record.t, totals.rest_speed) for earlier, before, record
                                   in zip([None, None] + records[:-2], [None] + records[:-1], records)
                                   if record.nis is not None)
     totals.frames += ekf.stats.frames  # lost = missing from the stream + arrived without a usable pose
@@ -282,7 +284,7 @@ def prediction_series(ekf: PuckEKF, frames: Iterable[Frame], horizon: float) -> 
     for k, stamp in enumerate(t):
         j = _nearest(start_t, stamp - horizon)
         if j is not None and start_t[j] < stamp and abs(start_t[j] - (stamp - horizon)) <= tolerance:
-            predicted[k] = predict_fast(ekf.model, starts[j].x, None, stamp - start_t[j], ekf.settings.dt,
+            predicted[k] = predict_fast(starts[j].model, starts[j].x, None, stamp - start_t[j], ekf.settings.dt,
                                         ekf.settings.q).state
     return PredictionSeries(horizon, np.array(t), np.array([r.z for r in measured]).reshape(-1, 3),
                             estimated, predicted)

@@ -1,0 +1,164 @@
+"""The rim law learned online from the impacts the tracker sees (issue #13 item 3: a table's own rims).
+
+The configured rim law (restitution falling with the normal speed, Routh's tangential impulse capped by
+Coulomb's, thesis eq. 3.2-3.3) is a prior: no constant law fits every table (another engine's rims
+return 0.96-0.67 of the normal speed and push far less along themselves than Coulomb's bound, issue #13),
+and a rim law that is off dominates the prediction error of every path through a rim. So the tracker
+scales the configured law by two numbers it estimates from each rim impact it observes:
+
+* ``restitution_scale`` k: the outgoing normal speed is ``k e(|vn|) |vn|`` (e, its slope and floor scaled
+  by k, e kept <= 1);
+* ``tangential_scale`` s: the tangential impulse is s times the configured law's (Routh's sticking
+  impulse with ``(1 + beta)`` scaled by s, Coulomb's bound with ``mu_rim`` scaled by s: the same impacts
+  stick and slide).
+
+Each is a least-squares estimate with the configured law (scale 1) as a prior worth ``prior_impacts``
+impacts. An impact is observed in its rim's frame (:mod:`~air_hockey_agent.core.puck.impact`: ``b``
+along the rim, ``n`` into the table): the filter's incoming state just before it, and the outgoing
+velocity and spin from line fits over the measured poses of the ``window`` after it (the flight law's
+acceleration removed; seed 003's model-based batch estimate), not the filter's post-impact state, which
+the law being learned has biased.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+
+from air_hockey_agent.core.puck.impact import rim_impact
+from air_hockey_agent.core.puck.model import PuckParams
+from air_hockey_agent.core.table import WALL_NORMALS, TableGeometry
+
+RimState = tuple[float, float, float]  # (vb, vn, omega) [m/s, m/s, rad/s] in a rim's frame
+
+
+@dataclass(frozen=True)
+class AdaptationSettings:
+    """``rim_adaptation.*`` in ``config/tracker.yaml``."""
+
+    enabled: bool
+    prior_impacts: float      # [-] weight of the configured law, in impacts
+    window: float             # [s] measured poses after an impact that its outgoing fit uses
+    min_frames: int           # fused poses the window needs
+    min_normal_speed: float   # [m/s] slower impacts are not observed (their ratios are noise)
+    max_scale: float          # [-] an impact whose ratios fall beyond [1 / max_scale, max_scale] is no rim's
+    max_incoming_uncertainty: float  # [-] velocity std before the impact, as a fraction of the speed, at most
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> "AdaptationSettings":
+        p = "rim_adaptation."
+        return cls(*(params[p + name] for name in ("enabled", "prior_impacts", "window", "min_frames",
+                                                    "min_normal_speed", "max_scale", "max_incoming_uncertainty")))
+
+
+def rim_frame(wall: int, vx: float, vy: float) -> tuple[float, float]:
+    """Velocity (vx, vy) [m/s] in rim ``wall``'s frame: (vb along the rim, vn into the table)."""
+    nx, ny = WALL_NORMALS[wall]
+    return ny * vx - nx * vy, nx * vx + ny * vy
+
+
+def scaled_params(base: PuckParams, restitution_scale: float, tangential_scale: float) -> PuckParams:
+    """``base`` with its rim law scaled (module docstring); restitutions kept <= 1, beta in [-1, 1]."""
+    k, s = restitution_scale, tangential_scale
+    return base.with_values(restitution=min(1.0, base.restitution * k),
+                            restitution_min=min(1.0, base.restitution_min * k),
+                            restitution_slope=base.restitution_slope * k,
+                            friction_rim=base.friction_rim * s,
+                            tangential_restitution=min(1.0, max(-1.0, s * (1.0 + base.tangential_restitution) - 1.0)))
+
+
+class RimAdaptation:
+    """Running estimate of the two scales of ``base``'s rim law from observed impacts."""
+
+    def __init__(self, base: PuckParams, table: TableGeometry, settings: AdaptationSettings) -> None:
+        self.base, self.table, self.settings = base, table, settings
+        self.radius = table.puck_radius
+        self.limits = (table.x_limit, table.y_limit)  # [m] largest |x|, |y| of the centre off the rims
+        self.impacts = 0
+        self._ratio_sum = 0.0     # sum of the observed restitution ratios
+        self._cross = 0.0         # sum of model impulse x observed impulse [m^2/s^2]
+        self._square = 0.0        # sum of model impulse squared [m^2/s^2]
+
+    @property
+    def restitution_scale(self) -> float:
+        n0 = self.settings.prior_impacts
+        return (n0 + self._ratio_sum) / (n0 + self.impacts) if n0 + self.impacts > 0 else 1.0
+
+    @property
+    def tangential_scale(self) -> float:
+        """Least squares of the observed tangential impulses on the law's, with the prior as ``prior_impacts``
+        impacts of the mean size seen that the law predicts exactly."""
+        if self._square <= 0.0:
+            return 1.0
+        prior = self.settings.prior_impacts * self._square / self.impacts
+        return (prior + self._cross) / (prior + self._square)
+
+    def params(self) -> PuckParams:
+        """The rim law learned so far (``base`` itself before any impact)."""
+        if self.impacts == 0:
+            return self.base
+        return scaled_params(self.base, self.restitution_scale, self.tangential_scale)
+
+    def report(self) -> dict:
+        """The law learned so far, for reports: impacts learned from, both scales and the scaled rim
+        parameters (names as in ``config/tracker.yaml``)."""
+        p = self.params()
+        return {"impacts": self.impacts, "restitution_scale": self.restitution_scale,
+                "tangential_scale": self.tangential_scale,
+                "params": {n: getattr(p, n) for n in ("restitution", "restitution_slope", "restitution_min",
+                                                      "friction_rim", "tangential_restitution")}}
+
+    def observe(self, before: RimState, after: RimState) -> bool:
+        """Learn from one impact (incoming ``before``, vn < 0; outgoing ``after``); False when it is left
+        out (too slow, not leaving the rim, or a ratio beyond ``max_scale``: a hit, not the rim)."""
+        vb, vn, omega = before
+        if -vn < self.settings.min_normal_speed or after[1] <= 0.0:
+            return False
+        ratio = after[1] / self._impact(self.base, before).vn  # observed over the configured restitution
+        law = scaled_params(self.base, self.restitution_scale, 1.0)
+        model = self._impact(law, before).vb - vb  # the law's tangential impulse per mass [m/s], e learned so far
+        seen = (after[0] - vb, 0.5 * self.radius * (after[2] - omega))  # from vb, and from the spin
+        bound = self.settings.max_scale
+        if not 1.0 / bound <= ratio <= bound:
+            return False
+        if abs(model) > 1e-9 and not -bound <= (seen[0] + seen[1]) / (2.0 * model) <= bound:
+            return False
+        self.impacts += 1
+        self._ratio_sum += ratio
+        self._cross += model * (seen[0] + seen[1])
+        self._square += 2.0 * model * model
+        return True
+
+    def _impact(self, law: PuckParams, before: RimState):
+        return rim_impact(*before, self.radius, law.restitution, law.friction_rim, law.restitution_slope,
+                          law.restitution_min, law.tangential_restitution, law.restitution_knee)
+
+
+def outgoing_fit(times: Sequence[float], poses: Sequence[Sequence[float]], t_impact: float,
+                 acceleration) -> tuple[float, float, float]:
+    """Velocity (vx, vy) [m/s] and spin [rad/s] just after an impact at ``t_impact`` [s] from the measured
+    poses (x, y, theta) at ``times`` after it: line fits, the flight law's acceleration
+    ``acceleration(vx, vy) -> (ax, ay)`` [m/s^2] (at a first fit's velocity) removed from the positions."""
+    tau = np.asarray(times, float) - t_impact
+    z = np.asarray(poses, float)
+    design = np.column_stack([np.ones_like(tau), tau])
+    v = np.linalg.lstsq(design, z[:, :2], rcond=None)[0][1]
+    a = np.asarray(acceleration(float(v[0]), float(v[1])), float)
+    xy = z[:, :2] - 0.5 * np.outer(tau * tau, a)
+    v = np.linalg.lstsq(design, xy, rcond=None)[0][1]
+    omega = np.linalg.lstsq(design, np.unwrap(z[:, 2]), rcond=None)[0][1]  # frames are far below half a turn apart
+    return float(v[0]), float(v[1]), float(omega)
+
+
+def flight_acceleration(params: PuckParams):
+    """The flight law's acceleration (vx, vy) -> (ax, ay) [m/s^2] (eq. 3.1 and the table acceleration)."""
+    d, mu = params.damping, params.friction_surface
+    gx, gy = params.table_acceleration
+
+    def acceleration(vx: float, vy: float) -> tuple[float, float]:
+        speed = math.hypot(vx, vy)
+        unit = (vx / speed, vy / speed) if speed > 0.0 else (0.0, 0.0)
+        return gx - d * vx - mu * unit[0], gy - d * vy - mu * unit[1]
+    return acceleration

@@ -1,0 +1,144 @@
+"""The rim law learned online (core/estimation/rim_adaptation.py and its use in the filter), against the
+test bed's rims (core/puck/real_table.py, written apart from the model) and the model's own."""
+import math
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, _filter_pass, evaluate_stream
+from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, outgoing_fit,
+                                                             scaled_params)
+from air_hockey_agent.core.puck.impact import rim_impact
+from air_hockey_agent.core.puck.real_table import TableEffects, real_rim_impact
+from air_hockey_agent.tracker_params import fixed_rim_law, load_tracker_params
+from model_fixtures import TABLE, session_on_testbed
+
+SETTINGS = AdaptationSettings(enabled=True, prior_impacts=5.0, window=0.1, min_frames=6, min_normal_speed=0.1,
+                              max_scale=3.0, max_incoming_uncertainty=0.05)
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_tracker_params()
+
+
+def base_law(params):
+    return PuckEKF.from_params(params).model.params
+
+
+def impact_of(law, before):
+    return rim_impact(*before, TABLE.puck_radius, law.restitution, law.friction_rim, law.restitution_slope,
+                      law.restitution_min, law.tangential_restitution, law.restitution_knee)
+
+
+def random_impacts(rng, n):
+    """Incoming (vb, vn, omega): sliding and sticking ones, normal speeds 0.2-3 m/s."""
+    return [(rng.uniform(-2.0, 2.0), -rng.uniform(0.2, 3.0), rng.uniform(-30.0, 30.0)) for _ in range(n)]
+
+
+def test_the_scaled_law_scales_the_normal_speed_and_the_tangential_impulse(params):
+    """Independent of how the scales are mapped on the parameters: the scaled law's outgoing normal speed
+    is k times the configured law's and its tangential impulse (from vb and from the spin) s times."""
+    base = base_law(params)
+    k, s = 0.9, 0.4
+    scaled = scaled_params(base, k, s)
+    for before in random_impacts(np.random.default_rng(1), 200):
+        ref, new = impact_of(base, before), impact_of(scaled_params(base, k, 1.0), before)
+        out = impact_of(scaled, before)
+        assert out.vn == pytest.approx(k * ref.vn, rel=1e-12)
+        assert out.vb - before[0] == pytest.approx(s * (new.vb - before[0]), abs=1e-12)
+        assert out.omega - before[2] == pytest.approx(s * (new.omega - before[2]), abs=1e-9)
+    assert scaled_params(base, 1.0, 1.0) == base
+
+
+def test_the_test_beds_rims_are_recovered_from_its_impacts(params):
+    """Impacts from the test bed's own rim code with 0.9 of the configured restitution law and 0.3 of its
+    tangential impulse: without a prior the scales are found; with one they are pulled toward 1 by its
+    weight in impacts."""
+    base = base_law(params)
+    effects = TableEffects(restitution_slow=0.9 * 0.96, restitution_fast=0.9 * 0.67, restitution_speed_low=0.5,
+                           restitution_speed_high=2.0, friction_rim=base.friction_rim, tangential_scale=0.3)
+    assert base.restitution == 0.96 and base.restitution_min == 0.67  # the same law's shape (config/tracker.yaml)
+    impacts = random_impacts(np.random.default_rng(2), 300)
+    learned = {}
+    for prior in (0.0, 5.0):
+        adapt = RimAdaptation(base, TABLE, AdaptationSettings(**{**SETTINGS.__dict__, "prior_impacts": prior}))
+        for before in impacts:
+            assert adapt.observe(before, real_rim_impact(*before, TABLE.puck_radius, effects))
+        learned[prior] = adapt
+    assert learned[0.0].restitution_scale == pytest.approx(0.9, abs=1e-3)
+    assert learned[0.0].tangential_scale == pytest.approx(0.3, abs=0.01)
+    shrunk = (5.0 + 300 * learned[0.0].restitution_scale) / 305
+    assert learned[5.0].restitution_scale == pytest.approx(shrunk, rel=1e-9)
+    assert 0.3 < learned[5.0].tangential_scale < 0.3 + 5.0 / 305 + 0.01
+    report = learned[0.0].report()
+    assert report["impacts"] == 300 and report["params"]["friction_rim"] == pytest.approx(0.3 * base.friction_rim, rel=0.05)
+
+
+def test_hits_slow_impacts_and_a_fresh_law_are_handled(params):
+    base = base_law(params)
+    adapt = RimAdaptation(base, TABLE, SETTINGS)
+    assert adapt.params() is base and adapt.restitution_scale == 1.0 and adapt.tangential_scale == 1.0
+    before = (0.5, -1.0, 0.0)
+    out = impact_of(base, before)
+    assert not adapt.observe(before, (out.vb, 4.0 * out.vn, out.omega))    # a hand sent it back: no rim's
+    assert not adapt.observe((0.5, -0.05, 0.0), (0.5, 0.04, 0.0))          # too slow to say anything
+    assert not adapt.observe(before, (out.vb, -0.1, out.omega))            # still going into the rim
+    assert adapt.impacts == 0
+    assert adapt.observe(before, (out.vb, out.vn, out.omega))
+    assert adapt.restitution_scale == pytest.approx(1.0) and adapt.tangential_scale == pytest.approx(1.0)
+
+
+def test_the_outgoing_fit_is_exact_on_motion_under_the_flight_law():
+    """Poses of a puck decelerating under a known constant acceleration and spinning: the fit returns the
+    velocity at the impact time, not the window's mean, and the spin across angle wraps."""
+    a = np.array([-0.3, 0.1])
+    v0, omega, t0 = np.array([1.2, -0.8]), 25.0, 3.0
+    times = t0 + 0.004 + np.arange(12) / 120.0
+    tau = times - t0
+    poses = [(*(np.array([0.1, 0.2]) + v0 * s + 0.5 * a * s * s), math.remainder(3.0 + omega * s, 2 * math.pi))
+             for s in tau]
+    vx, vy, w = outgoing_fit(times, poses, t0, lambda vx, vy: a)
+    assert (vx, vy, w) == pytest.approx((1.2, -0.8, 25.0), abs=1e-9)
+
+
+def test_the_filter_learns_the_test_beds_rims_and_predicts_better(params):
+    """A test-bed session (tilt, air film, random accelerations, its own rims, human hits, mocap
+    imperfections: effects the model lacks): the filter learns that the rims push along themselves
+    about 0.3 of the configured law (config/synthetic.yaml testbed.tangential_scale) with the same
+    restitution, and the median error at 1.0 s falls against the configured law on the same frames."""
+    ekf = PuckEKF.from_params(params)
+    frames = [(f.stamp, f.measurement) for f in session_on_testbed(ekf, 14, 7)]
+    medians = {}
+    for name, p in (("learned", params), ("configured", fixed_rim_law(params))):
+        ekf = PuckEKF.from_params(p)
+        totals = EvaluationTotals((1.0,))
+        evaluate_stream(ekf, frames, totals)
+        medians[name] = totals.summary()["horizons"]["1.0"]["median_m"]
+        if name == "learned":
+            law = ekf.adaptation
+    assert law.impacts >= 30
+    assert law.tangential_scale == pytest.approx(0.3, abs=0.1) and law.restitution_scale == pytest.approx(1.0, abs=0.03)
+    assert medians["learned"] < 0.7 * medians["configured"]
+
+
+def test_on_the_models_own_rims_the_law_stays_and_predictions_use_the_law_of_their_frame(params):
+    """Shots flown by the configured model itself: nothing to learn, the scales stay near 1. Each frame's
+    prediction uses the law learned up to that frame (causal), and a reset keeps the law (it is the
+    table's); new parameters restart it."""
+    from test_evaluation import SHOTS, REAL_LIKE
+    from air_hockey_agent.core.estimation.synthetic import synthetic_session
+    ekf = PuckEKF.from_params(params)
+    session = synthetic_session(ekf.model, SHOTS, 6, 120.0, REAL_LIKE, np.random.default_rng(3), 0.002)
+    records, _, _ = _filter_pass(ekf, [(f.stamp, f.measurement) for f in session], keep_cov=False)
+    law = ekf.adaptation
+    assert law.impacts >= 10
+    assert law.restitution_scale == pytest.approx(1.0, abs=0.02) and law.tangential_scale == pytest.approx(1.0, abs=0.1)
+    assert records[0].model.params == law.base and records[-1].model is ekf.model
+    assert len({id(r.model) for r in records}) == law.impacts + 1  # one model per law learned, in frame order
+    ekf.reset()
+    assert ekf.adaptation is law and ekf.model.params == law.params()
+    ekf.set_model_params(law.base.with_values(damping=0.2))
+    assert ekf.adaptation.impacts == 0 and ekf.model.params.damping == 0.2
+    assert PuckEKF.from_params(fixed_rim_law(params)).adaptation is None
