@@ -33,6 +33,7 @@ from pathlib import Path
 from air_hockey_agent.bags.reader import BagError
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
+from air_hockey_agent.core.estimation.rim_adaptation import describe
 from air_hockey_agent.bags.trajectories import bag_measurements
 from air_hockey_agent.core.identification.preprocess import preprocess
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
@@ -135,8 +136,7 @@ def _rim_law_line(law: dict | None) -> str:
     if law is None:
         return "rim law: as configured (rim_adaptation.enabled is false)"
     p = law["params"]
-    return (f"rim law learned over the bags from {law['impacts']} impacts: restitution x{law['restitution_scale']:.3f}, "
-            f"tangential impulse x{law['tangential_scale']:.3f} (restitution {p['restitution']:.4f}, "
+    return (f"rim law learned over the bags {describe(law)} (restitution {p['restitution']:.4f}, "
             f"friction_rim {p['friction_rim']:.4f}, tangential_restitution {p['tangential_restitution']:.3f})")
 
 

@@ -136,6 +136,12 @@ class RimAdaptation:
                           law.restitution_min, law.tangential_restitution, law.restitution_knee)
 
 
+def describe(report: dict) -> str:
+    """A learned law's :meth:`RimAdaptation.report` in words, for logs and tables."""
+    return (f"from {report['impacts']} impacts: restitution x{report['restitution_scale']:.3f}, "
+            f"tangential impulse x{report['tangential_scale']:.3f}")
+
+
 def outgoing_fit(times: Sequence[float], poses: Sequence[Sequence[float]], t_impact: float,
                  acceleration) -> tuple[float, float, float]:
     """Velocity (vx, vy) [m/s] and spin [rad/s] just after an impact at ``t_impact`` [s] from the measured
