@@ -138,7 +138,8 @@ class RimAdaptation:
 
 def describe(report: dict) -> str:
     """A learned law's :meth:`RimAdaptation.report` in words, for logs and tables."""
-    return (f"from {report['impacts']} impacts: restitution x{report['restitution_scale']:.3f}, "
+    impacts = report["impacts"]
+    return (f"from {impacts} impact{'' if impacts == 1 else 's'}: restitution x{report['restitution_scale']:.3f}, "
             f"tangential impulse x{report['tangential_scale']:.3f}")
 
 
