@@ -72,6 +72,17 @@ TRACKER_PARAMS = (
               "[1/max_scale, max_scale] is not learned from", 1.0, 100.0),
     ParamSpec("rim_adaptation.max_incoming_uncertainty", float, "[-] velocity std before an impact, fraction "
               "of the speed, at most", 0.0, 10.0),
+    ParamSpec("acceleration_adaptation.enabled", bool, "learn this table's acceleration (tilt, air film's mean) "
+              "online from free flight"),
+    ParamSpec("acceleration_adaptation.prior_std", float, "[m/s^2] std of the configured table_acceleration",
+              1e-6, 10.0),
+    ParamSpec("acceleration_adaptation.damping_prior_std", float, "[1/s] std of the configured damping",
+              1e-6, 10.0),
+    ParamSpec("acceleration_adaptation.field_std", float, "[m/s^2] added to each window's std: what a constant "
+              "acceleration cannot follow", 0.0, 10.0),
+    ParamSpec("acceleration_adaptation.window", float, "[s] fused free-flight frames per fit", 0.05, 5.0),
+    ParamSpec("acceleration_adaptation.min_frames", int, "fused frames a window needs", 4, 10000),
+    ParamSpec("acceleration_adaptation.min_speed", float, "[m/s] frames of a slower puck are not used", 0.0, 10.0),
     ParamSpec("max_consecutive_rejections", int, "rejected frames in a row before re-initialising", 1, 1000),
     ParamSpec("outside_table_margin", float, "[m] drop measurements this far beyond the rims", 0.0, 10.0),
     ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),
@@ -87,10 +98,11 @@ TRACKER_PARAMS = (
 TRACKER_NODE_PARAMS = TABLE_PARAMS + TRACKER_PARAMS
 
 
-def fixed_rim_law(params: dict[str, Any]) -> dict[str, Any]:
-    """``params`` with the configured rim law kept as it is (not learned online): what sysid identifies and
-    the thesis's trajectory-level columns report (a fixed law, thesis tables 5.2-5.4)."""
-    return {**params, "rim_adaptation.enabled": False}
+def without_learning(params: dict[str, Any]) -> dict[str, Any]:
+    """``params`` with the configured physics kept as it is (nothing learned online of the table): what
+    sysid identifies and the thesis's trajectory-level columns report (fixed parameters, thesis tables
+    5.2-5.4)."""
+    return {**params, "rim_adaptation.enabled": False, "acceleration_adaptation.enabled": False}
 
 
 def load_tracker_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:

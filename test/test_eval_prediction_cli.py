@@ -30,10 +30,14 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)  # the whole of stdout is one JSON document
     assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "rejected_fraction",
-                           "reinit_per_s", "nis", "nis_by_regime", "by_path", "rim_law", "thesis_style"}
-    law = report["rim_law"]  # the bags' shots are flown with the configured law: learning it keeps it
+                           "reinit_per_s", "nis", "nis_by_regime", "by_path", "rim_law", "table_acceleration",
+                           "thesis_style"}
+    law = report["rim_law"]  # the bags' shots are flown with the configured physics: learning it keeps it
     assert set(law) == {"impacts", "restitution_scale", "tangential_scale", "params"} and law["impacts"] >= 3
     assert abs(law["restitution_scale"] - 1.0) < 0.02 and abs(law["tangential_scale"] - 1.0) < 0.1
+    flight = report["table_acceleration"]
+    assert set(flight) == {"windows", "value", "std", "damping", "damping_std"} and flight["windows"] >= 10
+    assert max(map(abs, flight["value"])) < 0.01 and abs(flight["damping"] - 0.125) < 0.02
     assert set(report["nis"]) == {"median", "mean"}
     assert set(report["by_path"]) == set(report["horizons"])
     for key, paths in report["by_path"].items():

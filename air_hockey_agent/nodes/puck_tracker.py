@@ -17,12 +17,10 @@ from geometry_msgs.msg import PoseStamped
 
 from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
 from air_hockey_agent.core.estimation.ekf import PuckEKF, check_covariance
-from air_hockey_agent.core.estimation.rim_adaptation import describe
+from air_hockey_agent.core.estimation.table_learning import describe_learning
 from air_hockey_agent.nodes.messages import pose_measurement, state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.tracker_params import PARAM_FILES, TRACKER_NODE_PARAMS
-
-LOG_EVERY_IMPACTS = 10  # one info line at the first learned rim impact and per ten after (about a minute of play)
 
 
 class PuckTrackerNode(AirHockeyNode):
@@ -34,7 +32,7 @@ class PuckTrackerNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         self.ekf = PuckEKF.from_params(self.params)
-        self.logged_impacts = 0  # rim impacts the learned rim law had at the last log line
+        self.next_log = 1  # impacts and windows learned from at which the next log line comes
         self.state_pub = self.create_publisher(PuckState, "puck/state", 10)
         self.prediction_pub = self.create_publisher(PuckPrediction, "puck/prediction", 10)
         self.create_subscription(PoseStamped, "/optitrack/puck", self.on_pose, 10)
@@ -52,7 +50,7 @@ class PuckTrackerNode(AirHockeyNode):
                                        "treated as a lost frame", throttle_duration_sec=1.0)
             t = to_seconds(msg.header.stamp)
             flags = self.ekf.process(t, z)
-            self.log_rim_law()
+            self.log_learning()
             if self.ekf.initialised:
                 self.state_pub.publish(state_msg(self.ekf.x, self.ekf.P, self.ekf.stamp, flags))
                 self.publish_prediction()
@@ -62,13 +60,14 @@ class PuckTrackerNode(AirHockeyNode):
             self.get_logger().error(f"/optitrack/puck: frame dropped ({type(exc).__name__}: {exc})",
                                     throttle_duration_sec=1.0)
 
-    def log_rim_law(self) -> None:
-        """Log the rim law learned online at its first impact and every LOG_EVERY_IMPACTS after."""
-        law = self.ekf.adaptation
-        if law is not None and law.impacts != self.logged_impacts:
-            self.logged_impacts = law.impacts
-            if (law.impacts - 1) % LOG_EVERY_IMPACTS == 0:
-                self.get_logger().info(f"rim law learned {describe(law.report())} (rim_adaptation)")
+    def log_learning(self) -> None:
+        """Log what was learned online of the table when its count of impacts and windows reaches 1, 10,
+        100, ... (a few lines a session)."""
+        learning = self.ekf.learning
+        if learning is None or learning.events < self.next_log:
+            return
+        self.next_log *= 10
+        self.get_logger().info(f"learned online: {describe_learning(learning.report())}")
 
     def publish_prediction(self) -> None:
         p = self.params
@@ -93,8 +92,8 @@ class PuckTrackerNode(AirHockeyNode):
     # --- services (thesis 4.1.1) -------------------------------------------------------------------
     def on_set_physical_params(self, request, response):
         # the service carries the thesis's four; the restitution slope and table acceleration stay as set
-        # (the configured ones: a rim law being learned online restarts from the new values)
-        configured = self.ekf.model.params if self.ekf.adaptation is None else self.ekf.adaptation.base
+        # (the configured ones: what was learned online restarts from the new values)
+        configured = self.ekf.model.params if self.ekf.learning is None else self.ekf.learning.base
         params = configured.with_values(
             friction_surface=request.friction_surface, damping=request.damping, restitution=request.restitution,
             friction_rim=request.friction_rim)

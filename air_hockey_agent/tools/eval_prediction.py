@@ -12,13 +12,14 @@ the poses, re-initialisations per second and the normalised innovation squared (
 more rim impacts.
 
 The bags are one session on one table, in the order given, as for a tracker node that keeps running:
-the rim law the tracker learns online (``rim_adaptation`` in ``config/tracker.yaml``) carries from one
-bag to the next, and every prediction uses the law learned up to its frame. Reported (JSON "rim_law"):
-the impacts it learned from, its two scales of the configured law and the rim parameters they give
-(a ``--params-file`` with ``rim_adaptation: {enabled: false}`` evaluates the configured law alone).
+what the tracker learns online of the table (``rim_adaptation``, ``acceleration_adaptation`` in
+``config/tracker.yaml``) carries from one bag to the next, and every prediction uses what was learned up
+to its frame. Reported: JSON "rim_law" (the impacts learned from, the two scales of the configured rim
+law and the rim parameters they give) and "table_acceleration" (free-flight windows, value and std
+[m/s^2]); a ``--params-file`` with ``enabled: false`` under both evaluates the configured physics alone.
 
 And the thesis's own columns (tables 5.2-5.4; JSON "thesis_style"), computed as ``air-hockey sysid``
-reports them, of the configured rim law: the bags preprocessed into cut trajectories (thesis sec. 4.5.1,
+reports them, of the configured physics (nothing learned): the bags preprocessed into cut trajectories (thesis sec. 4.5.1,
 ``config/sysid.yaml``), per horizon the loss (mean error over all their comparisons) and the min and
 median over trajectories of each trajectory's mean error. A bag that cannot be used gives a one-line
 error on stderr and exit code 2; the other bags are still evaluated.
@@ -33,12 +34,12 @@ from pathlib import Path
 from air_hockey_agent.bags.reader import BagError
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
-from air_hockey_agent.core.estimation.rim_adaptation import describe
+from air_hockey_agent.core.estimation.table_learning import describe_learning
 from air_hockey_agent.bags.trajectories import bag_measurements
 from air_hockey_agent.core.identification.preprocess import preprocess
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.sysid_params import load_sysid_params
-from air_hockey_agent.tracker_params import fixed_rim_law, load_tracker_params
+from air_hockey_agent.tracker_params import without_learning, load_tracker_params
 from air_hockey_agent.tools.argtypes import number
 from air_hockey_agent.tools.recordings import add_pose_topic_arguments
 
@@ -89,18 +90,18 @@ def run(args: argparse.Namespace) -> int:
         if not args.json:
             print(f"{bag}: {len(frames)} frames", file=sys.stderr)
     summary = totals.summary()
-    summary["rim_law"] = None if ekf.adaptation is None else ekf.adaptation.report()
+    summary.update(ekf.learning.report() if ekf.learning is not None else {"rim_law": None, "table_acceleration": None})
     summary["thesis_style"] = thesis_style(params, cut, args.horizons)
     print(json.dumps(summary) if args.json else format_table(summary))
     return 2 if failed else 0
 
 
 def thesis_style(params: dict, trajectories: list, horizons) -> dict:
-    """The thesis's trajectory-level columns per horizon, as sysid reports them (the configured rim law,
-    not learned online: :func:`fixed_rim_law`): ``{"trajectories": n, "<h>": {"loss_m", "min_m",
+    """The thesis's trajectory-level columns per horizon, as sysid reports them (the configured physics,
+    nothing learned online: :func:`without_learning`): ``{"trajectories": n, "<h>": {"loss_m", "min_m",
     "median_m", "n"}}`` over cut ``trajectories`` (None without any)."""
     from air_hockey_agent.core.identification.sysid import position_loss_reports
-    reports = position_loss_reports(fixed_rim_law(params), trajectories, horizons)
+    reports = position_loss_reports(without_learning(params), trajectories, horizons)
     out: dict = {"trajectories": len(trajectories)}
     for key, r in reports.items():
         out[key] = ({"loss_m": r.loss, "min_m": r.min, "median_m": r.median, "n": r.comparisons} if r.comparisons
@@ -127,23 +128,21 @@ def format_table(summary: dict) -> str:
                          f"{s['p95_m'] * 1e3:>9.2f} {s['n']:>8}")
         else:
             lines.append(f"{key:>11} {'-':>10} {'-':>12} {'-':>9} {0:>8}")
-    return "\n".join(lines + [_rim_law_line(summary["rim_law"])] + _path_table(summary["by_path"])
+    return "\n".join(lines + [_learning_line(summary)] + _path_table(summary["by_path"])
                      + _thesis_table(summary["thesis_style"]))
 
 
-def _rim_law_line(law: dict | None) -> str:
-    """What the tracker learned of the rims over the bags (in their order, as one session on one table)."""
-    if law is None:
-        return "rim law: as configured (rim_adaptation.enabled is false)"
-    p = law["params"]
-    return (f"rim law learned over the bags {describe(law)} (restitution {p['restitution']:.4f}, "
-            f"friction_rim {p['friction_rim']:.4f}, tangential_restitution {p['tangential_restitution']:.3f})")
+def _learning_line(summary: dict) -> str:
+    """What the tracker learned online of the table over the bags (in their order, as one session)."""
+    if summary["rim_law"] is None and summary["table_acceleration"] is None:
+        return "learned online: nothing (rim_adaptation and acceleration_adaptation are off)"
+    return "learned online over the bags: " + describe_learning(summary)
 
 
 def _thesis_table(thesis: dict) -> list[str]:
     """Loss, min and median over trajectories [mm] per horizon (thesis tables 5.2-5.4, sysid's columns)."""
     lines = [f"thesis-style, over {thesis['trajectories']} cut trajectories "
-             "(as sysid reports it: the configured rim law)",
+             "(as sysid reports it: the configured physics, nothing learned)",
              f"{'horizon [s]':>11} {'loss [mm]':>10} {'traj. min [mm]':>15} {'traj. median [mm]':>18} {'n':>8}"]
     for key, r in thesis.items():
         if key == "trajectories":

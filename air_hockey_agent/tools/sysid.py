@@ -36,7 +36,7 @@ from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PH
                                                       loss_report, nis_median, on_bounds, partial_loss, polish)
 from air_hockey_agent.params import yaml_value
 from air_hockey_agent.sysid_params import bounds
-from air_hockey_agent.tracker_params import fixed_rim_law
+from air_hockey_agent.tracker_params import without_learning
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
@@ -157,7 +157,7 @@ def run(args: argparse.Namespace) -> int:
     except ToolError as exc:
         return report_error(PROG, exc)
     tracker, settings, loaded = recordings.tracker, recordings.settings, recordings.loaded
-    tracker = fixed_rim_law(tracker)  # the law itself is identified: learning it online would rescale each candidate
+    tracker = without_learning(tracker)  # the law itself is identified: learning it online would rescale each candidate
     train_idx, val_idx = split_train_validation(len(loaded.trajectories), args.split, args.seed)
     train = [loaded.trajectories[i] for i in train_idx]
     validation = [loaded.trajectories[i] for i in val_idx]

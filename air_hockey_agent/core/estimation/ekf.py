@@ -16,9 +16,10 @@
   ``outside_table_margin`` are dropped before gating.
 * (re)initialisation: a least-squares constant-velocity fit over the collected frames (two at the start
   of a track, the rejected run after an event; seed 003's batch estimate), with the fit's covariance.
-* rim law learned online (``rim_adaptation.*``, :mod:`.rim_adaptation`): after each rim impact the model
-  puts between two frames, the incoming state and line fits over the next fused frames scale the
-  configured rim law toward this table's; the model (and every prediction) then uses the learned law. It
+* what is learned online of the table (``rim_adaptation.*``, ``acceleration_adaptation.*``,
+  :mod:`.table_learning`): after each frame handled without a rejection or restart the frame goes to
+  the learning, which scales the configured rim law from the impacts it sees and estimates the table's
+  acceleration from free flight; the model (and every prediction) then uses what was learned. It
   survives :meth:`PuckEKF.reset` (it is the table's, not the track's).
 """
 from __future__ import annotations
@@ -29,8 +30,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, flight_acceleration,
-                                                             outgoing_fit, rim_frame)
+from air_hockey_agent.core.estimation.table_learning import TableLearning
 from air_hockey_agent.core.linalg3 import inverse_sym3
 from air_hockey_agent.core.puck.prediction import Prediction, predict_fast, with_impact_noise
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, wrap_angle
@@ -129,17 +129,6 @@ class _Measurement:
     z: np.ndarray
 
 
-@dataclass
-class _ImpactWatch:
-    """A rim impact the model put between two frames, awaiting the fused frames after it."""
-
-    t: float              # [s] impact time
-    wall: int
-    before: tuple         # incoming (vb, vn, omega) in the rim's frame
-    times: list = field(default_factory=list)
-    poses: list = field(default_factory=list)
-
-
 def check_covariance(matrix: np.ndarray, size: int, name: str) -> np.ndarray:
     """Return ``matrix`` as a float array if it is a finite symmetric positive definite size x size matrix."""
     matrix = np.asarray(matrix, float)
@@ -171,8 +160,7 @@ class PuckEKF:
     # normalised innovation squared y^T S^-1 y of the last frame that reached the gate (fused or rejected),
     # None when the last frame did not (lost, frozen, initialising): the filter's consistency check
     last_nis: float | None = None
-    adaptation: RimAdaptation | None = None            # the rim law learned online (None: the configured one)
-    _watch: _ImpactWatch | None = None
+    learning: TableLearning | None = None              # what is learned online of the table (None: nothing)
 
     def __post_init__(self) -> None:
         """Nothing here; a subclass with state of its own sets it up (the generated ``__init__`` calls this)."""
@@ -186,17 +174,14 @@ class PuckEKF:
         kind = {"ekf": PuckEKF, "ukf": PuckUKF, "mee_ukf": PuckMEEUKF, "imm": PuckIMM}[params.get("filter", "ekf")]
         model = PuckModel(TableGeometry.from_params(params), PuckParams.from_params(params))
         ekf = kind(model, FilterSettings.from_params(params))
-        adapt = AdaptationSettings.from_params(params)
-        if adapt.enabled:
-            ekf.adaptation = RimAdaptation(model.params, model.table, adapt)
+        ekf.learning = TableLearning.from_params(model.params, model.table, params)
         return ekf
 
     def set_model_params(self, params: PuckParams) -> None:
-        """Use ``params`` (validated: ValueError, filter unchanged); a rim law being learned restarts from them."""
+        """Use ``params`` (validated: ValueError, filter unchanged); what was learned online restarts from them."""
         self.model = self.model.with_params(params)
-        self._watch = None
-        if self.adaptation is not None:
-            self.adaptation = RimAdaptation(params, self.model.table, self.adaptation.settings)
+        if self.learning is not None:
+            self.learning = self.learning.restarted(params)
 
     # --- state management -------------------------------------------------------------------------
     def reset(self, state: Sequence[float] | None = None, stamp: float | None = None) -> None:
@@ -207,7 +192,8 @@ class PuckEKF:
         """
         self._pending.clear()
         self._last_z = None
-        self._watch = None
+        if self.learning is not None:
+            self.learning.forget()
         if state is None:
             self.initialised, self.stamp = False, None
             return
@@ -302,22 +288,18 @@ class PuckEKF:
 
         Returns ``FLAG_*`` bits describing what was done.
         """
-        if self.adaptation is None:
+        if self.learning is None:
             return self._process(t, z)
         x, p, stamp, initialised = self.x, self.P, self.stamp, self.initialised  # steps replace, not change, x and P
         flags = self._process(t, z)
-        if not initialised or stamp is None:
-            self._watch = None
-        elif self._watch is not None or not self._clear_of_rims(x, t - stamp):
-            self._watch_rims(t, z, flags, x, p, stamp)
+        if not (initialised and self.initialised and stamp is not None) or flags & (FLAG_OUTLIER_REJECTED |
+                                                                                    FLAG_REINITIALISED):
+            self.learning.forget()
+            return flags
+        learned = self.learning.after_frame(self.model, t, z if flags & FLAG_MEASUREMENT_USED else None, x, p, stamp)
+        if learned is not None:
+            self.model = self.model.with_params(learned)
         return flags
-
-    def _clear_of_rims(self, x: np.ndarray, dt: float) -> bool:
-        """True when a puck at state ``x`` reaches no rim line flying straight for ``dt`` [s] (the cheap
-        test of most frames)."""
-        x_limit, y_limit = self.adaptation.limits
-        px, py, vx, vy = x[:4].tolist()
-        return abs(px) + abs(vx) * dt < x_limit and abs(py) + abs(vy) * dt < y_limit
 
     def _process(self, t: float, z: Sequence[float] | None) -> int:
         self.stats.frames += 1
@@ -404,37 +386,6 @@ class PuckEKF:
             return 0
         self._initialise_from_pending()
         return FLAG_REINITIALISED | FLAG_MEASUREMENT_USED
-
-    # --- the rim law learned online ----------------------------------------------------------------
-    def _watch_rims(self, t: float, z, flags: int, before: np.ndarray, p: np.ndarray, stamp: float) -> None:
-        """After frame ``t``: start watching a rim impact the model put since the previous state ``before``
-        (covariance ``p``) at ``stamp``, collect the fused frames after it, and learn from it once they span
-        ``window``. A rejected frame or a restart drops the watch."""
-        if flags & (FLAG_OUTLIER_REJECTED | FLAG_REINITIALISED) or not self.initialised:
-            self._watch = None
-            return
-        x, y, vx, vy, _, omega = before.tolist()
-        dt = t - stamp
-        hit = None if dt <= 0.0 or self._clear_of_rims(before, dt) else self.model.first_impact(x, y, vx, vy, dt)
-        settings = self.adaptation.settings
-        if hit is not None:
-            tau, wall = hit
-            vb, vn = rim_frame(wall, vx, vy)
-            certain = p[2, 2] + p[3, 3] <= (settings.max_incoming_uncertainty ** 2) * (vx * vx + vy * vy)
-            fast = -vn >= settings.min_normal_speed
-            self._watch = _ImpactWatch(stamp + tau, wall, (vb, vn, omega)) if certain and fast else None
-        watch = self._watch
-        if watch is None or not flags & FLAG_MEASUREMENT_USED or t <= watch.t:
-            return
-        watch.times.append(t)
-        watch.poses.append(z)
-        if t - watch.t < settings.window:
-            return
-        self._watch = None
-        if len(watch.times) >= settings.min_frames:
-            vx, vy, omega = outgoing_fit(watch.times, watch.poses, watch.t, flight_acceleration(self.model.params))
-            if self.adaptation.observe(watch.before, (*rim_frame(watch.wall, vx, vy), omega)):
-                self.model = self.model.with_params(self.adaptation.params())
 
     # --- prediction -------------------------------------------------------------------------------
     def predict(self, horizon: float, lines: Sequence[float] = (), sample_every: int = 0) -> Prediction:

@@ -73,9 +73,8 @@ class RimAdaptation:
     """Running estimate of the two scales of ``base``'s rim law from observed impacts."""
 
     def __init__(self, base: PuckParams, table: TableGeometry, settings: AdaptationSettings) -> None:
-        self.base, self.table, self.settings = base, table, settings
+        self.base, self.settings = base, settings
         self.radius = table.puck_radius
-        self.limits = (table.x_limit, table.y_limit)  # [m] largest |x|, |y| of the centre off the rims
         self.impacts = 0
         self._ratio_sum = 0.0     # sum of the observed restitution ratios
         self._cross = 0.0         # sum of model impulse x observed impulse [m^2/s^2]

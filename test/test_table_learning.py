@@ -1,5 +1,6 @@
-"""The rim law learned online (core/estimation/rim_adaptation.py and its use in the filter), against the
-test bed's rims (core/puck/real_table.py, written apart from the model) and the model's own."""
+"""What the tracker learns online of its table (core/estimation/rim_adaptation.py, table_learning.py and
+their use in the filter), against the test bed's physics (core/puck/real_table.py, written apart from
+the model) and the model's own."""
 import math
 
 import numpy as np
@@ -9,9 +10,10 @@ from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, _filter_pass, evaluate_stream
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, outgoing_fit,
                                                              scaled_params)
+from air_hockey_agent.core.estimation.table_learning import AccelerationAdaptation, AccelerationSettings, quadratic_fit
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.puck.real_table import TableEffects, real_rim_impact
-from air_hockey_agent.tracker_params import fixed_rim_law, load_tracker_params
+from air_hockey_agent.tracker_params import without_learning, load_tracker_params
 from model_fixtures import TABLE, session_on_testbed
 
 SETTINGS = AdaptationSettings(enabled=True, prior_impacts=5.0, window=0.1, min_frames=6, min_normal_speed=0.1,
@@ -111,13 +113,14 @@ def test_the_filter_learns_the_test_beds_rims_and_predicts_better(params):
     ekf = PuckEKF.from_params(params)
     frames = [(f.stamp, f.measurement) for f in session_on_testbed(ekf, 14, 7)]
     medians = {}
-    for name, p in (("learned", params), ("configured", fixed_rim_law(params))):
+    rims_only = {**params, "acceleration_adaptation.enabled": False}
+    for name, p in (("learned", rims_only), ("configured", without_learning(params))):
         ekf = PuckEKF.from_params(p)
         totals = EvaluationTotals((1.0,))
         evaluate_stream(ekf, frames, totals)
         medians[name] = totals.summary()["horizons"]["1.0"]["median_m"]
         if name == "learned":
-            law = ekf.adaptation
+            law = ekf.learning.rim
     assert law.impacts >= 30
     assert law.tangential_scale == pytest.approx(0.3, abs=0.1) and law.restitution_scale == pytest.approx(1.0, abs=0.03)
     assert medians["learned"] < 0.7 * medians["configured"]
@@ -132,13 +135,74 @@ def test_on_the_models_own_rims_the_law_stays_and_predictions_use_the_law_of_the
     ekf = PuckEKF.from_params(params)
     session = synthetic_session(ekf.model, SHOTS, 6, 120.0, REAL_LIKE, np.random.default_rng(3), 0.002)
     records, _, _ = _filter_pass(ekf, [(f.stamp, f.measurement) for f in session], keep_cov=False)
-    law = ekf.adaptation
+    law = ekf.learning.rim
     assert law.impacts >= 10
     assert law.restitution_scale == pytest.approx(1.0, abs=0.02) and law.tangential_scale == pytest.approx(1.0, abs=0.1)
     assert records[0].model.params == law.base and records[-1].model is ekf.model
-    assert len({id(r.model) for r in records}) == law.impacts + 1  # one model per law learned, in frame order
+    learned = law.impacts + ekf.learning.acceleration.windows
+    assert len({id(r.model) for r in records}) == learned + 1  # one model per thing learned, in frame order
     ekf.reset()
-    assert ekf.adaptation is law and ekf.model.params == law.params()
+    assert ekf.learning.rim is law and ekf.model.params == ekf.learning.params()
     ekf.set_model_params(law.base.with_values(damping=0.2))
-    assert ekf.adaptation.impacts == 0 and ekf.model.params.damping == 0.2
-    assert PuckEKF.from_params(fixed_rim_law(params)).adaptation is None
+    assert ekf.learning.rim.impacts == 0 and ekf.model.params.damping == 0.2
+    assert PuckEKF.from_params(without_learning(params)).learning is None
+
+
+FLIGHT = AccelerationSettings(enabled=True, prior_std=0.03, damping_prior_std=0.1, field_std=0.01, window=0.25,
+                              min_frames=15, min_speed=0.1)
+
+
+def test_the_quadratic_fit_is_exact_and_its_variance_follows_the_noise():
+    times = 2.0 + np.arange(30) / 120.0
+    tau = times - 0.5 * (times[0] + times[-1])
+    poses = np.column_stack([0.1 + 0.8 * tau + 0.5 * 0.02 * tau ** 2, -0.2 - 0.5 * tau - 0.5 * 0.1 * tau ** 2,
+                             np.zeros_like(tau)])
+    a, var, v = quadratic_fit(list(times), poses)
+    assert a == pytest.approx([0.02, -0.1], abs=1e-9) and v == pytest.approx([0.8, -0.5], abs=1e-9)
+    assert np.all(var < 1e-20)
+    rng = np.random.default_rng(4)
+    spread = [quadratic_fit(list(times), poses + np.column_stack([rng.normal(0, 1e-3, (30, 2)), np.zeros(30)]))
+              for _ in range(400)]
+    measured = np.std([f[0][0] for f in spread])
+    assert np.sqrt(np.mean([f[1][0] for f in spread])) == pytest.approx(measured, rel=0.15)
+
+
+def test_a_tilt_and_the_damping_are_told_apart_when_every_shot_goes_one_way(params):
+    """Windows of shots all toward +x (a human's) on a table tilted toward +y with damping 0.4 where 0.125
+    is configured: fitting the damping too recovers both; with the damping held (a stiff prior) its error
+    leaks into the acceleration along the shots."""
+    base = base_law(params)
+    rng = np.random.default_rng(5)
+    g, d = np.array([0.0, 0.02]), 0.4
+    windows = []
+    for _ in range(300):
+        v = np.array([rng.uniform(0.3, 2.5), rng.uniform(-0.6, 0.6)])
+        windows.append((g - d * v + rng.normal(0.0, 0.01, 2), np.full(2, 1e-4), v))
+    free = AccelerationAdaptation(base, FLIGHT)
+    held = AccelerationAdaptation(base, AccelerationSettings(**{**FLIGHT.__dict__, "damping_prior_std": 1e-6}))
+    for w in windows:
+        free.observe(*w)
+        held.observe(*w)
+    assert free.value == pytest.approx((0.0, 0.02), abs=2e-3) and free.damping == pytest.approx(0.4, abs=5e-3)
+    assert held.damping == pytest.approx(base.damping, abs=1e-5) and held.value[0] < -0.2  # the damping's error, as a tilt
+
+
+def test_the_filter_learns_the_test_beds_tilt_and_the_models_own_flight_stays(params):
+    """A test-bed session (tilt 0.002 rad toward +y: 0.0196 m/s^2, an air film of 0.01 m/s^2, random
+    accelerations of 0.01 m/s^2, config/synthetic.yaml): the learned table acceleration is the tilt's;
+    on the model's own shots (no tilt, the configured damping) nothing moves."""
+    from test_evaluation import SHOTS, REAL_LIKE
+    from air_hockey_agent.core.estimation.synthetic import synthetic_session
+    ekf = PuckEKF.from_params(params)
+    frames = [(f.stamp, f.measurement) for f in session_on_testbed(ekf, 14, 7)]
+    totals = EvaluationTotals((1.0,))
+    evaluate_stream(ekf, frames, totals)
+    learned = ekf.learning.acceleration
+    assert learned.windows >= 100
+    assert learned.value == pytest.approx((0.0, 0.0196), abs=4e-3)
+    ekf = PuckEKF.from_params(params)
+    session = synthetic_session(ekf.model, SHOTS, 6, 120.0, REAL_LIKE, np.random.default_rng(3), 0.002)
+    evaluate_stream(ekf, [(f.stamp, f.measurement) for f in session], EvaluationTotals((1.0,)))
+    learned = ekf.learning.acceleration
+    assert learned.windows >= 30
+    assert learned.value == pytest.approx((0.0, 0.0), abs=3e-3) and learned.damping == pytest.approx(0.125, abs=0.01)

@@ -1,0 +1,252 @@
+"""What the tracker learns online of its table (issue #13 item 3): the rim law and the table acceleration.
+
+The configured physics is a prior, not a given table's. After each mocap frame the filter hands this
+module the frame and the state it predicted from:
+
+* **rim impacts** (:mod:`.rim_adaptation`): an impact the model puts between two frames, with a
+  well-known incoming velocity, is watched for ``rim_adaptation.window`` seconds of fused poses, whose
+  line fit gives the outgoing velocity and spin; the rim law's two scales learn from it;
+* **free flight** (``acceleration_adaptation.*``): fused poses of a moving puck between rim impacts are
+  cut into windows of ``window`` seconds; a quadratic fit per window gives its acceleration, and what
+  the configured flight law (eq. 3.1) does not explain of it is the table's own acceleration (a tilt,
+  an air film's mean: issue #13 measured about 0.03 m/s^2 across the track in the lab's free flight; the
+  thesis's conclusion proposes this constant-acceleration extension). The estimate is Gaussian: the
+  configured ``table_acceleration`` with std ``prior_std`` as the prior, each window's fit with its own
+  variance (from its residuals) plus ``field_std`` squared, for what the constant cannot follow
+  (an uneven air film), so the estimate is the mean over windows across the table.
+
+A rejected frame, a re-initialisation or a restart ends any watch or window (a hit). What was learned
+stays: it is the table's, not the track's.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from typing import Any, Mapping
+
+import numpy as np
+
+from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe,
+                                                             flight_acceleration, outgoing_fit, rim_frame)
+from air_hockey_agent.core.puck.model import PuckModel, PuckParams
+from air_hockey_agent.core.table import TableGeometry
+
+
+@dataclass(frozen=True)
+class AccelerationSettings:
+    """``acceleration_adaptation.*`` in ``config/tracker.yaml``."""
+
+    enabled: bool
+    prior_std: float     # [m/s^2] per axis, of the configured table_acceleration
+    damping_prior_std: float  # [1/s] of the configured damping
+    field_std: float     # [m/s^2] per axis, added to each window's std: what a constant cannot follow
+    window: float        # [s] fused frames per fit
+    min_frames: int      # fused frames a window needs
+    min_speed: float     # [m/s] frames of a slower puck are not used (at rest the surface may hold it)
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any]) -> "AccelerationSettings":
+        p = "acceleration_adaptation."
+        return cls(*(params[p + name] for name in ("enabled", "prior_std", "damping_prior_std", "field_std", "window",
+                                                    "min_frames", "min_speed")))
+
+
+class AccelerationAdaptation:
+    """Gaussian estimate of the table acceleration g = (gx, gy) [m/s^2] and the damping d [1/s] from
+    free-flight windows: each window's acceleration a at velocity v is ``g - d v - mu_s v/|v|``
+    (eq. 3.1 with the table acceleration), linear in (gx, gy, d) once mu_s is taken as configured. Fitting
+    d too keeps a wrong configured damping out of g when the shots share a direction (a human's)."""
+
+    def __init__(self, base: PuckParams, settings: AccelerationSettings) -> None:
+        self.settings, self.friction = settings, base.friction_surface
+        self.windows = 0
+        self._information = np.diag([settings.prior_std ** -2] * 2 + [settings.damping_prior_std ** -2])
+        self._weighted = self._information @ np.array([*base.table_acceleration, base.damping])
+
+    def _mean(self) -> np.ndarray:
+        return np.linalg.solve(self._information, self._weighted)
+
+    @property
+    def value(self) -> tuple[float, float]:
+        g = self._mean()
+        return float(g[0]), float(g[1])
+
+    @property
+    def damping(self) -> float:
+        return max(0.0, float(self._mean()[2]))
+
+    @property
+    def std(self) -> tuple[float, float, float]:
+        return tuple(float(s) for s in np.sqrt(np.diag(np.linalg.inv(self._information))))
+
+    def observe(self, acceleration: np.ndarray, variance: np.ndarray, velocity: np.ndarray) -> None:
+        """One window's acceleration [m/s^2] (x, y), its fit's variance per axis and the velocity [m/s]."""
+        vx, vy = velocity.tolist()
+        speed = math.hypot(vx, vy)
+        known = -self.friction * np.array([vx, vy]) / speed  # the configured surface friction's part
+        design = np.array([[1.0, 0.0, -vx], [0.0, 1.0, -vy]])
+        weight = np.diag(1.0 / (np.asarray(variance, float) + self.settings.field_std ** 2))
+        self._information = self._information + design.T @ weight @ design
+        self._weighted = self._weighted + design.T @ weight @ (np.asarray(acceleration, float) - known)
+        self.windows += 1
+
+    def report(self) -> dict:
+        sx, sy, sd = self.std
+        return {"windows": self.windows, "value": list(self.value), "std": [sx, sy],
+                "damping": self.damping, "damping_std": sd}
+
+
+def quadratic_fit(times: list[float], poses: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Acceleration (x, y) [m/s^2], its variance per axis (from the residuals) and the velocity at the
+    window's middle [m/s] of a quadratic fit of the poses' positions over ``times`` [s]; None with fewer
+    than four poses."""
+    if len(times) < 4:
+        return None
+    tau = np.asarray(times, float)
+    tau = tau - 0.5 * (tau[0] + tau[-1])
+    design = np.column_stack([np.ones_like(tau), tau, tau * tau])
+    xy = np.asarray(poses, float)[:, :2]
+    inverse = np.linalg.inv(design.T @ design)  # 3x3 normal equations: the columns are far from collinear
+    coef = inverse @ (design.T @ xy)
+    residual = xy - design @ coef
+    scale = np.sum(residual * residual, axis=0) / (len(tau) - 3)
+    return 2.0 * coef[2], 4.0 * inverse[2, 2] * scale, coef[1]
+
+
+@dataclass
+class _ImpactWatch:
+    """A rim impact the model put between two frames, awaiting the fused frames after it."""
+
+    t: float              # [s] impact time
+    wall: int
+    before: tuple         # incoming (vb, vn, omega) in the rim's frame
+    times: list = field(default_factory=list)
+    poses: list = field(default_factory=list)
+
+
+class TableLearning:
+    """The rim law and the table acceleration learned online on top of ``base`` (either may be off)."""
+
+    def __init__(self, base: PuckParams, table: TableGeometry, rim: AdaptationSettings | None,
+                 acceleration: AccelerationSettings | None) -> None:
+        self.base, self.table = base, table
+        self.rim = None if rim is None else RimAdaptation(base, table, rim)
+        self.acceleration = None if acceleration is None else AccelerationAdaptation(base, acceleration)
+        self.limits = (table.x_limit, table.y_limit)  # [m] largest |x|, |y| of the centre off the rims
+        self._watch: _ImpactWatch | None = None
+        self._times: list[float] = []   # the free-flight window being collected
+        self._poses: list = []
+
+    @classmethod
+    def from_params(cls, base: PuckParams, table: TableGeometry, params: Mapping[str, Any]) -> "TableLearning | None":
+        """The learning ``params`` switch on, or None when both are off."""
+        rim, acc = AdaptationSettings.from_params(params), AccelerationSettings.from_params(params)
+        if not (rim.enabled or acc.enabled):
+            return None
+        return cls(base, table, rim if rim.enabled else None, acc if acc.enabled else None)
+
+    def restarted(self, base: PuckParams) -> "TableLearning":
+        """The same learning from new configured parameters (nothing learned yet)."""
+        return TableLearning(base, self.table, None if self.rim is None else self.rim.settings,
+                             None if self.acceleration is None else self.acceleration.settings)
+
+    def params(self) -> PuckParams:
+        """The configured parameters with what was learned so far."""
+        p = self.base if self.rim is None else self.rim.params()
+        if self.acceleration is not None and self.acceleration.windows:
+            p = p.with_values(table_acceleration=self.acceleration.value, damping=self.acceleration.damping)
+        return p
+
+    def forget(self) -> None:
+        """The track broke (a hit, a restart): drop the impact being watched and the flight window."""
+        self._watch = None
+        self._times, self._poses = [], []
+
+    def clear_of_rims(self, px: float, py: float, vx: float, vy: float, dt: float) -> bool:
+        """True when a puck at (px, py) [m] with velocity (vx, vy) [m/s] reaches no rim line flying straight
+        for ``dt`` [s]."""
+        return abs(px) + abs(vx) * dt < self.limits[0] and abs(py) + abs(vy) * dt < self.limits[1]
+
+    def after_frame(self, model: PuckModel, t: float, z, before: np.ndarray, p: np.ndarray,
+                    stamp: float) -> PuckParams | None:
+        """Frame ``t`` [s] was handled without a rejection or restart; ``z`` is its fused pose (None if it
+        fused none), ``before`` / ``p`` the state and covariance at the previous frame ``stamp`` [s].
+        Returns the parameters to use from now on when something was learned, else None."""
+        dt = t - stamp
+        state = before[:4].tolist()
+        vx, vy = state[2], state[3]
+        hit = None if dt <= 0.0 or self.clear_of_rims(*state, dt) else model.first_impact(*state, dt)
+        if hit is not None:
+            self._times, self._poses = [], []
+            self._watch = self._new_watch(before, p, stamp, hit) if self.rim is not None else None
+        learned = False
+        if z is not None:
+            if self._watch is not None and t > self._watch.t:
+                learned |= self._watch_rim(model, t, z)
+            if self.acceleration is not None and hit is None:
+                learned |= self._fly(t, z, math.hypot(vx, vy))
+        return self.params() if learned else None
+
+    def _new_watch(self, before: np.ndarray, p: np.ndarray, stamp: float, hit) -> _ImpactWatch | None:
+        tau, wall = hit
+        _, _, vx, vy, _, omega = before.tolist()
+        vb, vn = rim_frame(wall, vx, vy)
+        settings = self.rim.settings
+        certain = p[2, 2] + p[3, 3] <= (settings.max_incoming_uncertainty ** 2) * (vx * vx + vy * vy)
+        fast = -vn >= settings.min_normal_speed
+        return _ImpactWatch(stamp + tau, wall, (vb, vn, omega)) if certain and fast else None
+
+    def _watch_rim(self, model: PuckModel, t: float, z) -> bool:
+        watch, settings = self._watch, self.rim.settings
+        watch.times.append(t)
+        watch.poses.append(z)
+        if t - watch.t < settings.window:
+            return False
+        self._watch = None
+        if len(watch.times) < settings.min_frames:
+            return False
+        vx, vy, omega = outgoing_fit(watch.times, watch.poses, watch.t, flight_acceleration(model.params))
+        return self.rim.observe(watch.before, (*rim_frame(watch.wall, vx, vy), omega))
+
+    def _fly(self, t: float, z, speed: float) -> bool:
+        settings = self.acceleration.settings
+        if speed < settings.min_speed:
+            self._times, self._poses = [], []
+            return False
+        self._times.append(t)
+        self._poses.append(z)
+        if t - self._times[0] < settings.window:
+            return False
+        times, poses = self._times, self._poses
+        self._times, self._poses = [], []
+        fit = None if len(times) < settings.min_frames else quadratic_fit(times, poses)
+        if fit is None:
+            return False
+        self.acceleration.observe(*fit)
+        return True
+
+    @property
+    def events(self) -> int:
+        """Rim impacts and free-flight windows learned from so far."""
+        return (0 if self.rim is None else self.rim.impacts) + (0 if self.acceleration is None else
+                                                                 self.acceleration.windows)
+
+    def report(self) -> dict:
+        """What was learned: ``rim_law`` (:meth:`RimAdaptation.report`) and ``table_acceleration``
+        (windows, value and std [m/s^2]), each None when not learned."""
+        return {"rim_law": None if self.rim is None else self.rim.report(),
+                "table_acceleration": None if self.acceleration is None else self.acceleration.report()}
+
+
+def describe_learning(report: dict) -> str:
+    """A :meth:`TableLearning.report` in words, for logs and tables."""
+    parts = []
+    if report["rim_law"] is not None:
+        parts.append("rim law " + describe(report["rim_law"]))
+    flight = report["table_acceleration"]
+    if flight is not None:
+        (gx, gy), (sx, sy) = flight["value"], flight["std"]
+        parts.append(f"table acceleration ({gx:+.4f} +- {sx:.4f}, {gy:+.4f} +- {sy:.4f}) m/s^2 and damping "
+                     f"{flight['damping']:.4f} +- {flight['damping_std']:.4f} 1/s from {flight['windows']} "
+                     f"free-flight window{'' if flight['windows'] == 1 else 's'}")
+    return "; ".join(parts)
