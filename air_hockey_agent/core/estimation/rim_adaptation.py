@@ -76,23 +76,28 @@ class RimAdaptation:
         self.base, self.settings = base, settings
         self.radius = table.puck_radius
         self.impacts = 0
-        self._ratio_sum = 0.0     # sum of the observed restitution ratios
-        self._cross = 0.0         # sum of model impulse x observed impulse [m^2/s^2]
-        self._square = 0.0        # sum of model impulse squared [m^2/s^2]
+        self._normal = [0.0, 0.0]      # sums of law x observed outgoing normal speed, and of law squared [m^2/s^2]
+        self._tangential = [0.0, 0.0]  # the same of the tangential impulse per mass [m^2/s^2]
 
     @property
     def restitution_scale(self) -> float:
-        n0 = self.settings.prior_impacts
-        return (n0 + self._ratio_sum) / (n0 + self.impacts) if n0 + self.impacts > 0 else 1.0
+        """Least squares of the observed outgoing normal speeds on the configured law's (the faster impacts,
+        whose errors move a prediction most, weigh most; split sysid's objective), with the prior."""
+        return self._scale(self._normal)
 
     @property
     def tangential_scale(self) -> float:
-        """Least squares of the observed tangential impulses on the law's, with the prior as ``prior_impacts``
-        impacts of the mean size seen that the law predicts exactly."""
-        if self._square <= 0.0:
+        """Least squares of the observed tangential impulses on the law's, with the prior."""
+        return self._scale(self._tangential)
+
+    def _scale(self, sums: list) -> float:
+        """``(prior + sum a b) / (prior + sum a^2)``: the prior is ``prior_impacts`` impacts of the mean size
+        seen that the law predicts exactly (1 before any)."""
+        cross, square = sums
+        if square <= 0.0:
             return 1.0
-        prior = self.settings.prior_impacts * self._square / self.impacts
-        return (prior + self._cross) / (prior + self._square)
+        prior = self.settings.prior_impacts * square / self.impacts
+        return (prior + cross) / (prior + square)
 
     def params(self) -> PuckParams:
         """The rim law learned so far (``base`` itself before any impact)."""
@@ -125,9 +130,11 @@ class RimAdaptation:
         if abs(model) > 1e-9 and not -bound <= (seen[0] + seen[1]) / (2.0 * model) <= bound:
             return False
         self.impacts += 1
-        self._ratio_sum += ratio
-        self._cross += model * (seen[0] + seen[1])
-        self._square += 2.0 * model * model
+        configured = self._impact(self.base, before).vn
+        self._normal[0] += configured * after[1]
+        self._normal[1] += configured * configured
+        self._tangential[0] += model * (seen[0] + seen[1])
+        self._tangential[1] += 2.0 * model * model
         return True
 
     def _impact(self, law: PuckParams, before: RimState):
