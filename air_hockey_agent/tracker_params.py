@@ -83,6 +83,8 @@ TRACKER_PARAMS = (
     ParamSpec("acceleration_adaptation.window", float, "[s] fused free-flight frames per fit", 0.05, 5.0),
     ParamSpec("acceleration_adaptation.min_frames", int, "fused frames a window needs", 4, 10000),
     ParamSpec("acceleration_adaptation.min_speed", float, "[m/s] frames of a slower puck are not used", 0.0, 10.0),
+    ParamSpec("acceleration_adaptation.gate", float, "squared Mahalanobis distance (2 dof) beyond which a window "
+              "is not learned from", 0.1, 1e6),
     ParamSpec("max_consecutive_rejections", int, "rejected frames in a row before re-initialising", 1, 1000),
     ParamSpec("outside_table_margin", float, "[m] drop measurements this far beyond the rims", 0.0, 10.0),
     ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),

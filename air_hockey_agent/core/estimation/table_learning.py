@@ -43,12 +43,13 @@ class AccelerationSettings:
     window: float        # [s] fused frames per fit
     min_frames: int      # fused frames a window needs
     min_speed: float     # [m/s] frames of a slower puck are not used (at rest the surface may hold it)
+    gate: float          # squared Mahalanobis distance (2 dof) beyond which a window is no free flight
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AccelerationSettings":
         p = "acceleration_adaptation."
         return cls(*(params[p + name] for name in ("enabled", "prior_std", "damping_prior_std", "field_std", "window",
-                                                    "min_frames", "min_speed")))
+                                                    "min_frames", "min_speed", "gate")))
 
 
 class AccelerationAdaptation:
@@ -79,16 +80,25 @@ class AccelerationAdaptation:
     def std(self) -> tuple[float, float, float]:
         return tuple(float(s) for s in np.sqrt(np.diag(np.linalg.inv(self._information))))
 
-    def observe(self, acceleration: np.ndarray, variance: np.ndarray, velocity: np.ndarray) -> None:
-        """One window's acceleration [m/s^2] (x, y), its fit's variance per axis and the velocity [m/s]."""
+    def observe(self, acceleration: np.ndarray, variance: np.ndarray, velocity: np.ndarray) -> bool:
+        """Learn from one window's acceleration [m/s^2] (x, y), its fit's variance per axis and the
+        velocity [m/s]; False when it is left out: farther than ``gate`` from what is known (a hand or a
+        mallet moved the puck, not the table)."""
         vx, vy = velocity.tolist()
         speed = math.hypot(vx, vy)
         known = -self.friction * np.array([vx, vy]) / speed  # the configured surface friction's part
         design = np.array([[1.0, 0.0, -vx], [0.0, 1.0, -vy]])
-        weight = np.diag(1.0 / (np.asarray(variance, float) + self.settings.field_std ** 2))
+        noise = np.asarray(variance, float) + self.settings.field_std ** 2
+        unexplained = np.asarray(acceleration, float) - known
+        innovation = unexplained - design @ self._mean()
+        spread = np.diag(noise) + design @ np.linalg.inv(self._information) @ design.T
+        if float(innovation @ np.linalg.solve(spread, innovation)) > self.settings.gate:
+            return False
+        weight = np.diag(1.0 / noise)
         self._information = self._information + design.T @ weight @ design
-        self._weighted = self._weighted + design.T @ weight @ (np.asarray(acceleration, float) - known)
+        self._weighted = self._weighted + design.T @ weight @ unexplained
         self.windows += 1
+        return True
 
     def report(self) -> dict:
         sx, sy, sd = self.std
@@ -222,8 +232,7 @@ class TableLearning:
         fit = None if len(times) < settings.min_frames else quadratic_fit(times, poses)
         if fit is None:
             return False
-        self.acceleration.observe(*fit)
-        return True
+        return self.acceleration.observe(*fit)
 
     @property
     def events(self) -> int:
