@@ -66,7 +66,8 @@ TRACKER_PARAMS = (
     ParamSpec("rim_adaptation.enabled", bool, "learn this table's rim law online from the impacts seen"),
     ParamSpec("rim_adaptation.prior_impacts", float, "[-] weight of the configured rim law, in impacts", 0.0, 1e6),
     ParamSpec("rim_adaptation.window", float, "[s] fused frames after an impact fitted for its outcome", 0.01, 2.0),
-    ParamSpec("rim_adaptation.min_frames", int, "fused frames the window needs", 2, 1000),
+    ParamSpec("rim_adaptation.min_frames", int, "fused frames the window needs (a line and a spin: 3 at least)",
+              3, 1000),
     ParamSpec("rim_adaptation.min_normal_speed", float, "[m/s] slower impacts are not learned from", 0.0, 10.0),
     ParamSpec("rim_adaptation.max_scale", float, "[-] an impact whose ratio to the law falls beyond "
               "[1/max_scale, max_scale] is not learned from", 1.0, 100.0),

@@ -101,7 +101,7 @@ def test_the_outgoing_fit_is_exact_on_motion_under_the_flight_law():
     tau = times - t0
     poses = [(*(np.array([0.1, 0.2]) + v0 * s + 0.5 * a * s * s), math.remainder(3.0 + omega * s, 2 * math.pi))
              for s in tau]
-    vx, vy, w = outgoing_fit(times, poses, t0, lambda vx, vy: a)
+    vx, vy, w = outgoing_fit(times, poses, t0, lambda v: a)
     assert (vx, vy, w) == pytest.approx((1.2, -0.8, 25.0), abs=1e-9)
 
 

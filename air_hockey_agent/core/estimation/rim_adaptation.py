@@ -21,12 +21,12 @@ the law being learned has biased.
 """
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from air_hockey_agent.core.identification.local_fit import fit_angle_rate, line_fit
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.puck.model import PuckParams
 from air_hockey_agent.core.table import WALL_NORMALS, TableGeometry
@@ -120,7 +120,8 @@ class RimAdaptation:
         vb, vn, omega = before
         if -vn < self.settings.min_normal_speed or after[1] <= 0.0:
             return False
-        ratio = after[1] / self._impact(self.base, before).vn  # observed over the configured restitution
+        configured = self._impact(self.base, before).vn  # the configured law's outgoing normal speed [m/s]
+        ratio = after[1] / configured
         law = scaled_params(self.base, self.restitution_scale, 1.0)
         model = self._impact(law, before).vb - vb  # the law's tangential impulse per mass [m/s], e learned so far
         seen = (after[0] - vb, 0.5 * self.radius * (after[2] - omega))  # from vb, and from the spin
@@ -130,7 +131,6 @@ class RimAdaptation:
         if abs(model) > 1e-9 and not -bound <= (seen[0] + seen[1]) / (2.0 * model) <= bound:
             return False
         self.impacts += 1
-        configured = self._impact(self.base, before).vn
         self._normal[0] += configured * after[1]
         self._normal[1] += configured * configured
         self._tangential[0] += model * (seen[0] + seen[1])
@@ -150,28 +150,25 @@ def describe(report: dict) -> str:
 
 
 def outgoing_fit(times: Sequence[float], poses: Sequence[Sequence[float]], t_impact: float,
-                 acceleration) -> tuple[float, float, float]:
+                 acceleration) -> tuple[float, float, float] | None:
     """Velocity (vx, vy) [m/s] and spin [rad/s] just after an impact at ``t_impact`` [s] from the measured
-    poses (x, y, theta) at ``times`` after it: line fits, the flight law's acceleration
-    ``acceleration(vx, vy) -> (ax, ay)`` [m/s^2] (at a first fit's velocity) removed from the positions."""
-    tau = np.asarray(times, float) - t_impact
-    z = np.asarray(poses, float)
-    design = np.column_stack([np.ones_like(tau), tau])
-    v = np.linalg.lstsq(design, z[:, :2], rcond=None)[0][1]
-    a = np.asarray(acceleration(float(v[0]), float(v[1])), float)
-    xy = z[:, :2] - 0.5 * np.outer(tau * tau, a)
-    v = np.linalg.lstsq(design, xy, rcond=None)[0][1]
-    omega = np.linalg.lstsq(design, np.unwrap(z[:, 2]), rcond=None)[0][1]  # frames are far below half a turn apart
-    return float(v[0]), float(v[1]), float(omega)
+    poses (x, y, theta) at ``times`` after it: line fits (:mod:`~air_hockey_agent.core.identification.
+    local_fit`, as split sysid's impact fits), the flight law's acceleration ``acceleration(v) -> a``
+    [m/s^2] removed from the positions; None with fewer than three poses."""
+    times, z = np.asarray(times, float), np.asarray(poses, float)
+    fit = line_fit(times, z[:, :2], t_impact, acceleration)
+    omega = fit_angle_rate(times, z[:, 2])
+    if fit is None or omega is None:
+        return None
+    return float(fit.v[0]), float(fit.v[1]), omega
 
 
 def flight_acceleration(params: PuckParams):
-    """The flight law's acceleration (vx, vy) -> (ax, ay) [m/s^2] (eq. 3.1 and the table acceleration)."""
+    """The flight law's acceleration ``v -> a`` [m/s, m/s^2] (eq. 3.1 and the table acceleration)."""
     d, mu = params.damping, params.friction_surface
-    gx, gy = params.table_acceleration
+    g = np.asarray(params.table_acceleration, float)
 
-    def acceleration(vx: float, vy: float) -> tuple[float, float]:
-        speed = math.hypot(vx, vy)
-        unit = (vx / speed, vy / speed) if speed > 0.0 else (0.0, 0.0)
-        return gx - d * vx - mu * unit[0], gy - d * vy - mu * unit[1]
+    def acceleration(v: np.ndarray) -> np.ndarray:
+        speed = float(np.hypot(v[0], v[1]))
+        return g - d * v - (mu * v / speed if speed > 0.0 else 0.0)
     return acceleration

@@ -26,6 +26,7 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from air_hockey_agent.core.identification.local_fit import fit_positions
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe,
                                                              flight_acceleration, outgoing_fit, rim_frame)
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams
@@ -108,19 +109,12 @@ class AccelerationAdaptation:
 
 def quadratic_fit(times: list[float], poses: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Acceleration (x, y) [m/s^2], its variance per axis (from the residuals) and the velocity at the
-    window's middle [m/s] of a quadratic fit of the poses' positions over ``times`` [s]; None with fewer
-    than four poses."""
-    if len(times) < 4:
-        return None
-    tau = np.asarray(times, float)
-    tau = tau - 0.5 * (tau[0] + tau[-1])
-    design = np.column_stack([np.ones_like(tau), tau, tau * tau])
-    xy = np.asarray(poses, float)[:, :2]
-    inverse = np.linalg.inv(design.T @ design)  # 3x3 normal equations: the columns are far from collinear
-    coef = inverse @ (design.T @ xy)
-    residual = xy - design @ coef
-    scale = np.sum(residual * residual, axis=0) / (len(tau) - 3)
-    return 2.0 * coef[2], 4.0 * inverse[2, 2] * scale, coef[1]
+    window's middle [m/s] of a quadratic fit of the poses' positions over ``times`` [s]
+    (:func:`~air_hockey_agent.core.identification.local_fit.fit_positions`); None with fewer than four
+    poses."""
+    times = np.asarray(times, float)
+    fit = fit_positions(times, np.asarray(poses, float)[:, :2], 0.5 * (times[0] + times[-1]), 2)
+    return None if fit is None else (fit.a, fit.a_gain * fit.variance, fit.v)
 
 
 @dataclass
@@ -215,7 +209,10 @@ class TableLearning:
         self._watch = None
         if len(watch.times) < settings.min_frames:
             return False
-        vx, vy, omega = outgoing_fit(watch.times, watch.poses, watch.t, flight_acceleration(model.params))
+        fit = outgoing_fit(watch.times, watch.poses, watch.t, flight_acceleration(model.params))
+        if fit is None:
+            return False
+        vx, vy, omega = fit
         return self.rim.observe(watch.before, (*rim_frame(watch.wall, vx, vy), omega))
 
     def _fly(self, t: float, z, speed: float) -> bool:

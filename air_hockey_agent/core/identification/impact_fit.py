@@ -31,7 +31,7 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from air_hockey_agent.core.identification.flight_fit import NoiseModel
-from air_hockey_agent.core.identification.local_fit import fit_angle_rate, fit_positions, rows_in, smooth_fits
+from air_hockey_agent.core.identification.local_fit import fit_angle_rate, line_fit, rows_in, smooth_fits
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
@@ -118,7 +118,7 @@ def _observe(traj, table, wall, k, n_rows, acceleration, noise, settings) -> Imp
     if any(_near_other_rims(table, wall, z[r, :2], settings.rim_margin) for r in (pre, post)):
         return None
     t_ref = k * dt
-    fits = [_line_fit(rows * dt, z[rows, :2], t_ref, acceleration) for rows in (pre, post)]
+    fits = [line_fit(rows * dt, z[rows, :2], t_ref, acceleration) for rows in (pre, post)]
     if any(f is None for f in fits):
         return None
     (before, after) = fits
@@ -147,14 +147,6 @@ def _near_other_rims(table: TableGeometry, wall: int, xy: np.ndarray, margin: fl
         if other != wall and np.min(nx * xy[:, 0] + ny * xy[:, 1] + table.wall_offset(other)) < margin:
             return True
     return False
-
-
-def _line_fit(times, xy, t_ref, acceleration):
-    """Line fit with the flight law's acceleration (at the first fit's velocity) removed."""
-    first = fit_positions(times, xy, t_ref, 1)
-    if first is None:
-        return None
-    return fit_positions(times, xy, t_ref, 1, acceleration(first.v))
 
 
 def _robust_keep(residuals: np.ndarray, factor: float) -> np.ndarray:

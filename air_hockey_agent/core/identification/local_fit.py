@@ -27,6 +27,7 @@ class LocalFit:
     v_gain: float          # [1/s^2] the same for v
     rms: float             # [m] residual RMS over both axes
     frames: int            # rows used
+    variance: np.ndarray   # (2,) [m^2] residual variance per axis (sum of squares over the degrees of freedom)
 
 
 def fit_positions(times: np.ndarray, xy: np.ndarray, t_ref: float, degree: int,
@@ -50,7 +51,17 @@ def fit_positions(times: np.ndarray, xy: np.ndarray, t_ref: float, degree: int,
     rms = math.sqrt(float(np.sum(residual ** 2)) / max(1, 2 * (n - len(columns))))
     a = coef[2] if degree == 2 else accel
     a_gain = float(gram_inv[2, 2]) if degree == 2 else 0.0
-    return LocalFit(t_ref, coef[0], coef[1], a, a_gain, float(gram_inv[1, 1]), rms, n)
+    variance = np.sum(residual ** 2, axis=0) / max(1, n - len(columns))
+    return LocalFit(t_ref, coef[0], coef[1], a, a_gain, float(gram_inv[1, 1]), rms, n, variance)
+
+
+def line_fit(times: np.ndarray, xy: np.ndarray, t_ref: float, acceleration) -> LocalFit | None:
+    """Line fit of ``xy`` [m] at ``times`` [s] with a flight law's acceleration ``acceleration(v) -> a``
+    [m/s^2] (at a first line fit's velocity) removed first; None if too few rows."""
+    first = fit_positions(times, xy, t_ref, 1)
+    if first is None:
+        return None
+    return fit_positions(times, xy, t_ref, 1, acceleration(first.v))
 
 
 def fit_angle_rate(times: np.ndarray, theta: np.ndarray) -> float | None:
