@@ -259,7 +259,6 @@ def test_cli_split_errors_are_one_line(tmp_path):
              "--identify table_acceleration: only --method split identifies it"),
             (("--cross-validate",), "--cross-validate: only with --method hebo"),
             (("--batch", "3"), "--batch: only with --method hebo"),
-            (("--method", "hebo", "--polish", "5"), "--polish: only with --method split"),
             (("--method", "hebo", "--plot", tmp_path), "--plot: only with --method split"),
             (("--method", "split", "--plot", bag / "metadata.yaml"), "is a file; it names the directory"),
             (("--method", "split", "--identify", "table_acceleration", "--polish", "3"), "--polish: nothing to polish")):

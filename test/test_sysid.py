@@ -223,9 +223,10 @@ def test_identify_chooses_the_parameters_and_the_yaml_holds_only_those(tmp_path)
     assert made.returncode == 0, made.stderr
     out = tmp_path / "identified.yaml"
     run = cli("sysid", bag, "--method", "hebo", "--identify", "damping", "restitution_slope", "--iterations", "2", "--batch", "2",
-               "--out", out, "--json", timeout=600)
+               "--polish", "6", "--out", out, "--json", timeout=600)
     assert run.returncode == 0, run.stderr[-3000:]
     report = json.loads(run.stdout)
+    assert report["evaluations"] <= 1 + 2 * 2 + 6 + 3  # --polish 6 instead of config's 60 (the simplex may end a step late)
     assert set(report["identified"]) == set(report["initial"]) == {"damping", "restitution_slope"}
     assert 0.0 <= report["identified"]["restitution_slope"] <= 0.4  # config/sysid.yaml bounds
     written = [line.split(":")[0].strip() for line in out.read_text().splitlines() if line.startswith("    ")]

@@ -67,9 +67,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="parameters to identify (default: hebo the thesis's four, split all nine; "
                              "table_acceleration only with --method split; also restitution_slope, "
                              "the rims' loss with impact speed); choices: " + ", ".join(IDENTIFIABLE))
-    parser.add_argument("--polish", type=count(0), default=0, metavar="EVALUATIONS",
-                        help="--method split: then a Nelder-Mead polish of the scalar parameters on the "
-                             "prediction loss at --horizon, this many evaluations (default 0: none)")
+    parser.add_argument("--polish", type=count(0), metavar="EVALUATIONS",
+                        help="then a Nelder-Mead polish of the scalar parameters on the prediction loss at "
+                             "--horizon, this many evaluations (default: split 0, none; hebo "
+                             "polish_evaluations in config/sysid.yaml)")
     parser.add_argument("--plot", type=Path, metavar="DIR",
                         help="--method split: write split_flight.png, split_impacts.png and split_tangential.png "
                              "(the fits) to DIR")
@@ -137,8 +138,6 @@ def run(args: argparse.Namespace) -> int:
     for name, value in HEBO_DEFAULTS.items():
         if getattr(args, name) is None:
             setattr(args, name, value)
-    if not problem and args.method == "hebo" and args.polish:
-        problem = "--polish: only with --method split (hebo polishes by itself: polish_evaluations in config/sysid.yaml)"
     if not problem and args.plot is not None and args.method != "split":
         problem = "--plot: only with --method split (`air-hockey plot` shows HEBO's predictions)"
     if not problem and args.plot is not None and args.plot.exists() and not args.plot.is_dir():
@@ -288,6 +287,11 @@ def _flat_bounds(box: dict) -> dict:
             for axis in ("xy" if n == "table_acceleration" else "x")}
 
 
+def _hebo_polish(args, settings: dict) -> int:
+    """Evaluations of HEBO's closing polish: --polish, else polish_evaluations (config/sysid.yaml)."""
+    return settings["polish_evaluations"] if args.polish is None else args.polish
+
+
 def _identify_all(args, tracker: dict, settings: dict, train: list, validation: list) -> dict:
     names = args.identify
     _WORK.update(tracker=tracker, trajectories=train, loss=args.loss, stride=settings["stride"])
@@ -302,7 +306,7 @@ def _identify_all(args, tracker: dict, settings: dict, train: list, validation: 
                 bar(done, total, f"evaluations, best {_objective_text(args.loss, best)}")
             ident = identify(_Objective(pool, workers, h, args.loss), bounds(settings, names),
                              {n: tracker[n] for n in names}, args.iterations, args.batch, args.seed,
-                             settings["random_samples"], settings["polish_evaluations"], progress)
+                             settings["random_samples"], _hebo_polish(args, settings), progress)
             runs[h] = ident
     chosen = runs[args.horizon]
     initial = {n: tracker[n] for n in names}
