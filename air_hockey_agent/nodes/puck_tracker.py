@@ -18,6 +18,7 @@ from geometry_msgs.msg import PoseStamped
 from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
 from air_hockey_agent.core.estimation.ekf import PuckEKF, check_covariance
 from air_hockey_agent.core.estimation.table_learning import describe_learning
+from air_hockey_agent.core.puck.prediction import prepare_prediction
 from air_hockey_agent.nodes.messages import pose_measurement, state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.tracker_params import PARAM_FILES, TRACKER_NODE_PARAMS
@@ -32,6 +33,7 @@ class PuckTrackerNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         self.ekf = PuckEKF.from_params(self.params)
+        prepare_prediction(self.ekf.model.params)
         self.next_log = 1  # impacts and windows learned from at which the next log line comes
         self.state_pub = self.create_publisher(PuckState, "puck/state", 10)
         self.prediction_pub = self.create_publisher(PuckPrediction, "puck/prediction", 10)
@@ -102,6 +104,7 @@ class PuckTrackerNode(AirHockeyNode):
         except ValueError as exc:
             response.success, response.message = False, f"refused, filter unchanged: {exc}"
             return response
+        prepare_prediction(params)
         response.success, response.message = True, f"physical parameters set: {params}"
         return response
 

@@ -241,27 +241,31 @@ class AcceleratedMotion:
 
 
 class MarchedMotion:
-    """Free model steps with a table acceleration and surface friction, marched in scalar arithmetic.
+    """Free model steps with a table acceleration and surface friction, marched step by step.
 
     No closed form is known here (the friction acts along a direction the acceleration keeps turning), so
-    the mean takes the model's own decay (:meth:`PuckModel.decay`) step by step, without the 6x6 matrix
-    products of the stepwise prediction: the transition of free steps keeps the form ``[[I, B], [0, A]]`` on
-    (position, velocity), so the Jacobian is two 2x2 blocks multiplied up (exact), and the noise is taken
-    from the damping-only table ``G_n``, which slightly overstates the velocity noise across the motion, as
-    for friction without acceleration. A puck the friction holds at rest (``a |g| <= mu_s``) stays there.
+    the mean takes the model's own decay (:meth:`PuckModel.decay`) step by step, compiled
+    (:mod:`.march_kernel`), without the 6x6 matrix products of the stepwise prediction: the transition of
+    free steps keeps the form ``[[I, B], [0, A]]`` on (position, velocity), so the Jacobian is two 2x2
+    blocks multiplied up (exact), and the noise is taken from the damping-only table ``G_n``, which slightly
+    overstates the velocity noise across the motion, as for friction without acceleration. A puck the
+    friction holds at rest (``a |g| <= mu_s``) stays there.
     """
 
     def __init__(self, model: PuckModel, state: np.ndarray, dt: float) -> None:
         self.dt = dt
-        self.x0, self.y0, vx, vy, self.theta0, self.omega = as_floats(state)
+        self.x0, self.y0, self.vx0, self.vy0, self.theta0, self.omega = as_floats(state)
         self._model = model
-        self._path = [(self.x0, self.y0, vx, vy)]   # position and velocity after m steps
-        self._blocks = [(1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0)]  # A (row-major), then B, after m steps
+        # rows 0..count: position and velocity, then the blocks A and B, after m steps (none marched yet)
+        self._path = np.array([[self.x0, self.y0, self.vx0, self.vy0]])
+        self._blocks = np.array([[1.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0]])
+        self._count = 0
 
     def impact_step(self, max_steps: int) -> int | None:
-        """March up to max_steps steps; the first whose end lies on or beyond a rim line (the model takes it
-        itself), or None. A puck on or beyond a rim line now: step 1."""
-        table, dt = self._model.table, self.dt
+        """March up to max_steps steps (once per motion); the first whose end lies on or beyond a rim line
+        (the model takes it itself), or None. A puck on or beyond a rim line now: step 1."""
+        from .march_kernel import BLOCK_COLUMNS, PATH_COLUMNS, march  # numba: loaded by the first march
+        table, dt, params = self._model.table, self.dt, self._model.params
         bounds = {(1.0, 0.0): -math.inf, (-1.0, 0.0): math.inf, (0.0, 1.0): -math.inf, (0.0, -1.0): math.inf}
         for wall, normal in enumerate(WALL_NORMALS):  # rims are axis-parallel: distance n.p + h <= 0 is a bound
             d0 = table.distance_to_wall(wall, self.x0, self.y0)
@@ -270,33 +274,25 @@ class MarchedMotion:
             if d0 <= 0.0:
                 return 1
             bounds[normal] = -table.wall_offset(wall) if sum(normal) > 0.0 else table.wall_offset(wall)
-        x_lo, x_hi, y_lo, y_hi = bounds[1.0, 0.0], bounds[-1.0, 0.0], bounds[0.0, 1.0], bounds[0.0, -1.0]
-        x, y, vx, vy = self._path[-1]
-        a00, a01, a10, a11, b00, b01, b10, b11 = self._blocks[-1]
-        for n in range(1, max_steps + 1):
-            x, y = x + dt * vx, y + dt * vy
-            b00, b01, b10, b11 = b00 + dt * a00, b01 + dt * a01, b10 + dt * a10, b11 + dt * a11
-            vx, vy, ((d00, d01), (d10, d11)) = self._model.decay(vx, vy, dt)
-            a00, a01, a10, a11 = (d00 * a00 + d01 * a10, d00 * a01 + d01 * a11,
-                                  d10 * a00 + d11 * a10, d10 * a01 + d11 * a11)
-            self._path.append((x, y, vx, vy))
-            self._blocks.append((a00, a01, a10, a11, b00, b01, b10, b11))
-            if x <= x_lo or x >= x_hi or y <= y_lo or y >= y_hi:
-                return n
-            if vx == 0.0 and vy == 0.0 and self._model.decay(0.0, 0.0, dt)[:2] == (0.0, 0.0):
-                return None  # held at rest: every later step is this one
-        return None
+        box = np.array([bounds[1.0, 0.0], bounds[-1.0, 0.0], bounds[0.0, 1.0], bounds[0.0, -1.0]])
+        self._path, self._blocks = np.empty((max_steps + 1, PATH_COLUMNS)), np.empty((max_steps + 1, BLOCK_COLUMNS))
+        gx, gy = params.table_acceleration
+        rest_holds = self._model.decay(0.0, 0.0, dt)[:2] == (0.0, 0.0)
+        self._count, hit = march(self.x0, self.y0, self.vx0, self.vy0, float(gx), float(gy),
+                                 1.0 - dt * params.damping, dt * params.friction_surface, dt, box, max_steps,
+                                 rest_holds, self._path, self._blocks)
+        return self._count if hit else None
 
-    def _at(self, items: list, n: int):
-        return items[min(n, len(items) - 1)]
+    def _row(self, items: np.ndarray, n: int) -> np.ndarray:
+        return items[min(n, self._count)]
 
     def state_after(self, n: int) -> np.ndarray:
-        x, y, vx, vy = self._at(self._path, n)
+        x, y, vx, vy = self._row(self._path, n)
         return np.array([x, y, vx, vy, wrap_angle(self.theta0 + n * self.dt * self.omega), self.omega])
 
     def jacobian(self, n: int) -> np.ndarray:
         """Exact Jacobian of n free steps."""
-        a00, a01, a10, a11, b00, b01, b10, b11 = self._at(self._blocks, n)
+        a00, a01, a10, a11, b00, b01, b10, b11 = self._row(self._blocks, n)
         return np.array([[1.0, 0.0, b00, b01, 0.0, 0.0], [0.0, 1.0, b10, b11, 0.0, 0.0],
                          [0.0, 0.0, a00, a01, 0.0, 0.0], [0.0, 0.0, a10, a11, 0.0, 0.0],
                          [0.0, 0.0, 0.0, 0.0, 1.0, n * self.dt], [0.0, 0.0, 0.0, 0.0, 0.0, 1.0]])
@@ -307,7 +303,7 @@ class MarchedMotion:
         for i in range(1, n + 1):
             if not rec.pending:
                 return
-            rec.step(t0 + (i - 1) * self.dt, self.dt, self._at(self._path, i - 1), self._at(self._path, i), ())
+            rec.step(t0 + (i - 1) * self.dt, self.dt, self._row(self._path, i - 1), self._row(self._path, i), ())
 
 
 def _first_true(predicate, hi: int, lo: int = 0) -> int:

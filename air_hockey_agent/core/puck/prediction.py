@@ -17,7 +17,8 @@ Two predictors with one result type:
   acceleration (``PuckParams.table_acceleration`` not zero) the path bends: without surface friction the
   step is still linear and :class:`.free_flight.AcceleratedMotion` jumps in closed form (the noise table
   is then exact); with both, no closed form is known and :class:`.free_flight.MarchedMotion` takes the free
-  steps in scalar arithmetic, without the matrix products (``bench tracker`` shows the costs).
+  steps in compiled scalar arithmetic (:mod:`.march_kernel`), without the matrix products (``bench tracker``
+  shows the costs).
 
 Line crossings (e.g. the robots' defend lines) are interpolated linearly inside the step that
 crosses, identically in both predictors.
@@ -31,7 +32,7 @@ from typing import Sequence
 import numpy as np
 
 from air_hockey_agent.core.puck.free_flight import AcceleratedMotion, FreeMotion, MarchedMotion
-from air_hockey_agent.core.puck.model import PuckModel
+from air_hockey_agent.core.puck.model import PuckModel, PuckParams
 
 STEP_EPS = 1e-9  # [-] fraction of a step below which a horizon remainder is dropped (float rounding)
 
@@ -168,6 +169,15 @@ def noise_table(dt: float, damping: float, q: np.ndarray) -> NoiseTable:
             _NOISE_TABLES.pop(next(iter(_NOISE_TABLES)))
         table = _NOISE_TABLES[key] = NoiseTable(dt, damping, q)
     return table
+
+
+def prepare_prediction(params: PuckParams) -> None:
+    """Load the compiled march (:mod:`.march_kernel`) now when these parameters can take it, instead of in
+    the first such prediction (about half a second): with a surface friction, a table acceleration
+    (configured, or learned online) makes the prediction march."""
+    if params.friction_surface > 0.0:
+        from .march_kernel import warm_up
+        warm_up()
 
 
 def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horizon: float, dt: float,
