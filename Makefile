@@ -3,7 +3,7 @@
 #   make test   run the whole test suite
 # Both create or reuse .venv/ (scripts/setup_venv.sh is idempotent: seconds when nothing changed).
 VENV ?= .venv
-PYTEST_ARGS ?=
+PYTEST_ARGS ?= -n 2 --dist loadgroup  # two processes; the tests that start ROS nodes stay on one (test/conftest.py)
 GAME_ARGS ?=
 
 .PHONY: setup game test bench clean

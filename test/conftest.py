@@ -14,12 +14,27 @@ REPO = Path(__file__).resolve().parents[1]
 HELPERS = Path(__file__).resolve().parent / "helpers"
 
 # One private domain per test session (1..101 only; 0 is everyone's default). Set before rclpy loads.
+# Under pytest-xdist the workers inherit the controller's choice and each takes its own next to it.
 _SESSION_TMP = Path(tempfile.mkdtemp(prefix="air_hockey_tests_"))
 atexit.register(shutil.rmtree, _SESSION_TMP, ignore_errors=True)
 os.environ.setdefault("AIR_HOCKEY_TEST_DOMAIN", str(10 + os.getpid() % 90))
-os.environ["ROS_DOMAIN_ID"] = os.environ["AIR_HOCKEY_TEST_DOMAIN"]
+_WORKER = os.environ.get("PYTEST_XDIST_WORKER", "")  # "gw0", "gw1", ... or "" without xdist
+_OFFSET = int(_WORKER[2:]) + 1 if _WORKER.startswith("gw") and _WORKER[2:].isdigit() else 0
+os.environ["ROS_DOMAIN_ID"] = str(10 + (int(os.environ["AIR_HOCKEY_TEST_DOMAIN"]) - 10 + _OFFSET) % 90)
 os.environ["ROS_HOME"] = str(_SESSION_TMP / "ros_home")
 os.environ["ROS_LOG_DIR"] = str(_SESSION_TMP / "ros_home" / "log")
+
+
+# Tests that start ROS nodes (or join a ROS graph) run one after another on one xdist worker: some check
+# that no node process of theirs is left running (pgrep), and a node another test started at the same
+# time would look like one. Without xdist the mark does nothing.
+ROS_FIXTURES = {"ros_env", "rclpy_node", "launcher", "domain_id"}
+
+
+def pytest_collection_modifyitems(config, items):
+    for item in items:
+        if item.get_closest_marker("integration") or ROS_FIXTURES & set(getattr(item, "fixturenames", ())):
+            item.add_marker(pytest.mark.xdist_group("ros"))
 
 
 @pytest.fixture(scope="session")
