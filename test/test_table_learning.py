@@ -8,8 +8,8 @@ import pytest
 
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, _filter_pass, evaluate_stream
-from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, outgoing_fit,
-                                                             scaled_params)
+from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, fall_regressors,
+                                                             outgoing_fit, scaled_params)
 from air_hockey_agent.core.estimation.table_learning import AccelerationAdaptation, AccelerationSettings, quadratic_fit
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.puck.real_table import TableEffects, real_rim_impact
@@ -52,6 +52,12 @@ def test_the_scaled_law_scales_the_normal_speed_and_the_tangential_impulse(param
         assert out.vb - before[0] == pytest.approx(s * (new.vb - before[0]), abs=1e-12)
         assert out.omega - before[2] == pytest.approx(s * (new.omega - before[2]), abs=1e-9)
     assert scaled_params(base, 1.0, 1.0) == base
+    for f in (0.0, 0.5, 1.3):  # level and fall apart: the law's outgoing normal speed is k level - f fall
+        for before in random_impacts(np.random.default_rng(2), 100):
+            level, fall = fall_regressors(base, before[1])
+            assert level - fall == pytest.approx(impact_of(base, before).vn, rel=1e-12)
+            out = impact_of(scaled_params(base, k, s, fall_scale=f), before)
+            assert out.vn == pytest.approx(k * level - f * fall, rel=1e-12)
 
 
 def test_the_test_beds_rims_are_recovered_from_its_impacts(params):
@@ -70,18 +76,45 @@ def test_the_test_beds_rims_are_recovered_from_its_impacts(params):
             assert adapt.observe(before, real_rim_impact(*before, TABLE.puck_radius, effects))
         learned[prior] = adapt
     assert learned[0.0].restitution_scale == pytest.approx(0.9, abs=1e-3)
+    # the whole law scaled, level and fall (the test bed falls linearly to 2.0 m/s, the law at 0.193 s/m to 2.003)
+    assert learned[0.0].fall_scale == pytest.approx(0.9, abs=3e-3)
     assert learned[0.0].tangential_scale == pytest.approx(0.3, abs=0.01)
-    shrunk = (5.0 + 300 * learned[0.0].restitution_scale) / 305
-    assert learned[5.0].restitution_scale == pytest.approx(shrunk, rel=1e-9)
+    for name in ("restitution_scale", "fall_scale"):  # pulled toward 1 by 5 impacts of 305
+        shrunk = (5.0 + 300 * getattr(learned[0.0], name)) / 305
+        assert getattr(learned[5.0], name) == pytest.approx(shrunk, rel=1e-6)
     assert 0.3 < learned[5.0].tangential_scale < 0.3 + 5.0 / 305 + 0.01
     report = learned[0.0].report()
     assert report["impacts"] == 300 and report["params"]["friction_rim"] == pytest.approx(0.3 * base.friction_rim, rel=0.05)
 
 
+@pytest.mark.parametrize("fast", [True, False])
+def test_a_restitution_that_does_not_fall_with_speed_is_learned(params, fast):
+    """Rims that return a constant 0.947 of the normal speed (the pybullet table's) against the configured
+    law, which falls from 0.96 to 0.67 above 0.5 m/s: the level and the fall are learned apart (the fall
+    scale goes to 0, which one scale of the whole law cannot do). Impacts slower than the knee say
+    nothing of the fall: it keeps the configured one."""
+    base = base_law(params)
+    adapt = RimAdaptation(base, TABLE, SETTINGS)
+    rng = np.random.default_rng(4)
+    for _ in range(200):
+        before = (rng.uniform(-1.0, 1.0), -rng.uniform(0.6, 3.0) if fast else -rng.uniform(0.15, 0.5), 0.0)
+        out = impact_of(base, before)
+        assert adapt.observe(before, (out.vb, 0.947 * -before[1], out.omega))
+    shrink = 5.0 / 205  # the prior: 5 impacts of 205 at (1, 1)
+    assert adapt.restitution_scale == pytest.approx(shrink + (1 - shrink) * 0.947 / 0.96, abs=1e-4)
+    if fast:
+        assert adapt.fall_scale == pytest.approx(shrink, abs=1e-4)
+        learned = adapt.params()
+        for vn in (0.3, 1.0, 2.5):
+            assert impact_of(learned, (0.2, -vn, 0.0)).vn == pytest.approx(0.947 * vn, rel=0.01)
+    else:
+        assert adapt.fall_scale == pytest.approx(1.0, abs=1e-9)
+
+
 def test_hits_slow_impacts_and_a_fresh_law_are_handled(params):
     base = base_law(params)
     adapt = RimAdaptation(base, TABLE, SETTINGS)
-    assert adapt.params() is base and adapt.restitution_scale == 1.0 and adapt.tangential_scale == 1.0
+    assert adapt.params() is base and adapt.restitution_scale == adapt.fall_scale == adapt.tangential_scale == 1.0
     before = (0.5, -1.0, 0.0)
     out = impact_of(base, before)
     assert not adapt.observe(before, (out.vb, 4.0 * out.vn, out.omega))    # a hand sent it back: no rim's

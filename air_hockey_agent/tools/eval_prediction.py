@@ -14,7 +14,7 @@ more rim impacts.
 The bags are one session on one table, in the order given, as for a tracker node that keeps running:
 what the tracker learns online of the table (``rim_adaptation``, ``acceleration_adaptation`` in
 ``config/tracker.yaml``) carries from one bag to the next, and every prediction uses what was learned up
-to its frame. Reported: JSON "rim_law" (the impacts learned from, the two scales of the configured rim
+to its frame. Reported: JSON "rim_law" (the impacts learned from, the scales of the configured rim
 law and the rim parameters they give) and "table_acceleration" (free-flight windows, value and std
 [m/s^2]); a ``--params-file`` with ``enabled: false`` under both evaluates the configured physics alone.
 

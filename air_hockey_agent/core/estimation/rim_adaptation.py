@@ -4,16 +4,20 @@ The configured rim law (restitution falling with the normal speed, Routh's tange
 Coulomb's, thesis eq. 3.2-3.3) is a prior: no constant law fits every table (another engine's rims
 return 0.96-0.67 of the normal speed and push far less along themselves than Coulomb's bound, issue #13),
 and a rim law that is off dominates the prediction error of every path through a rim. So the tracker
-scales the configured law by two numbers it estimates from each rim impact it observes:
+scales the configured law by three numbers it estimates from each rim impact it observes:
 
-* ``restitution_scale`` k: the outgoing normal speed is ``k e(|vn|) |vn|`` (e, its slope and floor scaled
-  by k, e kept <= 1);
+* ``restitution_scale`` k and ``fall_scale`` f: the configured restitution is its slow impacts' value e
+  less a fall with the normal speed, ``e(|vn|) = e - fall(|vn|)`` (``fall = min(slope max(|vn| - knee, 0),
+  e - e_min)``); the learned one is ``k e - f fall(|vn|)`` (e scaled by k and kept <= 1, slope by f, the
+  floor where the fall ends). The outgoing normal speed ``(k e - f fall) |vn|`` is linear in (k, f); with
+  k = f the whole law is scaled, and a table whose rims lose no more at speed (the pybullet table's
+  constant 0.947) has f = 0. Impacts slower than the knee say nothing of f, which then stays at 1;
 * ``tangential_scale`` s: the tangential impulse is s times the configured law's (Routh's sticking
   impulse with ``(1 + beta)`` scaled by s, Coulomb's bound with ``mu_rim`` scaled by s: the same impacts
   stick and slide).
 
-Each is a least-squares estimate with the configured law (scale 1) as a prior worth ``prior_impacts``
-impacts. An impact is observed in its rim's frame (:mod:`~air_hockey_agent.core.puck.impact`: ``b``
+Each is a least-squares estimate with the configured law (scales 1) as a prior worth ``prior_impacts``
+impacts of the mean size seen that the law predicts exactly. An impact is observed in its rim's frame (:mod:`~air_hockey_agent.core.puck.impact`: ``b``
 along the rim, ``n`` into the table): the filter's incoming state just before it, and the outgoing
 velocity and spin from line fits over the measured poses of the ``window`` after it (the flight law's
 acceleration removed; seed 003's model-based batch estimate), not the filter's post-impact state, which
@@ -32,6 +36,7 @@ from air_hockey_agent.core.puck.model import PuckParams
 from air_hockey_agent.core.table import WALL_NORMALS, TableGeometry
 
 RimState = tuple[float, float, float]  # (vb, vn, omega) [m/s, m/s, rad/s] in a rim's frame
+PRIOR_FLOOR = 1e-9  # [-] of the level's information added to the fall's: solvable before a fall is seen
 
 
 @dataclass(frozen=True)
@@ -59,31 +64,71 @@ def rim_frame(wall: int, vx: float, vy: float) -> tuple[float, float]:
     return ny * vx - nx * vy, nx * vx + ny * vy
 
 
-def scaled_params(base: PuckParams, restitution_scale: float, tangential_scale: float) -> PuckParams:
-    """``base`` with its rim law scaled (module docstring); restitutions kept <= 1, beta in [-1, 1]."""
+def fall_regressors(base: PuckParams, incoming_normal_speed: float) -> tuple[float, float]:
+    """``(e |vn|, fall(|vn|) |vn|)`` [m/s] of ``base``'s restitution law (module docstring): the outgoing
+    normal speed is ``k`` times the first less ``f`` times the second. A law without a fall (no slope, or a
+    floor at or above e, which holds e at the floor) has the whole outgoing speed in the first."""
+    speed = abs(incoming_normal_speed)
+    e, floor = base.restitution, base.restitution_min
+    if base.restitution_slope <= 0.0 or floor >= e:
+        return max(e, floor) * speed, 0.0
+    fall = min(base.restitution_slope * max(speed - base.restitution_knee, 0.0), e - floor)
+    return e * speed, fall * speed
+
+
+def scaled_params(base: PuckParams, restitution_scale: float, tangential_scale: float,
+                  fall_scale: float | None = None) -> PuckParams:
+    """``base`` with its rim law scaled (module docstring; ``fall_scale`` None: the restitution's fall
+    scaled with it, the whole law by ``restitution_scale``); restitutions kept in [0, 1], beta in [-1, 1]."""
     k, s = restitution_scale, tangential_scale
-    return base.with_values(restitution=min(1.0, base.restitution * k),
-                            restitution_min=min(1.0, base.restitution_min * k),
-                            restitution_slope=base.restitution_slope * k,
-                            friction_rim=base.friction_rim * s,
+    f = k if fall_scale is None else max(0.0, fall_scale)  # a restitution rising with speed is no rim's
+    e = base.restitution
+    if base.restitution_slope <= 0.0 or base.restitution_min >= e:  # no fall: the level alone
+        floor, slope = base.restitution_min * k, base.restitution_slope
+    else:
+        floor, slope = k * e - f * (e - base.restitution_min), base.restitution_slope * f
+    return base.with_values(restitution=min(1.0, e * k), restitution_min=min(1.0, max(0.0, floor)),
+                            restitution_slope=slope, friction_rim=base.friction_rim * s,
                             tangential_restitution=min(1.0, max(-1.0, s * (1.0 + base.tangential_restitution) - 1.0)))
 
 
 class RimAdaptation:
-    """Running estimate of the two scales of ``base``'s rim law from observed impacts."""
+    """Running estimate of the scales of ``base``'s rim law from observed impacts."""
 
     def __init__(self, base: PuckParams, table: TableGeometry, settings: AdaptationSettings) -> None:
         self.base, self.settings = base, settings
         self.radius = table.puck_radius
         self.impacts = 0
-        self._normal = [0.0, 0.0]      # sums of law x observed outgoing normal speed, and of law squared [m^2/s^2]
-        self._tangential = [0.0, 0.0]  # the same of the tangential impulse per mass [m^2/s^2]
+        # normal: sums of x x^T and x o over impacts, x = (e |vn|, -fall |vn|), o the observed outgoing
+        # normal speed [m^2/s^2]; tangential: of the law's impulse per mass times the observed, and squared
+        self._normal_xx, self._normal_xo = np.zeros((2, 2)), np.zeros(2)
+        self._kf = (1.0, 1.0)  # (k, f) of the impacts so far (:meth:`_restitution`)
+        self._tangential = [0.0, 0.0]
 
     @property
     def restitution_scale(self) -> float:
-        """Least squares of the observed outgoing normal speeds on the configured law's (the faster impacts,
-        whose errors move a prediction most, weigh most; split sysid's objective), with the prior."""
-        return self._scale(self._normal)
+        """k: least squares of the observed outgoing normal speeds on the law's two parts (the faster
+        impacts, whose errors move a prediction most, weigh most; split sysid's objective), with the prior."""
+        return self._kf[0]
+
+    @property
+    def fall_scale(self) -> float:
+        """f: the restitution's fall with the normal speed, scaled (1 until faster impacts than the knee)."""
+        return self._kf[1]
+
+    def _restitution(self) -> tuple[float, float]:
+        """(k, f): least squares with the prior of :meth:`_scale`, ``prior_impacts`` impacts of the mean
+        ``x x^T`` seen that the law predicts exactly (the estimate moves from (1, 1) toward the impacts'
+        own fit as they outnumber it); a fall no impact has shown (none faster than the knee) stays at 1.
+        Kept in [1 / max_scale, max_scale] and [0, max_scale]."""
+        if self.impacts == 0:
+            return 1.0, 1.0
+        xx, xo = self._normal_xx, self._normal_xo
+        prior = self.settings.prior_impacts / self.impacts * xx
+        prior[1, 1] += PRIOR_FLOOR * xx[0, 0]  # solvable before the fall is seen
+        k, f = np.linalg.solve(prior + xx, prior.sum(axis=1) + xo)
+        bound = self.settings.max_scale
+        return float(min(max(k, 1.0 / bound), bound)), float(min(max(f, 0.0), bound))
 
     @property
     def tangential_scale(self) -> float:
@@ -103,13 +148,15 @@ class RimAdaptation:
         """The rim law learned so far (``base`` itself before any impact)."""
         if self.impacts == 0:
             return self.base
-        return scaled_params(self.base, self.restitution_scale, self.tangential_scale)
+        k, f = self._kf
+        return scaled_params(self.base, k, self.tangential_scale, f)
 
     def report(self) -> dict:
         """The law learned so far, for reports: impacts learned from, both scales and the scaled rim
         parameters (names as in ``config/tracker.yaml``)."""
         p = self.params()
-        return {"impacts": self.impacts, "restitution_scale": self.restitution_scale,
+        k, f = self._kf
+        return {"impacts": self.impacts, "restitution_scale": k, "fall_scale": f,
                 "tangential_scale": self.tangential_scale,
                 "params": {n: getattr(p, n) for n in ("restitution", "restitution_slope", "restitution_min",
                                                       "friction_rim", "tangential_restitution")}}
@@ -122,7 +169,8 @@ class RimAdaptation:
             return False
         configured = self._impact(self.base, before).vn  # the configured law's outgoing normal speed [m/s]
         ratio = after[1] / configured
-        law = scaled_params(self.base, self.restitution_scale, 1.0)
+        k, f = self._kf
+        law = scaled_params(self.base, k, 1.0, f)
         model = self._impact(law, before).vb - vb  # the law's tangential impulse per mass [m/s], e learned so far
         seen = (after[0] - vb, 0.5 * self.radius * (after[2] - omega))  # from vb, and from the spin
         bound = self.settings.max_scale
@@ -131,8 +179,11 @@ class RimAdaptation:
         if abs(model) > 1e-9 and not -bound <= (seen[0] + seen[1]) / (2.0 * model) <= bound:
             return False
         self.impacts += 1
-        self._normal[0] += configured * after[1]
-        self._normal[1] += configured * configured
+        level, fall = fall_regressors(self.base, vn)
+        x = np.array([level, -fall])
+        self._normal_xx += np.outer(x, x)
+        self._normal_xo += x * after[1]
+        self._kf = self._restitution()
         self._tangential[0] += model * (seen[0] + seen[1])
         self._tangential[1] += 2.0 * model * model
         return True
@@ -145,8 +196,8 @@ class RimAdaptation:
 def describe(report: dict) -> str:
     """A learned law's :meth:`RimAdaptation.report` in words, for logs and tables."""
     impacts = report["impacts"]
-    return (f"from {impacts} impact{'' if impacts == 1 else 's'}: restitution x{report['restitution_scale']:.3f}, "
-            f"tangential impulse x{report['tangential_scale']:.3f}")
+    return (f"from {impacts} impact{'' if impacts == 1 else 's'}: restitution x{report['restitution_scale']:.3f} "
+            f"(its fall with speed x{report['fall_scale']:.3f}), tangential impulse x{report['tangential_scale']:.3f}")
 
 
 def outgoing_fit(times: Sequence[float], poses: Sequence[Sequence[float]], t_impact: float,

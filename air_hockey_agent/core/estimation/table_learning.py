@@ -5,7 +5,7 @@ module the frame and the state it predicted from:
 
 * **rim impacts** (:mod:`.rim_adaptation`): an impact the model puts between two frames, with a
   well-known incoming velocity, is watched for ``rim_adaptation.window`` seconds of fused poses, whose
-  line fit gives the outgoing velocity and spin; the rim law's two scales learn from it;
+  line fit gives the outgoing velocity and spin; the rim law's scales learn from it;
 * **free flight** (``acceleration_adaptation.*``): fused poses of a moving puck between rim impacts are
   cut into windows of ``window`` seconds; a quadratic fit per window gives its acceleration, and what
   the configured flight law (eq. 3.1) does not explain of it is the table's own acceleration (a tilt,
