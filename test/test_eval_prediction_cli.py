@@ -33,9 +33,10 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
                            "reinit_per_s", "nis", "nis_by_regime", "by_path", "rim_law", "table_acceleration",
                            "thesis_style"}
     law = report["rim_law"]  # the bags' shots are flown with the configured physics: learning it keeps it
-    assert set(law) == {"impacts", "restitution_scale", "fall_scale", "tangential_scale", "params"}
+    assert set(law) == {"impacts", "restitution_scale", "fall_scale", "knee", "tangential_scale", "params"}
     assert law["impacts"] >= 3 and abs(law["restitution_scale"] - 1.0) < 0.02
     assert abs(law["fall_scale"] - 1.0) < 0.1 and abs(law["tangential_scale"] - 1.0) < 0.1
+    assert law["params"]["restitution_knee"] == law["knee"]
     flight = report["table_acceleration"]
     assert set(flight) == {"windows", "value", "std", "damping", "damping_std"} and flight["windows"] >= 10
     assert max(map(abs, flight["value"])) < 0.01 and abs(flight["damping"] - 0.125) < 0.02

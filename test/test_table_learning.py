@@ -111,6 +111,34 @@ def test_a_restitution_that_does_not_fall_with_speed_is_learned(params, fast):
         assert adapt.fall_scale == pytest.approx(1.0, abs=1e-9)
 
 
+def test_the_knee_where_the_restitution_starts_to_fall_is_found(params):
+    """Rims whose restitution falls from 0.3 m/s (the configured law's from 0.5), 1.2 times as steeply,
+    from 0.9 of its level: of the knees tried (config/tracker.yaml's grid) the true one fits exactly;
+    with the configured knee only, (k, f) fit as well as they can."""
+    base = base_law(params)
+    truth = scaled_params(base, 0.9, 1.0, fall_scale=1.2, knee=0.3)
+    rng = np.random.default_rng(5)
+    impacts = [(rng.uniform(-1.0, 1.0), -rng.uniform(0.15, 3.0), 0.0) for _ in range(300)]
+    learned = {}
+    for step in (0.05, 0.0):
+        settings = AdaptationSettings(**{**SETTINGS.__dict__, "prior_impacts": 0.0, "knee_step": step, "knee_max": 2.0})
+        adapt = RimAdaptation(base, TABLE, settings)
+        for before in impacts:
+            assert adapt.observe(before, impact_of(truth, before))
+        learned[step] = adapt
+    grid = learned[0.05]
+    for before in impacts[:20]:  # all knees at once as one knee at a time
+        rows = grid._regressors(before[1])
+        for knee, row in zip(grid.knees, rows):
+            level, fall = fall_regressors(base, before[1], knee)
+            assert tuple(row) == pytest.approx((level, -fall), rel=1e-12, abs=1e-15)
+    assert grid.knee == pytest.approx(0.3, abs=1e-9) and grid.report()["params"]["restitution_knee"] == pytest.approx(0.3)
+    assert grid.restitution_scale == pytest.approx(0.9, abs=1e-6) and grid.fall_scale == pytest.approx(1.2, abs=1e-6)
+    for vn in (0.2, 0.4, 1.0, 2.5):  # the learned law is the truth
+        assert impact_of(grid.params(), (0.1, -vn, 0.0)).vn == pytest.approx(impact_of(truth, (0.1, -vn, 0.0)).vn, rel=1e-6)
+    assert learned[0.0].knee == base.restitution_knee and abs(learned[0.0].fall_scale - 1.2) > 0.01
+
+
 def test_hits_slow_impacts_and_a_fresh_law_are_handled(params):
     base = base_law(params)
     adapt = RimAdaptation(base, TABLE, SETTINGS)

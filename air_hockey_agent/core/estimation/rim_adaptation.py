@@ -4,14 +4,17 @@ The configured rim law (restitution falling with the normal speed, Routh's tange
 Coulomb's, thesis eq. 3.2-3.3) is a prior: no constant law fits every table (another engine's rims
 return 0.96-0.67 of the normal speed and push far less along themselves than Coulomb's bound, issue #13),
 and a rim law that is off dominates the prediction error of every path through a rim. So the tracker
-scales the configured law by three numbers it estimates from each rim impact it observes:
+scales the configured law by numbers it estimates from each rim impact it observes:
 
 * ``restitution_scale`` k and ``fall_scale`` f: the configured restitution is its slow impacts' value e
   less a fall with the normal speed, ``e(|vn|) = e - fall(|vn|)`` (``fall = min(slope max(|vn| - knee, 0),
   e - e_min)``); the learned one is ``k e - f fall(|vn|)`` (e scaled by k and kept <= 1, slope by f, the
   floor where the fall ends). The outgoing normal speed ``(k e - f fall) |vn|`` is linear in (k, f); with
   k = f the whole law is scaled, and a table whose rims lose no more at speed (the pybullet table's
-  constant 0.947) has f = 0. Impacts slower than the knee say nothing of f, which then stays at 1;
+  constant 0.947) has f = 0. Impacts slower than the knee say nothing of f, which then stays at 1. The
+  knee itself (where the fall starts) is chosen among ``rim_adaptation.knee_step`` apart up to
+  ``knee_max`` and the configured one: (k, f) are fitted for each, and the knee whose fit leaves the
+  least sum of squares (the prior's pseudo-impacts included) wins;
 * ``tangential_scale`` s: the tangential impulse is s times the configured law's (Routh's sticking
   impulse with ``(1 + beta)`` scaled by s, Coulomb's bound with ``mu_rim`` scaled by s: the same impacts
   stick and slide).
@@ -36,6 +39,7 @@ from air_hockey_agent.core.puck.model import PuckParams
 from air_hockey_agent.core.table import WALL_NORMALS, TableGeometry
 
 RimState = tuple[float, float, float]  # (vb, vn, omega) [m/s, m/s, rad/s] in a rim's frame
+TIE = 1e-9  # [-] of the sum of squares: knees whose fits differ by less are tied (rounding)
 PRIOR_FLOOR = 1e-9  # [-] of the level's information added to the fall's: solvable before a fall is seen
 
 
@@ -50,12 +54,20 @@ class AdaptationSettings:
     min_normal_speed: float   # [m/s] slower impacts are not observed (their ratios are noise)
     max_scale: float          # [-] an impact whose ratios fall beyond [1 / max_scale, max_scale] is no rim's
     max_incoming_uncertainty: float  # [-] velocity std before the impact, as a fraction of the speed, at most
+    knee_step: float = 0.0    # [m/s] spacing of the knees tried (0: the configured knee only)
+    knee_max: float = 0.0     # [m/s] the fastest knee tried
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AdaptationSettings":
         p = "rim_adaptation."
         return cls(*(params[p + name] for name in ("enabled", "prior_impacts", "window", "min_frames",
-                                                    "min_normal_speed", "max_scale", "max_incoming_uncertainty")))
+                                                    "min_normal_speed", "max_scale", "max_incoming_uncertainty",
+                                                    "knee_step", "knee_max")))
+
+    def knees(self, configured: float) -> np.ndarray:
+        """The knees tried [m/s]: the configured one first, then 0, step, ... up to ``knee_max``."""
+        grid = np.arange(0.0, self.knee_max + 1e-9, self.knee_step) if self.knee_step > 0.0 else np.zeros(0)
+        return np.concatenate(([configured], grid[np.abs(grid - configured) > 1e-9]))
 
 
 def rim_frame(wall: int, vx: float, vy: float) -> tuple[float, float]:
@@ -64,22 +76,25 @@ def rim_frame(wall: int, vx: float, vy: float) -> tuple[float, float]:
     return ny * vx - nx * vy, nx * vx + ny * vy
 
 
-def fall_regressors(base: PuckParams, incoming_normal_speed: float) -> tuple[float, float]:
-    """``(e |vn|, fall(|vn|) |vn|)`` [m/s] of ``base``'s restitution law (module docstring): the outgoing
-    normal speed is ``k`` times the first less ``f`` times the second. A law without a fall (no slope, or a
-    floor at or above e, which holds e at the floor) has the whole outgoing speed in the first."""
+def fall_regressors(base: PuckParams, incoming_normal_speed: float, knee: float | None = None) -> tuple[float, float]:
+    """``(e |vn|, fall(|vn|) |vn|)`` [m/s] of ``base``'s restitution law (module docstring), its fall
+    starting at ``knee`` [m/s] (None: the law's own): the outgoing normal speed is ``k`` times the first
+    less ``f`` times the second. A law without a fall (no slope, or a floor at or above e, which holds e at
+    the floor) has the whole outgoing speed in the first."""
     speed = abs(incoming_normal_speed)
     e, floor = base.restitution, base.restitution_min
     if base.restitution_slope <= 0.0 or floor >= e:
         return max(e, floor) * speed, 0.0
-    fall = min(base.restitution_slope * max(speed - base.restitution_knee, 0.0), e - floor)
+    knee = base.restitution_knee if knee is None else knee
+    fall = min(base.restitution_slope * max(speed - knee, 0.0), e - floor)
     return e * speed, fall * speed
 
 
 def scaled_params(base: PuckParams, restitution_scale: float, tangential_scale: float,
-                  fall_scale: float | None = None) -> PuckParams:
+                  fall_scale: float | None = None, knee: float | None = None) -> PuckParams:
     """``base`` with its rim law scaled (module docstring; ``fall_scale`` None: the restitution's fall
-    scaled with it, the whole law by ``restitution_scale``); restitutions kept in [0, 1], beta in [-1, 1]."""
+    scaled with it, the whole law by ``restitution_scale``), its fall from ``knee`` [m/s] (None: the
+    law's own); restitutions kept in [0, 1], beta in [-1, 1]."""
     k, s = restitution_scale, tangential_scale
     f = k if fall_scale is None else max(0.0, fall_scale)  # a restitution rising with speed is no rim's
     e = base.restitution
@@ -87,6 +102,8 @@ def scaled_params(base: PuckParams, restitution_scale: float, tangential_scale: 
         floor, slope = base.restitution_min * k, base.restitution_slope
     else:
         floor, slope = k * e - f * (e - base.restitution_min), base.restitution_slope * f
+    if knee is not None and slope > 0.0:
+        base = base.with_values(restitution_knee=knee)
     return base.with_values(restitution=min(1.0, e * k), restitution_min=min(1.0, max(0.0, floor)),
                             restitution_slope=slope, friction_rim=base.friction_rim * s,
                             tangential_restitution=min(1.0, max(-1.0, s * (1.0 + base.tangential_restitution) - 1.0)))
@@ -99,36 +116,56 @@ class RimAdaptation:
         self.base, self.settings = base, settings
         self.radius = table.puck_radius
         self.impacts = 0
-        # normal: sums of x x^T and x o over impacts, x = (e |vn|, -fall |vn|), o the observed outgoing
-        # normal speed [m^2/s^2]; tangential: of the law's impulse per mass times the observed, and squared
-        self._normal_xx, self._normal_xo = np.zeros((2, 2)), np.zeros(2)
-        self._kf = (1.0, 1.0)  # (k, f) of the impacts so far (:meth:`_restitution`)
+        # normal, per knee tried: sums over impacts of x x^T, x o and x c, x = (e |vn|, -fall |vn|) with the
+        # fall from that knee, o the observed outgoing normal speed, c the configured law's [m^2/s^2]; and
+        # of o^2, c^2. Tangential: of the law's impulse per mass times the observed, and squared.
+        self.knees = settings.knees(base.restitution_knee)
+        self._xx, self._xo, self._xc = np.zeros((len(self.knees), 2, 2)), np.zeros((len(self.knees), 2)), \
+            np.zeros((len(self.knees), 2))
+        self._oo = self._cc = 0.0
+        self._fit = (1.0, 1.0, base.restitution_knee)  # (k, f, knee) of the impacts so far (:meth:`_restitution`)
         self._tangential = [0.0, 0.0]
 
     @property
     def restitution_scale(self) -> float:
         """k: least squares of the observed outgoing normal speeds on the law's two parts (the faster
         impacts, whose errors move a prediction most, weigh most; split sysid's objective), with the prior."""
-        return self._kf[0]
+        return self._fit[0]
 
     @property
     def fall_scale(self) -> float:
         """f: the restitution's fall with the normal speed, scaled (1 until faster impacts than the knee)."""
-        return self._kf[1]
+        return self._fit[1]
 
-    def _restitution(self) -> tuple[float, float]:
-        """(k, f): least squares with the prior of :meth:`_scale`, ``prior_impacts`` impacts of the mean
-        ``x x^T`` seen that the law predicts exactly (the estimate moves from (1, 1) toward the impacts'
-        own fit as they outnumber it); a fall no impact has shown (none faster than the knee) stays at 1.
-        Kept in [1 / max_scale, max_scale] and [0, max_scale]."""
+    @property
+    def knee(self) -> float:
+        """[m/s] the normal speed from which the restitution falls: of the knees tried, the one whose
+        (k, f) fits best (the configured one until another fits better)."""
+        return self._fit[2]
+
+    def _restitution(self) -> tuple[float, float, float]:
+        """(k, f, knee): for each knee tried, least squares of the observed outgoing normal speeds and of
+        ``prior_impacts`` pseudo-impacts of the mean impact seen that the configured law predicts exactly
+        (the estimate moves from the configured law toward the impacts' own fit as they outnumber it);
+        the knee with the least sum of squares wins. A fall no impact has shown (none faster than the
+        knee) stays at 1. k and f kept in [1 / max_scale, max_scale] and [0, max_scale]."""
         if self.impacts == 0:
-            return 1.0, 1.0
-        xx, xo = self._normal_xx, self._normal_xo
-        prior = self.settings.prior_impacts / self.impacts * xx
-        prior[1, 1] += PRIOR_FLOOR * xx[0, 0]  # solvable before the fall is seen
-        k, f = np.linalg.solve(prior + xx, prior.sum(axis=1) + xo)
+            return 1.0, 1.0, self.base.restitution_knee
+        w = self.settings.prior_impacts / self.impacts
+        b = self._xo + w * self._xc                               # (knees, 2)
+        a = (1.0 + w) * self._xx
+        ridge = PRIOR_FLOOR * a[:, 0, 0]                          # f = 1 until the fall is seen: solvable
+        a[:, 1, 1] += ridge
+        b[:, 1] += ridge
+        theta = np.linalg.solve(a, b[..., None])[..., 0]          # (knees, 2)
+        quad = np.einsum("ki,kij,kj->k", theta, (1.0 + w) * self._xx, theta)
+        cost = self._oo + w * self._cc - 2.0 * np.einsum("ki,ki->k", theta, b) + quad
+        # ties (knees no impact tells apart: all above the fastest, say) go to the one nearest the configured
+        tied = np.flatnonzero(cost <= cost.min() + TIE * (self._oo + w * self._cc))
+        best = int(tied[np.argmin(np.abs(self.knees[tied] - self.base.restitution_knee))])
         bound = self.settings.max_scale
-        return float(min(max(k, 1.0 / bound), bound)), float(min(max(f, 0.0), bound))
+        k, f = theta[best]
+        return float(min(max(k, 1.0 / bound), bound)), float(min(max(f, 0.0), bound)), float(self.knees[best])
 
     @property
     def tangential_scale(self) -> float:
@@ -148,18 +185,18 @@ class RimAdaptation:
         """The rim law learned so far (``base`` itself before any impact)."""
         if self.impacts == 0:
             return self.base
-        k, f = self._kf
-        return scaled_params(self.base, k, self.tangential_scale, f)
+        k, f, knee = self._fit
+        return scaled_params(self.base, k, self.tangential_scale, f, knee)
 
     def report(self) -> dict:
         """The law learned so far, for reports: impacts learned from, both scales and the scaled rim
         parameters (names as in ``config/tracker.yaml``)."""
         p = self.params()
-        k, f = self._kf
-        return {"impacts": self.impacts, "restitution_scale": k, "fall_scale": f,
+        k, f, knee = self._fit
+        return {"impacts": self.impacts, "restitution_scale": k, "fall_scale": f, "knee": knee,
                 "tangential_scale": self.tangential_scale,
-                "params": {n: getattr(p, n) for n in ("restitution", "restitution_slope", "restitution_min",
-                                                      "friction_rim", "tangential_restitution")}}
+                "params": {n: getattr(p, n) for n in ("restitution", "restitution_knee", "restitution_slope",
+                                                      "restitution_min", "friction_rim", "tangential_restitution")}}
 
     def observe(self, before: RimState, after: RimState) -> bool:
         """Learn from one impact (incoming ``before``, vn < 0; outgoing ``after``); False when it is left
@@ -169,8 +206,8 @@ class RimAdaptation:
             return False
         configured = self._impact(self.base, before).vn  # the configured law's outgoing normal speed [m/s]
         ratio = after[1] / configured
-        k, f = self._kf
-        law = scaled_params(self.base, k, 1.0, f)
+        k, f, knee = self._fit
+        law = scaled_params(self.base, k, 1.0, f, knee)
         model = self._impact(law, before).vb - vb  # the law's tangential impulse per mass [m/s], e learned so far
         seen = (after[0] - vb, 0.5 * self.radius * (after[2] - omega))  # from vb, and from the spin
         bound = self.settings.max_scale
@@ -179,14 +216,29 @@ class RimAdaptation:
         if abs(model) > 1e-9 and not -bound <= (seen[0] + seen[1]) / (2.0 * model) <= bound:
             return False
         self.impacts += 1
-        level, fall = fall_regressors(self.base, vn)
-        x = np.array([level, -fall])
-        self._normal_xx += np.outer(x, x)
-        self._normal_xo += x * after[1]
-        self._kf = self._restitution()
+        x = self._regressors(vn)
+        self._xx += x[:, :, None] * x[:, None, :]
+        self._xo += x * after[1]
+        self._xc += x * configured
+        self._oo += after[1] * after[1]
+        self._cc += configured * configured
+        self._fit = self._restitution()
         self._tangential[0] += model * (seen[0] + seen[1])
         self._tangential[1] += 2.0 * model * model
         return True
+
+    def _regressors(self, vn: float) -> np.ndarray:
+        """(knees, 2): x = (e |vn|, -fall |vn|) with the fall from each knee tried (:func:`fall_regressors`
+        for all knees at once)."""
+        base, speed = self.base, abs(vn)
+        e, floor = base.restitution, base.restitution_min
+        x = np.empty((len(self.knees), 2))
+        if base.restitution_slope <= 0.0 or floor >= e:
+            x[:, 0], x[:, 1] = max(e, floor) * speed, 0.0
+        else:
+            x[:, 0] = e * speed
+            x[:, 1] = -np.minimum(base.restitution_slope * np.maximum(speed - self.knees, 0.0), e - floor) * speed
+        return x
 
     def _impact(self, law: PuckParams, before: RimState):
         return rim_impact(*before, self.radius, law.restitution, law.friction_rim, law.restitution_slope,
@@ -197,7 +249,8 @@ def describe(report: dict) -> str:
     """A learned law's :meth:`RimAdaptation.report` in words, for logs and tables."""
     impacts = report["impacts"]
     return (f"from {impacts} impact{'' if impacts == 1 else 's'}: restitution x{report['restitution_scale']:.3f} "
-            f"(its fall with speed x{report['fall_scale']:.3f}), tangential impulse x{report['tangential_scale']:.3f}")
+            f"(its fall with speed x{report['fall_scale']:.3f} from {report['knee']:.2f} m/s), tangential impulse "
+            f"x{report['tangential_scale']:.3f}")
 
 
 def outgoing_fit(times: Sequence[float], poses: Sequence[Sequence[float]], t_impact: float,
