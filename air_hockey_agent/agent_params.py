@@ -18,6 +18,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("robot", str, "which robot this node plays (iiwa_front or iiwa_back)"),
     ParamSpec("puck_params_file", str, "tracker parameter YAML whose puck physics the shots are predicted with "
                                        "('': config/tracker.yaml's; give the tracker's own --params-file)"),
+    ParamSpec("physics_from_tracker", bool, "aim the shots with the physics the robot's tracker publishes on "
+                                            "puck/physics (what it learned online of the table) once it does"),
     ParamSpec("rate", float, "[Hz] decisions per simulated second", 1.0, 1000.0),
     ParamSpec("status_period", float, "[s] re-publication period of the current tactic", 0.01, 3600.0),
     ParamSpec("defend_line", float, "[m] depth of the defend line from the own goal line", 0.0, 1.0),
@@ -110,6 +112,7 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
     generator's region and the cached fastest-hit table) and settings. Returns (selector, kinematics)."""
     from air_hockey_agent.core.game.arm_reach import ArmReach
     from air_hockey_agent.core.game.shots import ShotPredictor
+    from air_hockey_agent.core.game.situation import own_frame_physics
     from air_hockey_agent.core.game.speed_map import load_or_build
     from air_hockey_agent.core.game.tactics.selector import TacticsSelector
     from air_hockey_agent.core.game.tactics.settings import TacticsSettings
@@ -126,5 +129,7 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
                      s.height_transition, params["reach_time_margin"], speeds, s.planning_delay, s.dt)
     settings = TacticsSettings.from_params(params)
     tracker = _tracker_params(params["puck_params_file"])
-    shots = ShotPredictor(_puck_model(tracker), settings, 1.0 / tracker["frequency"], reach.max_speed)
+    model = _puck_model(tracker)  # table frame; the shots are aimed in the robot's own
+    model = model.with_params(own_frame_physics(model.params, robot))
+    shots = ShotPredictor(model, settings, 1.0 / tracker["frequency"], reach.max_speed)
     return TacticsSelector(settings, reach, shots), planner.kin

@@ -85,10 +85,19 @@ def test_stream_gives_state_and_prediction_and_survives_bad_frames(tracker, rclp
 
 
 def test_services_answer_and_refuse_bad_requests(tracker, rclpy_node):
+    from air_hockey_msgs.msg import PuckPhysics
     from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, SetPhysicalParams
+    from rclpy.qos import DurabilityPolicy, QoSProfile
 
     def call(kind, name, **fields):
         return call_service(rclpy_node, rclpy_node.create_client(kind, name), kind.Request(**fields), 30.0)
+
+    physics = []  # latched: the configured physics at start, then every change
+    rclpy_node.create_subscription(PuckPhysics, "/puck/physics", physics.append,
+                                   QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL))
+    assert spin_until(rclpy_node, lambda: physics, 30.0), "no puck/physics"
+    assert physics[0].damping == 0.125 and physics[0].restitution_knee == 0.5  # config/tracker.yaml
+    assert physics[0].impacts_learned == physics[0].windows_learned == 0
 
     bad = call(SetPhysicalParams, "/set_physical_params", friction_surface=-0.1, damping=0.5, restitution=0.9,
                friction_rim=0.1)
@@ -97,6 +106,8 @@ def test_services_answer_and_refuse_bad_requests(tracker, rclpy_node):
                     restitution=1.5, friction_rim=0.1).success
     assert call(SetPhysicalParams, "/set_physical_params", friction_surface=0.0, damping=0.5, restitution=0.9,
                 friction_rim=0.1).success
+    assert spin_until(rclpy_node, lambda: physics[-1].damping == 0.5, 10.0), "new parameters not on puck/physics"
+    assert (physics[-1].restitution, physics[-1].friction_rim, physics[-1].restitution_slope) == (0.9, 0.1, 0.193)
     not_pd = call(SetNoiseCovariance, "/set_noise_covariance", measurement_covariance=list(np.diag([1.0, -1.0, 1.0]).ravel()))
     assert not not_pd.success and "positive definite" in not_pd.message
     assert call(SetNoiseCovariance, "/set_noise_covariance", measurement_covariance=list(np.diag([1e-8, 1e-8, 1e-4]).ravel())).success
@@ -117,3 +128,22 @@ def test_services_answer_and_refuse_bad_requests(tracker, rclpy_node):
     step = call(KalmanStep, "/kalman_step", stamp=Time(sec=20), has_measurement=True, x=0.3002, y=-0.1, theta=0.0)
     assert step.success and step.estimate.flags == PuckState.FLAG_MEASUREMENT_USED
     assert step.estimate.header.stamp.sec == 20
+
+
+def test_physics_messages_carry_every_parameter_and_refuse_invalid_ones():
+    """puck/physics (tracker -> tactics): what the message carries is the model's parameters exactly; a
+    message with an invalid one (a restitution above 1, a NaN) is refused with its name."""
+    from air_hockey_agent.core.estimation.ekf import PuckEKF
+    from air_hockey_agent.nodes.messages import physics_from_msg, physics_msg
+    from air_hockey_agent.tracker_params import load_tracker_params
+    params = PuckEKF.from_params(load_tracker_params()).model.params
+    learned = params.with_values(restitution=0.91, restitution_knee=0.3, tangential_restitution=-0.6,
+                                 table_acceleration=(0.01, -0.02), damping=0.2, friction_surface=0.01)
+    msg = physics_msg(learned, 12.5, impacts=7, windows=30)
+    assert (msg.impacts_learned, msg.windows_learned, msg.stamp.sec, msg.stamp.nanosec) == (7, 30, 12, 500_000_000)
+    assert physics_from_msg(msg, params) == learned
+    for field, value in (("restitution", 1.2), ("damping", float("nan"))):
+        setattr(msg, field, value)
+        with pytest.raises(ValueError, match=field):
+            physics_from_msg(msg, params)
+        setattr(msg, field, getattr(learned, field))

@@ -11,7 +11,7 @@ from air_hockey_agent.paths import config_file
 from air_hockey_agent.tracker_params import SIM_TABLE_FILE
 from air_hockey_agent.core.game.arm_reach import ArmReach
 from air_hockey_agent.core.game.shots import ShotPredictor, puck_after_hit
-from air_hockey_agent.core.game.situation import build_situation, to_own_frame
+from air_hockey_agent.core.game.situation import build_situation, own_frame_physics, to_own_frame
 from air_hockey_agent.core.game.speed_map import SpeedMap
 from air_hockey_agent.core.game.tactics.base import CUT, HOME, INIT, PREPARE, READY, REPEL, SMASH
 from air_hockey_agent.core.game.tactics.selector import (LIMITS, PAUSED, RUNNING, STOPPED, TOO_FAST, TOO_LATE,
@@ -110,6 +110,34 @@ def test_own_frame_of_the_back_robot_is_the_table_turned_by_pi():
     s = to_own_frame(np.array([0.5, -0.2, 1.0, 0.3, 0.1, 2.0]), "iiwa_back")
     np.testing.assert_allclose(s, [-0.5, 0.2, -1.0, -0.3, 0.1 - math.pi, 2.0])
     np.testing.assert_allclose(to_own_frame(np.array([0.5, -0.2, 1, 0.3, 0.1, 2]), "iiwa_front"), [0.5, -0.2, 1, 0.3, 0.1, 2])
+
+
+def test_the_back_robot_predicts_a_tilted_table_in_its_own_frame(model):
+    """own_frame_physics turns the table acceleration with the frame: the back robot's own-frame prediction
+    is the table-frame prediction seen from its side (a tilt toward +y, i.e. toward its -y)."""
+    tilted = model.with_params(model.params.with_values(table_acceleration=(0.05, 0.2), friction_surface=0.0))
+    own = tilted.with_params(own_frame_physics(tilted.params, "iiwa_back"))
+    assert own.params.table_acceleration == (-0.05, -0.2)
+    assert own_frame_physics(tilted.params, "iiwa_front") is tilted.params
+    state = np.array([0.3, -0.1, -0.8, 0.5, 0.2, 3.0])
+    table = predict_fast(tilted, state, None, 1.0, DT, np.zeros(6)).state
+    seen = predict_fast(own, to_own_frame(state, "iiwa_back"), None, 1.0, DT, np.zeros(6)).state
+    np.testing.assert_allclose(seen, to_own_frame(table, "iiwa_back"), atol=1e-12)
+
+
+def test_shots_use_the_physics_they_are_given(settings, model):
+    """ShotPredictor.use_physics (the tactics node: the tracker's puck/physics) changes what the shots
+    predict: softer rims send a bank shot elsewhere."""
+    reach = flat_reach(settings)
+    shots = ShotPredictor(model, settings, DT, reach.max_speed)
+    puck = np.array([-0.5, 0.1, 0.0, 0.0, 0.0, 0.0])  # at rest in the own half (own-frame state)
+    before = {s.variant: s for s in shots.candidates(puck)}
+    shots.use_physics(model.params.with_values(restitution=0.5, restitution_min=0.5))
+    assert shots.model.params.restitution == 0.5 and shots.model.table is model.table
+    after = {s.variant: s for s in shots.candidates(puck)}
+    banks = [v for v in ("left_bank", "right_bank") if v in before and v in after]
+    assert banks and all(not np.allclose(before[v].direction, after[v].direction) for v in banks)
+    assert np.allclose(before["straight"].direction, after["straight"].direction)  # no rim on its way
 
 
 def test_line_crossing_matches_straight_flight(model):

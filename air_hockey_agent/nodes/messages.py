@@ -5,11 +5,12 @@ import importlib
 import math
 
 import numpy as np
-from air_hockey_msgs.msg import PuckState
+from air_hockey_msgs.msg import PuckPhysics, PuckState
 from builtin_interfaces.msg import Duration, Time
 from geometry_msgs.msg import PoseStamped
 
 from air_hockey_agent.core.frames import pose_to_measurement
+from air_hockey_agent.core.puck.model import PuckParams
 
 
 
@@ -54,6 +55,29 @@ def state_msg(state: np.ndarray, cov: np.ndarray, seconds: float, flags: int = 0
     msg.header.frame_id = "table"
     msg.covariance = np.asarray(cov, float).reshape(36)
     return msg
+
+
+def physics_msg(params: PuckParams, seconds: float, impacts: int = 0, windows: int = 0) -> PuckPhysics:
+    """PuckPhysics of a puck model's parameters (table frame), in effect from ``seconds``."""
+    msg = PuckPhysics(impacts_learned=int(impacts), windows_learned=int(windows))
+    msg.stamp = to_stamp(seconds)
+    for name in PHYSICS_FIELDS:
+        setattr(msg, name, float(getattr(params, name)))
+    msg.table_acceleration = [float(g) for g in params.table_acceleration]
+    return msg
+
+
+def physics_from_msg(msg: PuckPhysics, base: PuckParams) -> PuckParams:
+    """``base`` with the physical parameters of a PuckPhysics message (table frame); ValueError naming the
+    first invalid one."""
+    params = base.with_values(**{name: float(getattr(msg, name)) for name in PHYSICS_FIELDS},
+                              table_acceleration=tuple(float(g) for g in msg.table_acceleration))
+    params.validate()
+    return params
+
+
+PHYSICS_FIELDS = ("friction_surface", "damping", "restitution", "restitution_knee", "restitution_slope",
+                  "restitution_min", "friction_rim", "tangential_restitution")
 
 
 def message_class(type_name: str):

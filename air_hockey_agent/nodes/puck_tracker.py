@@ -1,7 +1,9 @@
 """``puck_tracker`` node: EKF puck state and prediction from the mocap stream (thesis sec. 4.1.1, 4.2).
 
 Subscribes ``/optitrack/puck`` (geometry_msgs/PoseStamped, mocap frame); publishes ``puck/state``
-(PuckState, table frame) at every frame and ``puck/prediction`` (PuckPrediction). Services (thesis
+(PuckState, table frame) at every frame, ``puck/prediction`` (PuckPrediction) and ``puck/physics``
+(PuckPhysics, latched: the physics it predicts with, at start and on every change: what it learns online
+of the table, or new parameters; the tactics aim their shots with it). Services (thesis
 4.1.1): ``set_physical_params``, ``set_noise_covariance``, ``kalman_step``, ``reset``. All filtering and
 prediction is :class:`air_hockey_agent.core.estimation.ekf.PuckEKF`; this module only translates.
 """
@@ -11,15 +13,16 @@ import math
 import sys
 
 import numpy as np
-from air_hockey_msgs.msg import LineCrossing, PuckPrediction, PuckState, WallImpact
+from air_hockey_msgs.msg import LineCrossing, PuckPhysics, PuckPrediction, PuckState, WallImpact
 from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, SetPhysicalParams
 from geometry_msgs.msg import PoseStamped
+from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
 from air_hockey_agent.core.estimation.ekf import PuckEKF, check_covariance
 from air_hockey_agent.core.estimation.table_learning import describe_learning
 from air_hockey_agent.core.puck.prediction import prepare_prediction
-from air_hockey_agent.nodes.messages import pose_measurement, state_msg, to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import physics_msg, pose_measurement, state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.tracker_params import PARAM_FILES, TRACKER_NODE_PARAMS
 
@@ -33,10 +36,14 @@ class PuckTrackerNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         self.ekf = PuckEKF.from_params(self.params)
-        prepare_prediction(self.ekf.model.params)
+        prepare_prediction(self.ekf.model.params, self.params["acceleration_adaptation.enabled"])
         self.next_log = 1  # impacts and windows learned from at which the next log line comes
         self.state_pub = self.create_publisher(PuckState, "puck/state", 10)
         self.prediction_pub = self.create_publisher(PuckPrediction, "puck/prediction", 10)
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self.physics_pub = self.create_publisher(PuckPhysics, "puck/physics", latched)
+        self.physics_events = -1  # learning events at the last puck/physics (-1: none published)
+        self.publish_physics(0.0)
         self.create_subscription(PoseStamped, "/optitrack/puck", self.on_pose, 10)
         self.create_service(SetPhysicalParams, "set_physical_params", self.on_set_physical_params)
         self.create_service(SetNoiseCovariance, "set_noise_covariance", self.on_set_noise)
@@ -53,6 +60,8 @@ class PuckTrackerNode(AirHockeyNode):
             t = to_seconds(msg.header.stamp)
             flags = self.ekf.process(t, z)
             self.log_learning()
+            if self.ekf.learning is not None and self.ekf.learning.events != self.physics_events:
+                self.publish_physics(t)
             if self.ekf.initialised:
                 self.state_pub.publish(state_msg(self.ekf.x, self.ekf.P, self.ekf.stamp, flags))
                 self.publish_prediction()
@@ -70,6 +79,15 @@ class PuckTrackerNode(AirHockeyNode):
             return
         self.next_log *= 10
         self.get_logger().info(f"learned online: {describe_learning(learning.report())}")
+
+    def publish_physics(self, seconds: float) -> None:
+        """``puck/physics``: the model's parameters now (learned or configured), from ``seconds``."""
+        learning = self.ekf.learning
+        report = learning.report() if learning is not None else {"rim_law": None, "table_acceleration": None}
+        impacts = report["rim_law"]["impacts"] if report["rim_law"] else 0
+        windows = report["table_acceleration"]["windows"] if report["table_acceleration"] else 0
+        self.physics_pub.publish(physics_msg(self.ekf.model.params, seconds, impacts, windows))
+        self.physics_events = learning.events if learning is not None else 0
 
     def publish_prediction(self) -> None:
         p = self.params
@@ -104,7 +122,8 @@ class PuckTrackerNode(AirHockeyNode):
         except ValueError as exc:
             response.success, response.message = False, f"refused, filter unchanged: {exc}"
             return response
-        prepare_prediction(params)
+        prepare_prediction(params, self.params["acceleration_adaptation.enabled"])
+        self.publish_physics(self.ekf.stamp if self.ekf.initialised else 0.0)
         response.success, response.message = True, f"physical parameters set: {params}"
         return response
 

@@ -2,6 +2,8 @@
 
 Subscribes ``puck/prediction`` (the robot's puck tracker, table frame: the estimate it starts from and
 its prediction, published together with ``puck/state`` for every frame, so the state topic is not read),
+``puck/physics`` (the tracker's puck physics, latched: the shots are aimed with them when
+``physics_from_tracker`` is true),
 ``joint_states`` (mallet position and velocity: forward kinematics and its Jacobian), ``/game_status`` (the referee: stopped -> Init,
 paused -> Home, running -> play) and ``trajectory_status`` (the trajectory generator's answers).
 Publishes ``hit_command`` (air_hockey_msgs/HitCommand, the robot's own frame) and ``tactic``
@@ -22,14 +24,15 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 
-from air_hockey_msgs.msg import GameStatus, HitCommand, PuckPrediction, PuckState, TacticState, TrajectoryStatus
+from air_hockey_msgs.msg import (GameStatus, HitCommand, PuckPhysics, PuckPrediction, PuckState, TacticState,
+                                 TrajectoryStatus)
 from air_hockey_msgs.srv import ForceTactic
 from air_hockey_agent.agent_params import AGENT_PARAMS, PARAM_FILES, build_selector
-from air_hockey_agent.core.game.situation import build_situation
+from air_hockey_agent.core.game.situation import build_situation, own_frame_physics
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.game.tactics.selector import STOPPED
 from air_hockey_agent.core.motion.kinematics import in_order
-from air_hockey_agent.nodes.messages import to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import physics_from_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.sim.params import ROBOTS
 
@@ -62,6 +65,9 @@ class TacticsNode(AirHockeyNode):
         self.tactic_pub = self.create_publisher(TacticState, "tactic", latched)
         self.sync_pub = self.create_publisher(Clock, "~/sim_sync", 10)
         self.create_subscription(PuckPrediction, "puck/prediction", self.on_prediction, 10)
+        self.physics_log_at = 0  # log the tracker's physics when what it learned reaches this (0: the first)
+        if self.params["physics_from_tracker"]:
+            self.create_subscription(PuckPhysics, "puck/physics", self.on_physics, latched)
         self.create_subscription(JointState, "joint_states", self.on_joint_state, 10)
         self.create_subscription(GameStatus, "/game_status", self.on_game_status, latched)
         self.create_subscription(TrajectoryStatus, "trajectory_status", self.on_trajectory_status, 10)
@@ -83,6 +89,22 @@ class TacticsNode(AirHockeyNode):
             self.last_estimate = t0
         except (ValueError, TypeError) as exc:
             self.get_logger().error(f"puck/prediction: message ignored ({exc})", throttle_duration_sec=1.0)
+
+    def on_physics(self, msg: PuckPhysics) -> None:
+        """Aim the shots with the tracker's physics (table frame -> own frame); logged at its first message
+        and when what it learned reaches 1, 10, 100, ... impacts and windows."""
+        shots = self.selector.shots
+        try:
+            table_frame = physics_from_msg(msg, shots.model.params)
+        except (ValueError, TypeError) as exc:
+            self.get_logger().error(f"puck/physics: message ignored ({exc})", throttle_duration_sec=5.0)
+            return
+        shots.use_physics(own_frame_physics(table_frame, self.robot))
+        learned = int(msg.impacts_learned) + int(msg.windows_learned)
+        if learned >= self.physics_log_at:
+            self.physics_log_at = 10 * learned if learned else 1
+            self.get_logger().info(f"shots aimed with the tracker's puck physics ({msg.impacts_learned} rim impacts "
+                                   f"and {msg.windows_learned} free-flight windows learned): {table_frame}")
 
     def on_joint_state(self, msg: JointState) -> None:
         try:

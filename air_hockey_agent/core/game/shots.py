@@ -23,7 +23,7 @@ import numpy as np
 
 from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 from air_hockey_agent.core.motion.task_motion import stop_fraction
-from air_hockey_agent.core.puck.model import PuckModel
+from air_hockey_agent.core.puck.model import PuckModel, PuckParams
 from air_hockey_agent.core.puck.prediction import predict_fast
 
 VARIANTS = ("straight", "left_bank", "right_bank")  # left: off the y = +W/2 rim, right: off y = -W/2
@@ -90,6 +90,11 @@ class ShotPredictor:
         self.mouth = table.goal_mouth
         self.defend_line = table.length / 2 - settings.defend_line   # the opponent's, in our frame
         self.guard_y = -settings.ready_point[1]  # where the opponent's mallet waits (the same agent's ready point)
+
+    def use_physics(self, params: PuckParams) -> None:
+        """Predict shots with these puck physics from now on (the robot's own frame), e.g. what the
+        robot's tracker has learned online of the table."""
+        self.model = self.model.with_params(params)
 
     # --- one candidate ---------------------------------------------------------------------------
     def _evaluate(self, puck: np.ndarray, angle: float, speed: float | None) -> tuple | None:

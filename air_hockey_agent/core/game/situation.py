@@ -12,6 +12,7 @@ from typing import Sequence
 import numpy as np
 
 from air_hockey_agent.core.frames import ROBOT_YAW
+from air_hockey_agent.core.puck.model import PuckParams
 
 
 def to_own_frame(states: np.ndarray, robot: str) -> np.ndarray:
@@ -21,6 +22,15 @@ def to_own_frame(states: np.ndarray, robot: str) -> np.ndarray:
         out[..., :4] *= -1.0
         out[..., 4] = (out[..., 4] + 2 * math.pi) % (2 * math.pi) - math.pi
     return out
+
+
+def own_frame_physics(params: PuckParams, robot: str) -> PuckParams:
+    """Puck physics (table frame) in ``robot``'s frame: only the table acceleration [m/s^2] has a
+    direction (rotated by pi for ``iiwa_back``)."""
+    if ROBOT_YAW[robot] == 0.0:
+        return params
+    gx, gy = params.table_acceleration
+    return params.with_values(table_acceleration=(-gx, -gy))
 
 
 @dataclass(frozen=True)

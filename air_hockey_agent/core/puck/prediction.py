@@ -171,11 +171,11 @@ def noise_table(dt: float, damping: float, q: np.ndarray) -> NoiseTable:
     return table
 
 
-def prepare_prediction(params: PuckParams) -> None:
+def prepare_prediction(params: PuckParams, learns_tilt: bool = True) -> None:
     """Load the compiled march (:mod:`.march_kernel`) now when these parameters can take it, instead of in
     the first such prediction (about half a second): with a surface friction, a table acceleration
-    (configured, or learned online) makes the prediction march."""
-    if params.friction_surface > 0.0:
+    (configured, or learned online when ``learns_tilt``) makes the prediction march."""
+    if params.friction_surface > 0.0 and (params.accelerated or learns_tilt):
         from .march_kernel import warm_up
         warm_up()
 
