@@ -25,16 +25,18 @@ os.environ["ROS_HOME"] = str(_SESSION_TMP / "ros_home")
 os.environ["ROS_LOG_DIR"] = str(_SESSION_TMP / "ros_home" / "log")
 
 
-# Tests that start ROS nodes (or join a ROS graph) run one after another on one xdist worker: some check
-# that no node process of theirs is left running (pgrep), and a node another test started at the same
-# time would look like one. Without xdist the mark does nothing.
+# Tests that start ROS nodes (or join a ROS graph) are marked ``ros``: `make test` runs the others on two
+# processes first, then these alone, one after another (README "Tests"): some check that no node process
+# of theirs is left running (pgrep), which another test's node would fail, and node graphs under a
+# second process's load missed their timings (a simulated shot, a message count).
 ROS_FIXTURES = {"ros_env", "rclpy_node", "launcher", "domain_id"}
 
 
+@pytest.hookimpl(tryfirst=True)  # before -m selects by marks
 def pytest_collection_modifyitems(config, items):
     for item in items:
         if item.get_closest_marker("integration") or ROS_FIXTURES & set(getattr(item, "fixturenames", ())):
-            item.add_marker(pytest.mark.xdist_group("ros"))
+            item.add_marker(pytest.mark.ros)
 
 
 @pytest.fixture(scope="session")

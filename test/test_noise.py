@@ -6,11 +6,11 @@ from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.identification.noise import estimate_once, iterate
 from air_hockey_agent.core.identification.preprocess import to_model_grid
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
-from air_hockey_agent.tracker_params import load_tracker_params
+from air_hockey_agent.tracker_params import load_tracker_params, without_learning
 
 
 def trajectories(position_std, angle_std, seed=0, per_speed=0.0, shots=3):
-    params = load_tracker_params()
+    params = without_learning(load_tracker_params())  # the model's own data: nothing to learn, only its noise
     model = PuckEKF.from_params(params).model
     ranges = ShotRanges(speed=(1.0, 3.0), spin=(-5.0, 5.0), duration=3.0, pause=3.0)
     noise = MocapImperfections(position_std=position_std, angle_std=angle_std, jitter_std=0.0,
