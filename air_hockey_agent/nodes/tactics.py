@@ -3,9 +3,9 @@
 Subscribes ``puck/prediction`` (the robot's puck tracker, table frame: the estimate it starts from and
 its prediction, published together with ``puck/state`` for every frame, so the state topic is not read),
 ``puck/physics`` (the tracker's puck physics, latched: the shots are aimed with them when
-``physics_from_tracker`` is true),
-``joint_states`` (mallet position and velocity: forward kinematics and its Jacobian), ``/game_status`` (the referee: stopped -> Init,
-paused -> Home, running -> play) and ``trajectory_status`` (the trajectory generator's answers).
+``physics_from_tracker`` is true), ``joint_states`` (mallet position and velocity: forward kinematics
+and its Jacobian), ``/game_status`` (the referee: stopped -> Init, paused -> Home, running -> play) and
+``trajectory_status`` (the trajectory generator's answers).
 Publishes ``hit_command`` (air_hockey_msgs/HitCommand, the robot's own frame) and ``tactic``
 (air_hockey_msgs/TacticState: the current tactic and why, on every change and every ``status_period``)
 and ``~/sim_sync`` (rosgraph_msgs/Clock: its clock after every decision, which ``table_sim`` waits for

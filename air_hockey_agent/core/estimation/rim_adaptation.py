@@ -20,11 +20,11 @@ scales the configured law by numbers it estimates from each rim impact it observ
   stick and slide).
 
 Each is a least-squares estimate with the configured law (scales 1) as a prior worth ``prior_impacts``
-impacts of the mean size seen that the law predicts exactly. An impact is observed in its rim's frame (:mod:`~air_hockey_agent.core.puck.impact`: ``b``
-along the rim, ``n`` into the table): the filter's incoming state just before it, and the outgoing
-velocity and spin from line fits over the measured poses of the ``window`` after it (the flight law's
-acceleration removed; seed 003's model-based batch estimate), not the filter's post-impact state, which
-the law being learned has biased.
+impacts of the mean size seen that the law predicts exactly. An impact is observed in its rim's frame
+(:mod:`~air_hockey_agent.core.puck.impact`: ``b`` along the rim, ``n`` into the table): the filter's
+incoming state just before it, and the outgoing velocity and spin from line fits over the measured poses
+of the ``window`` after it (the flight law's acceleration removed; seed 003's model-based batch
+estimate), not the filter's post-impact state, which the law being learned has biased.
 """
 from __future__ import annotations
 
