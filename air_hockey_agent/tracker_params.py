@@ -73,8 +73,8 @@ TRACKER_PARAMS = (
               "[1/max_scale, max_scale] is not learned from", 1.0, 100.0),
     ParamSpec("rim_adaptation.max_incoming_uncertainty", float, "[-] velocity std before an impact, fraction "
               "of the speed, at most", 0.0, 10.0),
-    ParamSpec("rim_adaptation.knee_step", float, "[m/s] spacing of the restitution knees tried (0: the "
-              "configured one only)", 0.0, 10.0),
+    ParamSpec("rim_adaptation.knee_count", int, "restitution knees tried, evenly from 0 to knee_max (0: the "
+              "configured one only)", 0, 1000),
     ParamSpec("rim_adaptation.knee_max", float, "[m/s] the fastest restitution knee tried", 0.0, 20.0),
     ParamSpec("acceleration_adaptation.enabled", bool, "learn this table's acceleration (tilt, air film's mean) "
               "online from free flight"),

@@ -120,13 +120,13 @@ def test_the_knee_where_the_restitution_starts_to_fall_is_found(params):
     rng = np.random.default_rng(5)
     impacts = [(rng.uniform(-1.0, 1.0), -rng.uniform(0.15, 3.0), 0.0) for _ in range(300)]
     learned = {}
-    for step in (0.05, 0.0):
-        settings = AdaptationSettings(**{**SETTINGS.__dict__, "prior_impacts": 0.0, "knee_step": step, "knee_max": 2.0})
+    for count in (41, 0):  # config/tracker.yaml's grid (0, 0.05, ... 2.0 m/s), and the configured knee only
+        settings = AdaptationSettings(**{**SETTINGS.__dict__, "prior_impacts": 0.0, "knee_count": count, "knee_max": 2.0})
         adapt = RimAdaptation(base, TABLE, settings)
         for before in impacts:
             assert adapt.observe(before, impact_of(truth, before))
-        learned[step] = adapt
-    grid = learned[0.05]
+        learned[count] = adapt
+    grid = learned[41]
     for before in impacts[:20]:  # all knees at once as one knee at a time
         rows = grid._regressors(before[1])
         for knee, row in zip(grid.knees, rows):
@@ -136,7 +136,7 @@ def test_the_knee_where_the_restitution_starts_to_fall_is_found(params):
     assert grid.restitution_scale == pytest.approx(0.9, abs=1e-6) and grid.fall_scale == pytest.approx(1.2, abs=1e-6)
     for vn in (0.2, 0.4, 1.0, 2.5):  # the learned law is the truth
         assert impact_of(grid.params(), (0.1, -vn, 0.0)).vn == pytest.approx(impact_of(truth, (0.1, -vn, 0.0)).vn, rel=1e-6)
-    assert learned[0.0].knee == base.restitution_knee and abs(learned[0.0].fall_scale - 1.2) > 0.01
+    assert learned[0].knee == base.restitution_knee and abs(learned[0].fall_scale - 1.2) > 0.01
 
 
 def test_hits_slow_impacts_and_a_fresh_law_are_handled(params):

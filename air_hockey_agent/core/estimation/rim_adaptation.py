@@ -12,7 +12,7 @@ scales the configured law by numbers it estimates from each rim impact it observ
   floor where the fall ends). The outgoing normal speed ``(k e - f fall) |vn|`` is linear in (k, f); with
   k = f the whole law is scaled, and a table whose rims lose no more at speed (the pybullet table's
   constant 0.947) has f = 0. Impacts slower than the knee say nothing of f, which then stays at 1. The
-  knee itself (where the fall starts) is chosen among ``rim_adaptation.knee_step`` apart up to
+  knee itself (where the fall starts) is chosen among ``rim_adaptation.knee_count`` knees from 0 to
   ``knee_max`` and the configured one: (k, f) are fitted for each, and the knee whose fit leaves the
   least sum of squares (the prior's pseudo-impacts included) wins;
 * ``tangential_scale`` s: the tangential impulse is s times the configured law's (Routh's sticking
@@ -54,7 +54,7 @@ class AdaptationSettings:
     min_normal_speed: float   # [m/s] slower impacts are not observed (their ratios are noise)
     max_scale: float          # [-] an impact whose ratios fall beyond [1 / max_scale, max_scale] is no rim's
     max_incoming_uncertainty: float  # [-] velocity std before the impact, as a fraction of the speed, at most
-    knee_step: float = 0.0    # [m/s] spacing of the knees tried (0: the configured knee only)
+    knee_count: int = 0       # knees tried, evenly from 0 to knee_max (0: the configured knee only)
     knee_max: float = 0.0     # [m/s] the fastest knee tried
 
     @classmethod
@@ -62,11 +62,12 @@ class AdaptationSettings:
         p = "rim_adaptation."
         return cls(*(params[p + name] for name in ("enabled", "prior_impacts", "window", "min_frames",
                                                     "min_normal_speed", "max_scale", "max_incoming_uncertainty",
-                                                    "knee_step", "knee_max")))
+                                                    "knee_count", "knee_max")))
 
     def knees(self, configured: float) -> np.ndarray:
-        """The knees tried [m/s]: the configured one first, then 0, step, ... up to ``knee_max``."""
-        grid = np.arange(0.0, self.knee_max + 1e-9, self.knee_step) if self.knee_step > 0.0 else np.zeros(0)
+        """The knees tried [m/s]: the configured one first, then ``knee_count`` from 0 to ``knee_max``."""
+        grid = np.linspace(0.0, self.knee_max, self.knee_count) if self.knee_count > 1 else \
+            np.zeros(self.knee_count)
         return np.concatenate(([configured], grid[np.abs(grid - configured) > 1e-9]))
 
 
