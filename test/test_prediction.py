@@ -27,6 +27,10 @@ def assert_agree(a, b, cov_rtol):
     assert [i[1] for i in a.impacts] == [i[1] for i in b.impacts]
     assert np.allclose([i[0] for i in a.impacts], [i[0] for i in b.impacts], atol=1e-10)
     assert len(a.samples) == len(b.samples)
+    for (ta, sa, _), (tb, sb, _) in zip(a.samples, b.samples):  # the samples themselves, not only their count
+        d = sa - sb
+        d[4] = (d[4] + np.pi) % (2 * np.pi) - np.pi
+        assert ta == pytest.approx(tb, abs=1e-12) and np.abs(d).max() < 1e-10
     assert a.crossings.keys() == b.crossings.keys()
     for line, crossing in a.crossings.items():
         assert crossing.time == pytest.approx(b.crossings[line].time, abs=1e-9)

@@ -196,16 +196,23 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, ho
     steps, remainder = _split_horizon(horizon, dt)
     rec = _Recorder(lines, sample_every)
     s, p = np.asarray(state, float), (np.asarray(cov, float) if with_cov else None)
+    # With a covariance the jumps stop at every sample (the noise table G_n is exact only without surface
+    # friction: shorter jumps keep it closest to the stepwise prediction); the mean alone is sampled
+    # inside a jump, each sample from the jump's start (one closed form instead of one per sample).
+    stop_at_samples = bool(sample_every) and with_cov
     done = 0
     while done < steps:
         budget = steps - done
-        if sample_every:
+        if stop_at_samples:
             budget = min(budget, sample_every - done % sample_every)
         free = free_motion(model, s, dt)
         reach = free.impact_step(budget)
         jump = budget if reach is None else reach - 1
         if jump > 0:
             free.record_crossings(rec, done * dt, jump)
+            if sample_every and not with_cov:
+                for j in range(sample_every - done % sample_every, jump, sample_every):
+                    rec.sample(done + j, (done + j) * dt, free.state_after(j), None)
             if with_cov:
                 phi = free.jacobian(jump)
                 p = phi @ p @ phi.T + table.get(jump)
