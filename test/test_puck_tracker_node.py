@@ -141,9 +141,9 @@ def test_physics_messages_carry_every_parameter_and_refuse_invalid_ones():
                                  table_acceleration=(0.01, -0.02), damping=0.2, friction_surface=0.01)
     msg = physics_msg(learned, 12.5, impacts=7, windows=30)
     assert (msg.impacts_learned, msg.windows_learned, msg.stamp.sec, msg.stamp.nanosec) == (7, 30, 12, 500_000_000)
-    assert physics_from_msg(msg, params) == learned
+    assert physics_from_msg(msg) == learned
     for field, value in (("restitution", 1.2), ("damping", float("nan"))):
         setattr(msg, field, value)
         with pytest.raises(ValueError, match=field):
-            physics_from_msg(msg, params)
+            physics_from_msg(msg)
         setattr(msg, field, getattr(learned, field))

@@ -57,6 +57,10 @@ def state_msg(state: np.ndarray, cov: np.ndarray, seconds: float, flags: int = 0
     return msg
 
 
+PHYSICS_FIELDS = ("friction_surface", "damping", "restitution", "restitution_knee", "restitution_slope",
+                  "restitution_min", "friction_rim", "tangential_restitution")  # and table_acceleration
+
+
 def physics_msg(params: PuckParams, seconds: float, impacts: int = 0, windows: int = 0) -> PuckPhysics:
     """PuckPhysics of a puck model's parameters (table frame), in effect from ``seconds``."""
     msg = PuckPhysics(impacts_learned=int(impacts), windows_learned=int(windows))
@@ -67,17 +71,13 @@ def physics_msg(params: PuckParams, seconds: float, impacts: int = 0, windows: i
     return msg
 
 
-def physics_from_msg(msg: PuckPhysics, base: PuckParams) -> PuckParams:
-    """``base`` with the physical parameters of a PuckPhysics message (table frame); ValueError naming the
-    first invalid one."""
-    params = base.with_values(**{name: float(getattr(msg, name)) for name in PHYSICS_FIELDS},
-                              table_acceleration=tuple(float(g) for g in msg.table_acceleration))
+def physics_from_msg(msg: PuckPhysics) -> PuckParams:
+    """The physical parameters of a PuckPhysics message (table frame); ValueError naming the first invalid
+    one."""
+    params = PuckParams(**{name: float(getattr(msg, name)) for name in PHYSICS_FIELDS},
+                        table_acceleration=tuple(float(g) for g in msg.table_acceleration))
     params.validate()
     return params
-
-
-PHYSICS_FIELDS = ("friction_surface", "damping", "restitution", "restitution_knee", "restitution_slope",
-                  "restitution_min", "friction_rim", "tangential_restitution")
 
 
 def message_class(type_name: str):

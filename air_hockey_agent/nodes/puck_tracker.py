@@ -83,11 +83,9 @@ class PuckTrackerNode(AirHockeyNode):
     def publish_physics(self, seconds: float) -> None:
         """``puck/physics``: the model's parameters now (learned or configured), from ``seconds``."""
         learning = self.ekf.learning
-        report = learning.report() if learning is not None else {"rim_law": None, "table_acceleration": None}
-        impacts = report["rim_law"]["impacts"] if report["rim_law"] else 0
-        windows = report["table_acceleration"]["windows"] if report["table_acceleration"] else 0
+        impacts, windows = learning.counts if learning is not None else (0, 0)
         self.physics_pub.publish(physics_msg(self.ekf.model.params, seconds, impacts, windows))
-        self.physics_events = learning.events if learning is not None else 0
+        self.physics_events = impacts + windows
 
     def publish_prediction(self) -> None:
         p = self.params

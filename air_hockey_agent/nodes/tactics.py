@@ -93,13 +93,12 @@ class TacticsNode(AirHockeyNode):
     def on_physics(self, msg: PuckPhysics) -> None:
         """Aim the shots with the tracker's physics (table frame -> own frame); logged at its first message
         and when what it learned reaches 1, 10, 100, ... impacts and windows."""
-        shots = self.selector.shots
         try:
-            table_frame = physics_from_msg(msg, shots.model.params)
+            table_frame = physics_from_msg(msg)
         except (ValueError, TypeError) as exc:
             self.get_logger().error(f"puck/physics: message ignored ({exc})", throttle_duration_sec=5.0)
             return
-        shots.use_physics(own_frame_physics(table_frame, self.robot))
+        self.selector.shots.use_physics(own_frame_physics(table_frame, self.robot))
         learned = int(msg.impacts_learned) + int(msg.windows_learned)
         if learned >= self.physics_log_at:
             self.physics_log_at = 10 * learned if learned else 1

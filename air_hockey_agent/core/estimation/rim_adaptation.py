@@ -77,17 +77,23 @@ def rim_frame(wall: int, vx: float, vy: float) -> tuple[float, float]:
     return ny * vx - nx * vy, nx * vx + ny * vy
 
 
-def fall_regressors(base: PuckParams, incoming_normal_speed: float, knee: float | None = None) -> tuple[float, float]:
+def _falls(law: PuckParams) -> bool:
+    """Whether ``law``'s restitution falls with the normal speed (a slope, and a floor below e; a floor at
+    or above e holds e at the floor)."""
+    return law.restitution_slope > 0.0 and law.restitution_min < law.restitution
+
+
+def fall_regressors(base: PuckParams, incoming_normal_speed: float, knee=None):
     """``(e |vn|, fall(|vn|) |vn|)`` [m/s] of ``base``'s restitution law (module docstring), its fall
-    starting at ``knee`` [m/s] (None: the law's own): the outgoing normal speed is ``k`` times the first
-    less ``f`` times the second. A law without a fall (no slope, or a floor at or above e, which holds e at
-    the floor) has the whole outgoing speed in the first."""
+    starting at ``knee`` [m/s] (None: the law's own; an array of knees gives an array of falls): the
+    outgoing normal speed is ``k`` times the first less ``f`` times the second. A law without a fall has
+    the whole outgoing speed in the first."""
     speed = abs(incoming_normal_speed)
     e, floor = base.restitution, base.restitution_min
-    if base.restitution_slope <= 0.0 or floor >= e:
-        return max(e, floor) * speed, 0.0
     knee = base.restitution_knee if knee is None else knee
-    fall = min(base.restitution_slope * max(speed - knee, 0.0), e - floor)
+    if not _falls(base):
+        return max(e, floor) * speed, np.zeros_like(knee, dtype=float)
+    fall = np.minimum(base.restitution_slope * np.maximum(speed - knee, 0.0), e - floor)
     return e * speed, fall * speed
 
 
@@ -99,7 +105,7 @@ def scaled_params(base: PuckParams, restitution_scale: float, tangential_scale: 
     k, s = restitution_scale, tangential_scale
     f = k if fall_scale is None else max(0.0, fall_scale)  # a restitution rising with speed is no rim's
     e = base.restitution
-    if base.restitution_slope <= 0.0 or base.restitution_min >= e:  # no fall: the level alone
+    if not _falls(base):  # the level alone
         floor, slope = base.restitution_min * k, base.restitution_slope
     else:
         floor, slope = k * e - f * (e - base.restitution_min), base.restitution_slope * f
@@ -154,12 +160,13 @@ class RimAdaptation:
             return 1.0, 1.0, self.base.restitution_knee
         w = self.settings.prior_impacts / self.impacts
         b = self._xo + w * self._xc                               # (knees, 2)
-        a = (1.0 + w) * self._xx
+        weighted = (1.0 + w) * self._xx
+        a = weighted.copy()
         ridge = PRIOR_FLOOR * a[:, 0, 0]                          # f = 1 until the fall is seen: solvable
         a[:, 1, 1] += ridge
         b[:, 1] += ridge
         theta = np.linalg.solve(a, b[..., None])[..., 0]          # (knees, 2)
-        quad = np.einsum("ki,kij,kj->k", theta, (1.0 + w) * self._xx, theta)
+        quad = np.einsum("ki,kij,kj->k", theta, weighted, theta)
         cost = self._oo + w * self._cc - 2.0 * np.einsum("ki,ki->k", theta, b) + quad
         # ties (knees no impact tells apart: all above the fastest, say) go to the one nearest the configured
         tied = np.flatnonzero(cost <= cost.min() + TIE * (self._oo + w * self._cc))
@@ -229,17 +236,9 @@ class RimAdaptation:
         return True
 
     def _regressors(self, vn: float) -> np.ndarray:
-        """(knees, 2): x = (e |vn|, -fall |vn|) with the fall from each knee tried (:func:`fall_regressors`
-        for all knees at once)."""
-        base, speed = self.base, abs(vn)
-        e, floor = base.restitution, base.restitution_min
-        x = np.empty((len(self.knees), 2))
-        if base.restitution_slope <= 0.0 or floor >= e:
-            x[:, 0], x[:, 1] = max(e, floor) * speed, 0.0
-        else:
-            x[:, 0] = e * speed
-            x[:, 1] = -np.minimum(base.restitution_slope * np.maximum(speed - self.knees, 0.0), e - floor) * speed
-        return x
+        """(knees, 2): x = (e |vn|, -fall |vn|) with the fall from each knee tried."""
+        level, fall = fall_regressors(self.base, vn, self.knees)
+        return np.column_stack((np.full(len(self.knees), level), -fall))
 
     def _impact(self, law: PuckParams, before: RimState):
         return rim_impact(*before, self.radius, law.restitution, law.friction_rim, law.restitution_slope,

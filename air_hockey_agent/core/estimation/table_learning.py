@@ -232,10 +232,15 @@ class TableLearning:
         return self.acceleration.observe(*fit)
 
     @property
+    def counts(self) -> tuple[int, int]:
+        """(rim impacts, free-flight windows) learned from so far."""
+        return (0 if self.rim is None else self.rim.impacts,
+                0 if self.acceleration is None else self.acceleration.windows)
+
+    @property
     def events(self) -> int:
         """Rim impacts and free-flight windows learned from so far."""
-        return (0 if self.rim is None else self.rim.impacts) + (0 if self.acceleration is None else
-                                                                 self.acceleration.windows)
+        return sum(self.counts)
 
     def report(self) -> dict:
         """What was learned: ``rim_law`` (:meth:`RimAdaptation.report`) and ``table_acceleration``
