@@ -17,7 +17,7 @@ game: setup
 # test/conftest.py) alone, one after another (README "Tests"). PYTEST_ARGS=... runs `pytest PYTEST_ARGS` once instead.
 test: setup
 ifeq ($(strip $(PYTEST_ARGS)),)
-	$(VENV)/bin/python -m pytest -n 2 -m "not ros"
+	$(VENV)/bin/python -m pytest -n 2 --dist loadfile -m "not ros"
 	$(VENV)/bin/python -m pytest -m ros
 else
 	$(VENV)/bin/python -m pytest $(PYTEST_ARGS)

@@ -71,7 +71,7 @@ def _fingerprint(game) -> tuple:
     return np.round(world.puck_state(), 12).tobytes(), joints
 
 
-@pytest.mark.integration
+@pytest.mark.slow  # in-process: no ROS node
 def test_in_process_game_repeats_exactly_and_both_robots_play():
     """A seed repeats the game to the bit (puck and arm states at the end, the tally), another seed
     gives another game, and in 10 s both robots hit the puck and play a hit tactic."""
@@ -94,7 +94,7 @@ def test_in_process_game_repeats_exactly_and_both_robots_play():
         assert {"smash", "cut"} & set(first["tactics"][robot]), first
 
 
-@pytest.mark.integration
+@pytest.mark.slow  # in-process: no ROS node
 def test_a_recorded_in_process_game_is_the_same_game_and_holds_the_node_graphs_topics(tmp_path):
     """Recording changes nothing in the game (the same tally and end state as unrecorded); the bag holds
     every topic the node graph's recording holds, game-check reads it (both arms, their trajectories),
@@ -138,7 +138,7 @@ def test_a_recorded_in_process_game_is_the_same_game_and_holds_the_node_graphs_t
     assert all(r["trajectories"] >= 1 and r["worst_outside_m"] == 0.0 for r in checked.values()), checked
 
 
-@pytest.mark.integration
+@pytest.mark.slow  # in-process: no ROS node
 def test_in_process_strategy_trials_repeat_exactly_and_score_real_hits():
     """The strategy test's chunk of trials on a fresh table twice: the same records; the smash and the
     repel are touched by the robot (contacts from the simulation) and scored."""

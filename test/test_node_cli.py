@@ -40,7 +40,7 @@ def test_game_refuses_bad_arguments_in_one_line(args, message):
     assert message in result.stderr and len(result.stderr.strip().splitlines()) == 1
 
 
-@pytest.mark.integration
+@pytest.mark.slow  # in-process: no ROS node
 def test_in_process_games_add_up_in_one_json_object(tmp_path):
     """Two games on two worker processes, recorded: their sum, one bag per game that game-check reads, and
     the same games as played one after the other, unrecorded."""
@@ -63,7 +63,7 @@ def test_in_process_games_add_up_in_one_json_object(tmp_path):
     assert "Traceback" not in result.stderr
 
 
-@pytest.mark.integration
+@pytest.mark.slow  # in-process: no ROS node
 def test_sigterm_stops_in_process_games_and_their_workers_at_once():
     """SIGTERM (kill, timeout) during games on worker processes: exit 143 within seconds, no worker left
     (a pool left to finish would have played every queued 60 s game first)."""

@@ -14,6 +14,12 @@ fence may set how it runs:
   shown as the skip reason.
 
 Synopses with placeholders (``[--option N]``, ``BAG...``) are ```text blocks, never run.
+
+Blocks that start ROS nodes (the ``nodes`` policy, a node-graph ``game`` or ``strategy-test``) are marked
+``integration`` and so run in `make test`'s second part, alone; the others run in its first part, all on
+one pytest-xdist process in README order (``--dist loadfile`` keeps a file's tests together), so their
+shared scratch directory holds what the blocks before them wrote. No node block reads a file another
+block wrote.
 """
 from __future__ import annotations
 
@@ -30,7 +36,6 @@ import pytest
 
 from air_hockey_agent.nodes.runtime import READY_MARKER
 
-pytestmark = pytest.mark.integration
 ROOT = Path(__file__).resolve().parents[1]
 README = ROOT / "README.md"
 BLOCK_TIMEOUT = 600.0  # [s] per block; the longest (sysid, a game) take about a minute here
@@ -38,6 +43,7 @@ NODE_READY_TIMEOUT = 60.0  # [s]
 NODE_STOP_TIMEOUT = 20.0  # [s]
 SETUP = ("make game", "make test")  # the README's two set-up commands: CI runs them itself
 POLICY = re.compile(r"<!--\s*readme-test:\s*(.*?)\s*-->")
+NODE_GRAPH = re.compile(r"air-hockey (game|strategy-test)(?=\s|$)(?!.*--in-process)")  # starts nodes
 
 
 @dataclass(frozen=True)
@@ -60,11 +66,22 @@ def bash_blocks(text: str) -> list[Block]:
     return blocks
 
 
-BLOCKS = bash_blocks(README.read_text())
-
-
 def commands(block: Block) -> list[str]:
     return [line.split("  #")[0].strip() for line in block.text.splitlines() if line.strip()]
+
+
+def starts_nodes(block: Block) -> bool:
+    """Whether running ``block`` starts ROS nodes (a node per line, or a node-graph game)."""
+    return block.policy == "nodes" or (block.policy == "run" and any(map(NODE_GRAPH.search, commands(block))))
+
+
+def as_param(block: Block):
+    """``block`` as a test parameter marked for the part of `make test` it runs in (module docstring)."""
+    return pytest.param(block, marks=[pytest.mark.integration] if starts_nodes(block) else [],
+                        id=f"line{block.line}")
+
+
+BLOCKS = bash_blocks(README.read_text())
 
 
 @pytest.fixture(scope="module")
@@ -87,8 +104,16 @@ def test_every_block_has_a_known_policy_and_no_placeholders():
                 f"README.md line {block.line}: '{command}' has a placeholder (synopses go in ```text blocks)"
 
 
-@pytest.mark.parametrize("block", BLOCKS, ids=[f"line{b.line}" for b in BLOCKS])
-def test_readme_block(block: Block, scratch: Path, ros_env):
+@pytest.fixture
+def block_env(tmp_path) -> dict:
+    """The blocks' environment: our Fast DDS profile, the private domain, a temporary ROS_HOME (conftest's
+    ``ros_env``, not requested by name: that would put every block in `make test`'s ROS part)."""
+    from air_hockey_agent.tools.ros_env import ros_environment
+    return ros_environment(domain_id=int(os.environ["ROS_DOMAIN_ID"]), ros_home=tmp_path / "ros_home")
+
+
+@pytest.mark.parametrize("block", [as_param(b) for b in BLOCKS])
+def test_readme_block(block: Block, scratch: Path, block_env):
     if all(c.startswith(SETUP) for c in commands(block)):
         pytest.skip("the README's set-up commands: CI runs `make test` itself, and `make game` is tested by "
                     "test/test_node_cli.py")
@@ -101,9 +126,9 @@ def test_readme_block(block: Block, scratch: Path, ros_env):
         return
     if block.policy == "nodes":
         for command in commands(block):
-            run_node(command, scratch, ros_env, block.line)
+            run_node(command, scratch, block_env, block.line)
         return
-    result = subprocess.run(["bash", "-eu", "-o", "pipefail", "-c", block.text], cwd=scratch, env=ros_env,
+    result = subprocess.run(["bash", "-eu", "-o", "pipefail", "-c", block.text], cwd=scratch, env=block_env,
                             capture_output=True, text=True, timeout=BLOCK_TIMEOUT)
     assert result.returncode == 0, (f"README.md block at line {block.line} exited {result.returncode}:\n"
                                     f"{result.stdout[-3000:]}\n{result.stderr[-3000:]}")
@@ -141,3 +166,16 @@ def test_blocks_are_found_with_their_policies():
     blocks = bash_blocks(text)
     assert [(b.line, b.policy, b.text) for b in blocks] == [
         (2, "run", "echo one\n"), (6, "skip: needs a display", "viewer\n"), (13, "nodes", "node --ros-args\n")]
+
+
+def test_blocks_that_start_nodes_are_told_apart():
+    def block(policy: str, text: str) -> Block:
+        return Block(1, policy, text)
+    assert starts_nodes(block("nodes", "visualizer --ros-args\n"))
+    assert starts_nodes(block("run", ".venv/bin/air-hockey game --goals 1 --duration 10 --json\n"))
+    assert starts_nodes(block("run", "air-hockey synth-bag shots\nair-hockey strategy-test --trials 1\n"))
+    assert not starts_nodes(block("run", ".venv/bin/air-hockey game --in-process --duration 6 --seed 3\n"))
+    assert not starts_nodes(block("run", "air-hockey strategy-test --in-process --trials 1  # no nodes\n"))
+    assert not starts_nodes(block("run", "air-hockey game-check seed3\nair-hockey eval-prediction shots\n"))
+    assert not starts_nodes(block("tested by test/test_node_cli.py", "air-hockey game --duration 30\n"))
+    assert [b.line for b in BLOCKS if starts_nodes(b)], "README.md: no block starts nodes (the split is untested)"
