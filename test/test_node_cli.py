@@ -91,7 +91,7 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
     by the simulation), the JSON result has the documented keys, the recording holds the visualizer's
     markers until 30 s after the start (the clock ran before it while the nodes came up), and every node
     process is gone afterwards."""
-    game_line, check_line = readme_game_block()
+    game_line, check_line = readme_block("### The game", 2)
     assert game_line[:3] == ["game", "--duration", "30"] and check_line[:2] == ["game-check", "game"]
     bag = tmp_path / game_line[game_line.index("--record") + 1]
     game_line[game_line.index("--record") + 1] = str(bag)
@@ -127,14 +127,15 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
     assert leftovers.stdout.strip() == ""
 
 
-def readme_game_block() -> tuple[list[str], list[str]]:
-    """The arguments after ``.venv/bin/air-hockey`` of the README's recorded game and its game-check."""
+def readme_block(heading: str, lines: int) -> list[list[str]]:
+    """The arguments after ``.venv/bin/air-hockey`` of each line of the README's block under ``heading``
+    that this file tests (``readme-test: tested by test/test_node_cli.py``), which has ``lines`` lines."""
     text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
-    section = text[text.index("### The game"):]
+    section = text[text.index(heading):]
     block = re.search(r"tested by test/test_node_cli.py -->\n```bash\n(.*?)```", section, re.S).group(1)
-    lines = [shlex.split(line.split("  #")[0]) for line in block.splitlines() if line.strip()]
-    assert all(line[0] == ".venv/bin/air-hockey" for line in lines) and len(lines) == 2
-    return lines[0][1:], lines[1][1:]
+    found = [shlex.split(line.split("  #")[0]) for line in block.splitlines() if line.strip()]
+    assert all(line[0] == ".venv/bin/air-hockey" for line in found) and len(found) == lines
+    return [line[1:] for line in found]
 
 
 def _marker_stamps(bag: str) -> tuple[list[float], set[str]]:
@@ -196,13 +197,20 @@ def test_game_stopped_by_sigterm_while_starting_stops_every_node(ros_env):
 
 @pytest.mark.integration
 def test_strategy_test_small_run_reports_real_hits(ros_env, tmp_path):
-    """One trial each of the three smashes and Repel, as fast as possible: the report has the documented
-    structure, and every trial counted as a success was touched by the robot (contacts from the sim)."""
+    """The README's small strategy test (README "Strategy test", run here with --json, --results and a
+    private domain): one trial each of the three smashes and Repel, as fast as possible: the report has
+    the documented structure, every trial counted as a success was touched by the robot (contacts from
+    the sim), and the plots are drawn."""
+    (line,) = readme_block("## Strategy test", 1)
+    assert line[:5] == ["strategy-test", "--strategies", "smash", "repel", "--trials"] and "--plot" in line
+    plots = tmp_path / line[line.index("--plot") + 1]
+    line[line.index("--plot") + 1] = str(plots)
     lines_file = tmp_path / "trials.jsonl"
-    result = run([str(BIN / "air-hockey"), "strategy-test", "--strategies", "smash", "repel", "--trials", "1",
-                  "--json", "--results", str(lines_file), "--domain-id", ros_env["ROS_DOMAIN_ID"]],
-                 env=ros_env, timeout=600)
+    result = run([str(BIN / "air-hockey"), *line, "--json", "--results", str(lines_file),
+                  "--domain-id", ros_env["ROS_DOMAIN_ID"]], env=ros_env, timeout=600)
     assert result.returncode == 0, result.stderr[-2000:]
+    for name in ("strategy_success.png", "smash_spread.png"):
+        assert (plots / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
     report = json.loads(result.stdout.strip().splitlines()[-1])
     assert set(report) == {"smash_straight", "smash_left", "smash_right", "repel", "seconds"}
     assert {"success_rate", "offset_mean_m", "offset_std_m", "trials"} <= set(report["smash_left"])
