@@ -14,7 +14,9 @@ scales the configured law by numbers it estimates from each rim impact it observ
   constant 0.947) has f = 0. Impacts slower than the knee say nothing of f, which then stays at 1. The
   knee itself (where the fall starts) is chosen among ``rim_adaptation.knee_count`` knees from 0 to
   ``knee_max`` and the configured one: (k, f) are fitted for each, and the knee whose fit leaves the
-  least sum of squares (the prior's pseudo-impacts included) wins;
+  least sum of squares (the prior's pseudo-impacts included) wins, another knee than the configured one
+  only by more than the Bayesian information criterion's price of one more parameter (``ln n`` times the
+  best fit's residual variance, n impacts): noise alone does not move it;
 * ``tangential_scale`` s: the tangential impulse is s times the configured law's (Routh's sticking
   impulse with ``(1 + beta)`` scaled by s, Coulomb's bound with ``mu_rim`` scaled by s: the same impacts
   stick and slide).
@@ -154,8 +156,9 @@ class RimAdaptation:
         """(k, f, knee): for each knee tried, least squares of the observed outgoing normal speeds and of
         ``prior_impacts`` pseudo-impacts of the mean impact seen that the configured law predicts exactly
         (the estimate moves from the configured law toward the impacts' own fit as they outnumber it);
-        the knee with the least sum of squares wins. A fall no impact has shown (none faster than the
-        knee) stays at 1. k and f kept in [1 / max_scale, max_scale] and [0, max_scale]."""
+        the knee with the least sum of squares wins, a knee other than the configured one (the first
+        tried) paying BIC's ``ln n`` residual variances for being chosen. A fall no impact has shown (none
+        faster than the knee) stays at 1. k and f kept in [1 / max_scale, max_scale] and [0, max_scale]."""
         if self.impacts == 0:
             return 1.0, 1.0, self.base.restitution_knee
         w = self.settings.prior_impacts / self.impacts
@@ -168,6 +171,8 @@ class RimAdaptation:
         theta = np.linalg.solve(a, b[..., None])[..., 0]          # (knees, 2)
         quad = np.einsum("ki,kij,kj->k", theta, weighted, theta)
         cost = self._oo + w * self._cc - 2.0 * np.einsum("ki,ki->k", theta, b) + quad
+        variance = max(cost.min(), 0.0) / max(self.impacts - 3, 1)  # per impact, of the best fit (k, f, knee)
+        cost[1:] += np.log(self.impacts) * variance               # BIC: the knee is one more parameter
         # ties (knees no impact tells apart: all above the fastest, say) go to the one nearest the configured
         tied = np.flatnonzero(cost <= cost.min() + TIE * (self._oo + w * self._cc))
         best = int(tied[np.argmin(np.abs(self.knees[tied] - self.base.restitution_knee))])
