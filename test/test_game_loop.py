@@ -127,6 +127,11 @@ def test_a_recorded_in_process_game_is_the_same_game_and_holds_the_node_graphs_t
         assert len(messages[f"/{robot}/tactic"]) == sum(result["tactics"][robot].values())
         assert len(messages[f"/{robot}/hit_command"]) == len(messages[f"/{robot}/trajectory_status"])
     assert messages["/game_status"][-1][1].status == 2  # running
+    from air_hockey_agent.core.puck.model import PuckParams
+    for robot in ("iiwa_front", "iiwa_back"):  # the one tracker's physics, once (learning is off), from 0
+        (_, physics), = messages[f"/{robot}/puck/physics"]
+        assert (physics.stamp.sec, physics.stamp.nanosec, physics.impacts_learned) == (0, 0, 0)
+        assert PuckParams.from_attributes(physics) == game.ekf.model.params
     end = messages["/iiwa_front/joint_states"][-1][1].header.stamp
     assert end.sec + end.nanosec * 1e-9 >= 3.0
     markers = messages["/visualization/markers"][-1][1].markers

@@ -117,6 +117,9 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
         assert arms[robot]["joint_states"] > 1000 and arms[robot]["trajectories"] >= 1, arms
         assert arms[robot]["worst_outside_m"] < 0.005 and arms[robot]["trajectories_outside"] == 0, arms
     spans, shown = _marker_stamps(game["recording"])
+    from air_hockey_agent.bags.reader import iter_raw  # latched topics recorded from before the recorder joined
+    latched = [topic for topic, _, _ in iter_raw(game["recording"], ["/iiwa_front/puck/physics", "/iiwa_back/puck/physics"])]
+    assert sorted(set(latched)) == ["/iiwa_back/puck/physics", "/iiwa_front/puck/physics"], latched
     # 30 s from the referee's start: the clock runs before it while the nodes come up and the robots go
     # home (4.8-9.0 s of sim time in our runs), and counting from the clock's zero ended the game at 30.0 s
     # (the recording may begin a little after the start: its subscriptions are discovered on the way)

@@ -48,6 +48,13 @@ def puck_state_fields(seconds: float, state, covariance=None, flags: int = 0, fr
             "omega": omega, "covariance": cov, "flags": flags}
 
 
+def physics_fields(seconds: float, params, impacts: int = 0, windows: int = 0) -> dict:
+    """air_hockey_msgs/PuckPhysics fields of ``params`` (a :class:`~air_hockey_agent.core.puck.model.
+    PuckParams`, table frame) in effect from ``seconds`` [s], learned from ``impacts`` and ``windows``."""
+    return {"stamp": stamp_fields(seconds), **params.values(), "impacts_learned": int(impacts),
+            "windows_learned": int(windows)}
+
+
 def build(type_name: str, data: Mapping[str, Any] | None = None) -> Any:
     """The rosbags message ``type_name`` (``pkg/msg/Type``) with the fields in ``data``."""
     store = typestore()

@@ -57,25 +57,16 @@ def state_msg(state: np.ndarray, cov: np.ndarray, seconds: float, flags: int = 0
     return msg
 
 
-PHYSICS_FIELDS = ("friction_surface", "damping", "restitution", "restitution_knee", "restitution_slope",
-                  "restitution_min", "friction_rim", "tangential_restitution")  # and table_acceleration
-
-
 def physics_msg(params: PuckParams, seconds: float, impacts: int = 0, windows: int = 0) -> PuckPhysics:
     """PuckPhysics of a puck model's parameters (table frame), in effect from ``seconds``."""
-    msg = PuckPhysics(impacts_learned=int(impacts), windows_learned=int(windows))
-    msg.stamp = to_stamp(seconds)
-    for name in PHYSICS_FIELDS:
-        setattr(msg, name, float(getattr(params, name)))
-    msg.table_acceleration = [float(g) for g in params.table_acceleration]
-    return msg
+    return PuckPhysics(stamp=to_stamp(seconds), **params.values(), impacts_learned=int(impacts),
+                       windows_learned=int(windows))
 
 
 def physics_from_msg(msg: PuckPhysics) -> PuckParams:
     """The physical parameters of a PuckPhysics message (table frame); ValueError naming the first invalid
     one."""
-    params = PuckParams(**{name: float(getattr(msg, name)) for name in PHYSICS_FIELDS},
-                        table_acceleration=tuple(float(g) for g in msg.table_acceleration))
+    params = PuckParams.from_attributes(msg)
     params.validate()
     return params
 

@@ -7,7 +7,9 @@ OptiTrack stand-in's pose, mocap frame), ``/sim/puck_true_state`` and ``/sim/con
 ``/<robot>/joint_states`` (arm and striker joints), ``/game_status`` (the referee's, on every change),
 ``/<robot>/tactic`` (on every change), ``/<robot>/hit_command``, ``/<robot>/trajectory_status`` and
 ``/<robot>/joint_trajectory`` (each command, its answer, the accepted motion), ``/<robot>/puck/state``
-(the tracker's estimate: both robots read one tracker in process, so both topics carry it) and
+and ``/<robot>/puck/physics`` (the tracker's estimate, and the physics it predicts with at its first
+estimate, stamped zero as the node's at start, and on every learning event: both robots read one
+tracker in process, so both topics carry it) and
 ``/visualization/markers`` (the visualizer's scene, :class:`air_hockey_agent.core.scene.GameScene`, at its
 ``rate``, ``config/visualizer.yaml``). Log times are the simulated time [ns] the message was made at;
 header stamps as the nodes set them (sim time). The bag appears whole when the game ends, or not at all.
@@ -19,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from air_hockey_agent.bags.build import build, header_fields, pose_fields, puck_state_fields, stamp_fields
+from air_hockey_agent.bags.build import (build, header_fields, physics_fields, pose_fields, puck_state_fields,
+                                        stamp_fields)
 from air_hockey_agent.bags.writer import BagWriter
 from air_hockey_agent.core import scene
 from air_hockey_agent.core.frames import TABLE_FRAME
@@ -57,6 +60,7 @@ class GameRecorder:
         self._writer = BagWriter(self.path, self._types, "mcap")
         self._tactics: dict[str, tuple] = {}
         self._status: tuple | None = None
+        self._learned: tuple[int, int] | None = None  # the tracker's learning counts last recorded
 
     def __enter__(self) -> "GameRecorder":
         self._writer.__enter__()
@@ -105,6 +109,12 @@ class GameRecorder:
         t = ekf.stamp
         for robot in ROBOTS:
             self._write(f"/{robot}/puck/state", t, puck_state_fields(t, ekf.x, ekf.P, flags))
+        learned = ekf.learning.counts if ekf.learning is not None else (0, 0)
+        if learned != self._learned:
+            effective = 0.0 if self._learned is None else t
+            for robot in ROBOTS:
+                self._write(f"/{robot}/puck/physics", t, physics_fields(effective, ekf.model.params, *learned))
+            self._learned = learned
         x, y, vx, vy, theta, _ = (float(v) for v in ekf.x)
         self.scene.estimate = (x, y, theta, vx, vy)
         pred = prediction.prediction

@@ -21,7 +21,7 @@ It is built from 7x7 Jacobians over the augmented state (s, remaining time).
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any, Mapping, NamedTuple
 
 import numpy as np
@@ -90,6 +90,19 @@ class PuckParams:
 
     def with_values(self, **values: float) -> "PuckParams":
         return replace(self, **values)
+
+    @classmethod
+    def from_attributes(cls, source: Any) -> "PuckParams":
+        """The parameters of ``source``, an object with one attribute per parameter (a PuckPhysics
+        message), unchecked (:meth:`validate`)."""
+        return cls(**{f.name: (tuple(float(g) for g in getattr(source, f.name)) if f.name == "table_acceleration"
+                               else float(getattr(source, f.name))) for f in fields(cls)})
+
+    def values(self) -> dict[str, Any]:
+        """Every parameter by name, as Python floats (``table_acceleration`` a list of two): the fields
+        of ``air_hockey_msgs/PuckPhysics`` besides its stamp and counts."""
+        return {f.name: ([float(g) for g in getattr(self, f.name)] if f.name == "table_acceleration"
+                         else float(getattr(self, f.name))) for f in fields(self)}
 
 
 class Impact(NamedTuple):
