@@ -158,3 +158,25 @@ def test_in_process_strategy_trials_repeat_exactly_and_score_real_hits():
     listed = [(s, i) for i in range(25) for s in ("cut", "repel")]
     assert [(c, len(share)) for c, share in chunks(listed)] == [(0, 20), (1, 20), (2, 10)]
     assert chunk_seed(0, 0) != chunk_seed(0, 1) and chunk_seed(0, 1) == chunk_seed(0, 1)
+
+
+@pytest.mark.slow  # in-process: no ROS node
+def test_in_process_tactics_aim_with_the_trackers_physics():
+    """As puck/physics in the node graph: each robot's tactics predict their shots with the one tracker's
+    physics, in the robot's own frame (the table acceleration turned for iiwa_back), from the start and
+    again when the tracker has learned more of the table."""
+    from types import SimpleNamespace
+
+    from air_hockey_agent.sim.game_loop import InProcessGame
+    game = InProcessGame(3)
+    try:
+        for player in game.players.values():
+            assert player.selector.shots.model.params == game.ekf.model.params  # a level table
+        learned = game.ekf.model.params.with_values(restitution=0.8, table_acceleration=(0.01, -0.02))
+        game.ekf.model = game.ekf.model.with_params(learned)
+        game.ekf.learning = SimpleNamespace(counts=(1, 0))  # one rim impact learned
+        game._share_physics()
+        assert game.players["iiwa_front"].selector.shots.model.params == learned
+        assert game.players["iiwa_back"].selector.shots.model.params == learned.with_values(table_acceleration=(-0.01, 0.02))
+    finally:
+        game.close()

@@ -10,7 +10,8 @@ through ``table_sim``'s services); on their tick the tactics decide, and a comma
 handed to the arm at once (as ``hit_command`` -> ``joint_trajectory``, without the transport's
 delay). Both robots read one tracker: in the node graph each robot has its own, fed the same frames
 with the same parameters (``config/tracker.yaml`` and the simulated table's physics,
-``config/tracker_sim_table.yaml``), so they hold the same estimate.
+``config/tracker_sim_table.yaml``), so they hold the same estimate; each robot's tactics aim with that
+tracker's physics (as ``puck/physics``, when ``physics_from_tracker``).
 
 Differences from the node graph, all timing: messages arrive at once (the node graph's lockstep lets
 an agent lag the simulation by up to 20 ms) and a refused command's answer reaches the tactics in the
@@ -32,7 +33,7 @@ from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.core.frames import pose_to_measurement, quaternion_from_yaw
 from air_hockey_agent.core.game.referee import RUNNING, Decision, Referee, RefereeSettings
 from air_hockey_agent.core.game.scoreboard import Scoreboard
-from air_hockey_agent.core.game.situation import Situation, situation_from_prediction
+from air_hockey_agent.core.game.situation import Situation, own_frame_physics, situation_from_prediction
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.motion.arm_commander import ArmCommander
 from air_hockey_agent.core.motion.kinematics import ArmKinematics, in_order
@@ -148,6 +149,19 @@ class InProcessGame:
         self.mallets: dict[str, tuple[float, float]] = {}
         self.board = Scoreboard(ROBOTS)
         self.recorder = None  # a GameRecorder (sim/game_record.py) to record the game
+        self._learned: tuple[int, int] | None = None
+        self._share_physics()
+
+    def _share_physics(self) -> None:
+        """As the node graph's ``puck/physics``: each robot's tactics aim with the tracker's physics
+        (``physics_from_tracker``), at the start and whenever the tracker has learned more of the table."""
+        learned = self.ekf.learning.counts if self.ekf.learning is not None else (0, 0)
+        if learned == self._learned:
+            return
+        self._learned = learned
+        if self.config.agent["physics_from_tracker"]:
+            for robot, player in self.players.items():
+                player.selector.shots.use_physics(own_frame_physics(self.ekf.model.params, robot))
 
     def close(self) -> None:
         self.world.close()
@@ -243,6 +257,7 @@ class InProcessGame:
         if measurement is not None and self.referee is not None:
             self.referee.observe_puck(stamp, measurement[0], measurement[1])
         flags = self.ekf.process(stamp, measurement)
+        self._share_physics()
         if self.recorder is not None:
             self.recorder.on_mocap(measurement)
         if not self.ekf.initialised:
