@@ -270,14 +270,3 @@ def outgoing_fit(times: Sequence[float], poses: Sequence[Sequence[float]], t_imp
     if fit is None or omega is None:
         return None
     return float(fit.v[0]), float(fit.v[1]), omega
-
-
-def flight_acceleration(params: PuckParams):
-    """The flight law's acceleration ``v -> a`` [m/s, m/s^2] (eq. 3.1 and the table acceleration)."""
-    d, mu = params.damping, params.friction_surface
-    g = np.asarray(params.table_acceleration, float)
-
-    def acceleration(v: np.ndarray) -> np.ndarray:
-        speed = float(np.hypot(v[0], v[1]))
-        return g - d * v - (mu * v / speed if speed > 0.0 else 0.0)
-    return acceleration

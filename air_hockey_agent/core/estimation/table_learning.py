@@ -27,9 +27,9 @@ from typing import Any, Mapping
 import numpy as np
 
 from air_hockey_agent.core.identification.local_fit import fit_positions
-from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe,
-                                                             flight_acceleration, outgoing_fit, rim_frame)
-from air_hockey_agent.core.puck.model import PuckModel, PuckParams
+from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe, outgoing_fit,
+                                                             rim_frame)
+from air_hockey_agent.core.puck.model import PuckModel, PuckParams, flight_acceleration
 from air_hockey_agent.core.table import TableGeometry
 
 
@@ -209,7 +209,9 @@ class TableLearning:
         self._watch = None
         if len(watch.times) < settings.min_frames:
             return False
-        fit = outgoing_fit(watch.times, watch.poses, watch.t, flight_acceleration(model.params))
+        p = model.params
+        fit = outgoing_fit(watch.times, watch.poses, watch.t,
+                           flight_acceleration(p.damping, p.friction_surface, p.table_acceleration))
         if fit is None:
             return False
         vx, vy, omega = fit

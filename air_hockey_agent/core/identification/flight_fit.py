@@ -26,6 +26,7 @@ import numpy as np
 
 from air_hockey_agent.core.identification.local_fit import LocalFit, fit_positions, rows_in, smooth_fits
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
+from air_hockey_agent.core.puck.model import flight_acceleration
 from air_hockey_agent.core.table import TableGeometry
 
 FLIGHT_NAMES = ("damping", "friction_surface", "table_acceleration_x", "table_acceleration_y")
@@ -160,13 +161,8 @@ def _solve(windows, weights, mask, fixed, free, bounds) -> dict:
 
 def flight_law(values: Mapping[str, float]):
     """``a(v)`` [m/s^2] of the flight law ``-d v - mu_s v/|v| + g`` with ``values`` (FLIGHT_NAMES)."""
-    g = np.array([values[FLIGHT_NAMES[2]], values[FLIGHT_NAMES[3]]])
-
-    def acceleration(v: np.ndarray) -> np.ndarray:
-        speed = float(np.linalg.norm(v))
-        friction = values["friction_surface"] * v / speed if speed > 0.0 else 0.0
-        return g - values["damping"] * v - friction
-    return acceleration
+    return flight_acceleration(values["damping"], values["friction_surface"],
+                               (values[FLIGHT_NAMES[2]], values[FLIGHT_NAMES[3]]))
 
 
 def _model_acceleration(window: LocalFit, values: Mapping[str, float]) -> np.ndarray:

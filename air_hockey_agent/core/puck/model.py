@@ -45,6 +45,17 @@ def as_floats(state: np.ndarray | list) -> list[float]:
     return state.tolist() if isinstance(state, np.ndarray) else [float(v) for v in state]
 
 
+def flight_acceleration(damping: float, friction_surface: float, table_acceleration):
+    """The flight law's acceleration ``v -> a`` [m/s -> m/s^2] (eq. 3.1 with the table acceleration g,
+    table frame): ``g - d v - mu_s v / |v|``, as a function of a velocity (2,)."""
+    g = np.array([float(a) for a in table_acceleration])
+
+    def acceleration(v: np.ndarray) -> np.ndarray:
+        speed = float(np.hypot(v[0], v[1]))
+        return g - damping * v - (friction_surface * v / speed if speed > 0.0 else 0.0)
+    return acceleration
+
+
 @dataclass(frozen=True)
 class PuckParams:
     """Physical parameters of the puck model (thesis sec. 4.3, table 4.1)."""
