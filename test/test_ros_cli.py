@@ -95,3 +95,5 @@ def test_record_all_takes_every_topic_of_the_graph_with_our_types(launcher, ros_
                            ("/iiwa_front/puck/state", "air_hockey_msgs/msg/PuckState"),
                            ("/iiwa_front/puck/prediction", "air_hockey_msgs/msg/PuckPrediction")):
         assert topics.get(topic) == msgtype and counts[topic] > 0, (topic, topics, counts)
+    # latched, published once when the tracker started, seconds before the recorder joined
+    assert counts.get("/iiwa_front/puck/physics") == 1, counts

@@ -12,7 +12,6 @@ from typing import Callable, Mapping, Sequence
 
 from air_hockey_agent.core.game.referee import NOT_YET
 from air_hockey_agent.core.game.scoreboard import Scoreboard
-from air_hockey_agent.sim.game_topics import LATCHED_TOPICS
 
 START_RETRY = 0.1  # [s] wall time between start requests while the referee waits for table_sim's reset
 ENV_KEYS = ("ROS_DOMAIN_ID", "FASTRTPS_DEFAULT_PROFILES_FILE", "RMW_IMPLEMENTATION", "ROS_HOME", "ROS_LOG_DIR")
@@ -39,7 +38,6 @@ class GameMonitor:
         self.executor = SingleThreadedExecutor(context=self.context)
         self.executor.add_node(self.node)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
-        latched_history = QoSProfile(depth=100, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         board = self.board
         self.node.create_subscription(Clock, "/clock", lambda m: board.on_clock(to_seconds(m.clock)), 10)
         self.node.create_subscription(
@@ -56,10 +54,11 @@ class GameMonitor:
             from air_hockey_agent.tools.files import output_bag_directory
             self.bag = output_bag_directory(record)
             self.writer = BagWriter(self.bag, dict(topics), "mcap").__enter__()
+            from air_hockey_agent.tools.record import recording_qos
             for topic, msgtype in topics.items():  # latched topics as latched: what came before is kept
                 self.node.create_subscription(message_class(msgtype), topic,
                                               lambda data, t=topic: self.writer.write(t, time.time_ns(), data),
-                                              latched_history if topic in LATCHED_TOPICS else 100, raw=True)
+                                              recording_qos(self.node, topic), raw=True)
 
     def _spin_until(self, done: Callable[[], bool], timeout: float) -> bool:
         deadline = time.monotonic() + timeout

@@ -5,7 +5,9 @@ Default topics: the OptiTrack stream ``/optitrack/puck``, the simulation's true 
 ``/sim/puck_true_state``, both robots' ``joint_states`` and ``/game_status``; ``--topics`` names others
 (their types are taken from the running graph) and ``--all`` records every topic of the graph, ours
 (``air_hockey_msgs``) and the standard ones (``/clock`` included). Messages are stored as
-received (CDR), with the receive time as log time; their header stamps are untouched. Recording stops
+received (CDR), with the receive time as log time; their header stamps are untouched. Latched topics
+(every publisher transient local; rosbag2 adapts the same way) are recorded from what they last said
+before the recorder joined. Recording stops
 after ``--duration`` seconds or on Ctrl-C; the bag appears under OUT only once it is complete (a
 ``.mcap`` suffix names the data file inside the bag directory OUT without the suffix).
 """
@@ -18,6 +20,7 @@ from collections import Counter
 from pathlib import Path
 
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
+from air_hockey_agent.sim.game_topics import LATCHED_TOPICS
 from air_hockey_agent.tools.argtypes import count, number
 from air_hockey_agent.tools.files import output_bag_directory
 
@@ -29,6 +32,7 @@ DEFAULT_TOPICS = {
     "/game_status": "air_hockey_msgs/msg/GameStatus",
 }
 STATUS_PERIOD = 5.0  # [s] between progress lines
+HISTORY = 100  # messages a subscription queues (and takes of a latched topic's history)
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -75,7 +79,8 @@ def run(args: argparse.Namespace) -> int:
         with writer:
             for topic, msgtype in topics.items():
                 probe.node.create_subscription(message_class(msgtype), topic,
-                                               lambda data, t=topic: _store(writer, counts, t, data), 100, raw=True)
+                                               lambda data, t=topic: _store(writer, counts, t, data),
+                                               recording_qos(probe.node, topic), raw=True)
             print(f"recording {', '.join(topics)} to {out} ({args.storage}); Ctrl-C to stop", flush=True)
             _spin(probe.executor, args.duration, counts, ExternalShutdownException)
     finally:
@@ -110,6 +115,17 @@ def _topics(probe, args) -> dict[str, str]:
         print(f"air-hockey record: warning: {topic} ({msgtype}): no definition of this type here; not recorded",
               file=sys.stderr)
     return {t: m for t, m in topics.items() if t not in unknown}
+
+
+def recording_qos(node, topic: str):
+    """The subscription's QoS, as rosbag2 adapts it: latched (transient local, so what was published
+    before the recorder joined is recorded too) when every publisher seen is latched, or, none seen yet,
+    when the topic is one of ours that is (game status, tactics, the trackers' physics); else volatile."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+    publishers = node.get_publishers_info_by_topic(topic)
+    latched = (all(p.qos_profile.durability == DurabilityPolicy.TRANSIENT_LOCAL for p in publishers) if publishers
+               else topic in LATCHED_TOPICS)
+    return QoSProfile(depth=HISTORY, durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
 
 
 def _store(writer: BagWriter, counts: Counter, topic: str, data: bytes) -> None:
