@@ -42,7 +42,7 @@ class PuckTrackerNode(AirHockeyNode):
         self.prediction_pub = self.create_publisher(PuckPrediction, "puck/prediction", 10)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self.physics_pub = self.create_publisher(PuckPhysics, "puck/physics", latched)
-        self.physics_events = -1  # learning events at the last puck/physics (-1: none published)
+        self.physics_learned = None  # the tracker's learning counts at the last puck/physics (None: none yet)
         self.publish_physics(0.0)
         self.create_subscription(PoseStamped, "/optitrack/puck", self.on_pose, 10)
         self.create_service(SetPhysicalParams, "set_physical_params", self.on_set_physical_params)
@@ -60,7 +60,7 @@ class PuckTrackerNode(AirHockeyNode):
             t = to_seconds(msg.header.stamp)
             flags = self.ekf.process(t, z)
             self.log_learning()
-            if self.ekf.learning is not None and self.ekf.learning.events != self.physics_events:
+            if self.ekf.learned != self.physics_learned:
                 self.publish_physics(t)
             if self.ekf.initialised:
                 self.state_pub.publish(state_msg(self.ekf.x, self.ekf.P, self.ekf.stamp, flags))
@@ -82,10 +82,8 @@ class PuckTrackerNode(AirHockeyNode):
 
     def publish_physics(self, seconds: float) -> None:
         """``puck/physics``: the model's parameters now (learned or configured), from ``seconds``."""
-        learning = self.ekf.learning
-        impacts, windows = learning.counts if learning is not None else (0, 0)
-        self.physics_pub.publish(physics_msg(self.ekf.model.params, seconds, impacts, windows))
-        self.physics_events = impacts + windows
+        self.physics_learned = self.ekf.learned
+        self.physics_pub.publish(physics_msg(self.ekf.model.params, seconds, *self.physics_learned))
 
     def publish_prediction(self) -> None:
         p = self.params

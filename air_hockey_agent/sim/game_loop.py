@@ -155,10 +155,9 @@ class InProcessGame:
     def _share_physics(self) -> None:
         """As the node graph's ``puck/physics``: each robot's tactics aim with the tracker's physics
         (``physics_from_tracker``), at the start and whenever the tracker has learned more of the table."""
-        learned = self.ekf.learning.counts if self.ekf.learning is not None else (0, 0)
-        if learned == self._learned:
+        if self.ekf.learned == self._learned:
             return
-        self._learned = learned
+        self._learned = self.ekf.learned
         if self.config.agent["physics_from_tracker"]:
             for robot, player in self.players.items():
                 player.selector.shots.use_physics(own_frame_physics(self.ekf.model.params, robot))

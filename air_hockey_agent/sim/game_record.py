@@ -109,12 +109,11 @@ class GameRecorder:
         t = ekf.stamp
         for robot in ROBOTS:
             self._write(f"/{robot}/puck/state", t, puck_state_fields(t, ekf.x, ekf.P, flags))
-        learned = ekf.learning.counts if ekf.learning is not None else (0, 0)
-        if learned != self._learned:
+        if ekf.learned != self._learned:
             effective = 0.0 if self._learned is None else t
+            self._learned = ekf.learned
             for robot in ROBOTS:
-                self._write(f"/{robot}/puck/physics", t, physics_fields(effective, ekf.model.params, *learned))
-            self._learned = learned
+                self._write(f"/{robot}/puck/physics", t, physics_fields(effective, ekf.model.params, *self._learned))
         x, y, vx, vy, theta, _ = (float(v) for v in ekf.x)
         self.scene.estimate = (x, y, theta, vx, vy)
         pred = prediction.prediction

@@ -177,6 +177,12 @@ class PuckEKF:
         ekf.learning = TableLearning.from_params(model.params, model.table, params)
         return ekf
 
+    @property
+    def learned(self) -> tuple[int, int]:
+        """(rim impacts, free-flight windows) the model has learned from online so far; (0, 0) without
+        learning: what changes whenever the model's physics does, short of ``set_model_params``."""
+        return self.learning.counts if self.learning is not None else (0, 0)
+
     def set_model_params(self, params: PuckParams) -> None:
         """Use ``params`` (validated: ValueError, filter unchanged); what was learned online restarts from them."""
         self.model = self.model.with_params(params)
