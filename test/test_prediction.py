@@ -48,6 +48,37 @@ def test_fast_prediction_agrees_with_stepwise(friction, cov_rtol, impact_noise):
         assert_agree(a, b, cov_rtol)
 
 
+@pytest.mark.parametrize("physics", [{}, {"friction_surface": 0.0},
+                                     {"restitution_slope": 0.2, "restitution_min": 0.6, "restitution_knee": 0.5,
+                                      "tangential_restitution": -0.6, "friction_rim": 0.3},
+                                     {"friction_surface": 0.01, "damping": 0.12, "table_acceleration": (0.02, -0.03)}])
+def test_the_compiled_mean_is_the_stepwise_mean(physics):
+    """Without a covariance predict_fast takes the model's own steps in compiled code (mean_kernel): the same
+    states, rim impacts (rim, time, contact point, sliding or not), samples and line crossings as the Python
+    steps, up to rounding, with the speed-dependent restitution, the tangential restitution and a tilt."""
+    m = model(**physics)
+    impacts = sliding = 0
+    for state, horizon in random_states(80, seed=21):
+        for every in (6, 0):
+            a = predict_stepwise(m, state, None, horizon, DT, Q, lines=LINES + [0.0], sample_every=every)
+            b = predict_fast(m, state, None, horizon, DT, Q, lines=LINES + [0.0], sample_every=every)
+            assert b.covariance is None
+            assert_agree(a, b, 0.0)
+            assert [(i[1], i[4]) for i in b.impacts] == [(i[1], i[4]) for i in a.impacts]
+            assert np.allclose([i[2:4] for i in b.impacts], [i[2:4] for i in a.impacts], rtol=0.0, atol=1e-12)
+        impacts, sliding = impacts + len(a.impacts), sliding + sum(i[4] for i in a.impacts)
+    assert impacts > 50 and 0 < sliding < impacts  # both impact branches were compared
+
+
+def test_the_compiled_mean_lets_a_puck_into_the_goal_and_bounces_it_off_the_rim_beside_it():
+    m = model()
+    into_goal, beside = (np.array([0.5, y, 2.0, 0.0, 0.0, 0.0]) for y in (0.0, 0.3))
+    scored = predict_fast(m, into_goal, None, 0.5, DT, Q)
+    assert not scored.impacts and scored.state[0] > m.table.x_limit
+    bounced = predict_fast(m, beside, None, 0.5, DT, Q)
+    assert [i[1] for i in bounced.impacts] == [WALL_FAR] and bounced.state[2] < 0.0
+
+
 def test_predicted_covariance_grows_with_the_horizon():
     m = model()
     state = np.array([0.0, 0.0, 0.5, 0.1, 0.0, 1.0])

@@ -26,6 +26,7 @@ crosses, identically in both predictors.
 from __future__ import annotations
 
 import math
+import weakref
 from dataclasses import dataclass, field
 from typing import Sequence
 
@@ -180,50 +181,81 @@ def prepare_prediction(params: PuckParams, learns_tilt: bool = True) -> None:
         warm_up()
 
 
+_MEAN_KERNEL: list = []  # the compiled kernel module (:mod:`.mean_kernel`), loaded by the first use
+_KERNEL_PARAMS: "weakref.WeakKeyDictionary[PuckModel, np.ndarray]" = weakref.WeakKeyDictionary()
+
+
+def prepare_mean_prediction():
+    """Load the compiled mean (:func:`predict_mean`, :mod:`.mean_kernel`) now instead of in the first mean-only
+    prediction (numba's import and the cached machine code: about half a second; compiling it the first time
+    on a machine: seconds). Returns the kernel module."""
+    if not _MEAN_KERNEL:
+        from . import mean_kernel
+        mean_kernel.warm_up()
+        _MEAN_KERNEL.append(mean_kernel)
+    return _MEAN_KERNEL[0]
+
+
+def predict_mean(model: PuckModel, state: np.ndarray, horizon: float, dt: float, lines: Sequence[float] = (),
+                 sample_every: int = 0) -> Prediction:
+    """The mean of :func:`predict_stepwise` (``cov=None``): the same model steps, compiled
+    (:mod:`.mean_kernel`); ``Prediction.covariance`` is None."""
+    kernel = _MEAN_KERNEL[0] if _MEAN_KERNEL else prepare_mean_prediction()
+    params = _KERNEL_PARAMS.get(model)
+    if params is None:
+        params = _KERNEL_PARAMS[model] = kernel.kernel_params(model)
+    steps, remainder = _split_horizon(horizon, dt)
+    lines = list(lines)
+    final, impacts, crossings, samples = kernel.predict_mean(params, np.ascontiguousarray(state, float), steps,
+                                                             remainder, dt, np.array(lines, float), sample_every)
+    result = Prediction(final, None)
+    result.impacts = [(t, int(wall), x, y, sliding != 0.0) for t, wall, x, y, sliding in impacts.tolist()]
+    result.samples = [(float(row[0]), row[1:], None) for row in samples]
+    for line, (crossed, time, y, vx, vy) in zip(lines, crossings.tolist()):
+        if crossed and line not in result.crossings:
+            result.crossings[line] = Crossing(line, time, y, vx, vy)
+    return result
+
+
 def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horizon: float, dt: float,
                  q: np.ndarray, lines: Sequence[float] = (), sample_every: int = 0,
                  impact_noise: float = 0.0) -> Prediction:
     """Prediction by closed-form jumps between impacts; agrees with :func:`predict_stepwise`.
 
-    With ``cov=None`` only the mean is propagated (``Prediction.covariance`` is None): the offline
-    evaluation and system identification need no covariance.
+    With ``cov=None`` only the mean is propagated (``Prediction.covariance`` is None), by the model's own
+    steps in compiled code (:func:`predict_mean`): the tactics, the offline evaluation and system
+    identification need no covariance.
     """
+    if cov is None:
+        return predict_mean(model, state, horizon, dt, lines, sample_every)
     params = model.params
     free_motion = (FreeMotion if not params.accelerated else
                    AcceleratedMotion if params.friction_surface == 0.0 else MarchedMotion)
-    with_cov = cov is not None
-    table = noise_table(dt, model.params.damping, q) if with_cov else None
+    table = noise_table(dt, model.params.damping, q)
     steps, remainder = _split_horizon(horizon, dt)
     rec = _Recorder(lines, sample_every)
-    s, p = np.asarray(state, float), (np.asarray(cov, float) if with_cov else None)
-    # With a covariance the jumps stop at every sample (the noise table G_n is exact only without surface
-    # friction: shorter jumps keep it closest to the stepwise prediction); the mean alone is sampled
-    # inside a jump, each sample from the jump's start (one closed form instead of one per sample).
-    stop_at_samples = bool(sample_every) and with_cov
+    s, p = np.asarray(state, float), np.asarray(cov, float)
+    # The jumps stop at every sample: the noise table G_n is exact only without surface friction, and
+    # shorter jumps keep it closest to the stepwise prediction.
     done = 0
     while done < steps:
         budget = steps - done
-        if stop_at_samples:
+        if sample_every:
             budget = min(budget, sample_every - done % sample_every)
         free = free_motion(model, s, dt)
         reach = free.impact_step(budget)
         jump = budget if reach is None else reach - 1
         if jump > 0:
             free.record_crossings(rec, done * dt, jump)
-            if sample_every and not with_cov:
-                for j in range(sample_every - done % sample_every, jump, sample_every):
-                    rec.sample(done + j, (done + j) * dt, free.state_after(j), None)
-            if with_cov:
-                phi = free.jacobian(jump)
-                p = phi @ p @ phi.T + table.get(jump)
+            phi = free.jacobian(jump)
+            p = phi @ p @ phi.T + table.get(jump)
             s, done = free.state_after(jump), done + jump
             rec.sample(done, done * dt, s, p)
         if reach is not None:
-            res = model.step(s, dt, with_jacobian=with_cov)
+            res = model.step(s, dt)
             rec.step(done * dt, dt, s, res.state, res.impacts)
             s = res.state
-            if with_cov:
-                p = with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, s, res.impacts, impact_noise)
+            p = with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, s, res.impacts, impact_noise)
             done += 1
             rec.sample(done, done * dt, s, p)
     return _finish(model, rec, s, p, steps * dt, remainder, dt, q, impact_noise)
