@@ -103,7 +103,7 @@ def test_summary_of_an_empty_evaluation_has_no_statistics():
 
 
 def test_mean_only_prediction_equals_the_mean_with_covariance_up_to_rounding(params):
-    """The mean alone is the compiled stepping (mean_kernel), the covariance path jumps in closed form."""
+    """The mean alone is the compiled stepping (prediction_kernel), the covariance path jumps in closed form."""
     ekf = PuckEKF.from_params(params)
     state = np.array([0.3, -0.2, 2.5, 1.5, 0.4, 6.0])
     with_cov = predict_fast(ekf.model, state, ekf.settings.p0, 1.5, ekf.settings.dt, ekf.settings.q)

@@ -53,7 +53,7 @@ def test_fast_prediction_agrees_with_stepwise(friction, cov_rtol, impact_noise):
                                       "tangential_restitution": -0.6, "friction_rim": 0.3},
                                      {"friction_surface": 0.01, "damping": 0.12, "table_acceleration": (0.02, -0.03)}])
 def test_the_compiled_mean_is_the_stepwise_mean(physics):
-    """Without a covariance predict_fast takes the model's own steps in compiled code (mean_kernel): the same
+    """Without a covariance predict_fast takes the model's own steps in compiled code (prediction_kernel): the same
     states, rim impacts (rim, time, contact point, sliding or not), samples and line crossings as the Python
     steps, up to rounding, with the speed-dependent restitution, the tangential restitution and a tilt."""
     m = model(**physics)

@@ -181,25 +181,25 @@ def prepare_prediction(params: PuckParams, learns_tilt: bool = True) -> None:
         warm_up()
 
 
-_MEAN_KERNEL: list = []  # the compiled kernel module (:mod:`.mean_kernel`), loaded by the first use
+_MEAN_KERNEL: list = []  # the compiled kernel module (:mod:`.prediction_kernel`), loaded by the first use
 _KERNEL_PARAMS: "weakref.WeakKeyDictionary[PuckModel, np.ndarray]" = weakref.WeakKeyDictionary()
 
 
 def prepare_mean_prediction():
-    """Load the compiled mean (:func:`predict_mean`, :mod:`.mean_kernel`) now instead of in the first mean-only
+    """Load the compiled mean (:func:`predict_mean`, :mod:`.prediction_kernel`) now instead of in the first mean-only
     prediction (numba's import and the cached machine code: about half a second; compiling it the first time
     on a machine: seconds). Returns the kernel module."""
     if not _MEAN_KERNEL:
-        from . import mean_kernel
-        mean_kernel.warm_up()
-        _MEAN_KERNEL.append(mean_kernel)
+        from . import prediction_kernel
+        prediction_kernel.warm_up()
+        _MEAN_KERNEL.append(prediction_kernel)
     return _MEAN_KERNEL[0]
 
 
 def predict_mean(model: PuckModel, state: np.ndarray, horizon: float, dt: float, lines: Sequence[float] = (),
                  sample_every: int = 0) -> Prediction:
     """The mean of :func:`predict_stepwise` (``cov=None``): the same model steps, compiled
-    (:mod:`.mean_kernel`); ``Prediction.covariance`` is None."""
+    (:mod:`.prediction_kernel`); ``Prediction.covariance`` is None."""
     kernel = _MEAN_KERNEL[0] if _MEAN_KERNEL else prepare_mean_prediction()
     params = _KERNEL_PARAMS.get(model)
     if params is None:
