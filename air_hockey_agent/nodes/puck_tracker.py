@@ -36,7 +36,7 @@ class PuckTrackerNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         self.ekf = PuckEKF.from_params(self.params)
-        prepare_prediction(self.ekf.model.params, self.params["acceleration_adaptation.enabled"])
+        prepare_prediction()  # the compiled prediction, before the first frame
         self.next_log = 1  # impacts and windows learned from at which the next log line comes
         self.state_pub = self.create_publisher(PuckState, "puck/state", 10)
         self.prediction_pub = self.create_publisher(PuckPrediction, "puck/prediction", 10)
@@ -118,7 +118,6 @@ class PuckTrackerNode(AirHockeyNode):
         except ValueError as exc:
             response.success, response.message = False, f"refused, filter unchanged: {exc}"
             return response
-        prepare_prediction(params, self.params["acceleration_adaptation.enabled"])
         self.publish_physics(self.ekf.stamp if self.ekf.initialised else 0.0)
         response.success, response.message = True, f"physical parameters set: {params}"
         return response

@@ -11,6 +11,7 @@ units of one tracker prediction timed in the same process.
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import math
 import time
@@ -60,10 +61,14 @@ def run(args: argparse.Namespace) -> int:
     from air_hockey_agent.core.game.tactics.base import NAMES
     from air_hockey_agent.core.game.tactics.selector import ACCEPTED, RUNNING
     from air_hockey_agent.core.puck.prediction import predict_fast
+    from air_hockey_agent.core.estimation.ekf import PuckEKF
+    from air_hockey_agent.tracker_params import load_tracker_params
     selector, _ = build_selector(load_agent_params(), ROBOT)
     model = selector.shots.model
+    settings = PuckEKF.from_params(load_tracker_params()).settings  # the tracker's prediction, as it publishes it
     rng = np.random.default_rng(args.seed)
-    q0 = np.zeros(6)
+    gc.collect()  # as the tactics node does once it stands (nodes/runtime.freeze_start_up)
+    gc.freeze()
     step_ms, build_ms, predict_ms, tactics, commands = [], [], [], Counter(), 0
     progress = Progress("[bench tactics] episodes", args.json)
     for e in range(args.episodes):
@@ -72,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
         t = 0.0
         while t < EPISODE:
             w0 = time.perf_counter()
-            pred = predict_fast(model, state, None, HORIZON, FRAME, q0, sample_every=SAMPLE_EVERY)
+            pred = predict_fast(model, state, settings.p0, HORIZON, FRAME, settings.q, sample_every=SAMPLE_EVERY,
+                                impact_noise=settings.impact_noise)
             w1 = time.perf_counter()
             sit = build_situation(ROBOT, t, state, [t + s[0] for s in pred.samples], np.array([s[1] for s in pred.samples]),
                                   [(t + i[0], i[2], i[3]) for i in pred.impacts])

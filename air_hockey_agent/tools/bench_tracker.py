@@ -41,7 +41,7 @@ def run_benchmark(n: int, seed: int, params_files: Sequence[Path] = ()) -> dict:
     params = load_tracker_params(params_files)
     ekf = PuckEKF.from_params(params)
     model, settings, table = ekf.model, ekf.settings, ekf.model.table
-    prepare_prediction(model.params)  # the compiled march is loaded before the timing, as the node does
+    prepare_prediction()  # the compiled prediction is loaded before the timing, as the node does
     rng = np.random.default_rng(seed)
     states = [np.array([rng.uniform(-table.x_limit, table.x_limit), rng.uniform(-table.y_limit, table.y_limit),
                         *rng.uniform(-3.0, 3.0, 2), rng.uniform(-np.pi, np.pi), rng.uniform(-20, 20)])

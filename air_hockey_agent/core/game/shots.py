@@ -24,7 +24,7 @@ import numpy as np
 from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 from air_hockey_agent.core.motion.task_motion import stop_fraction
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams
-from air_hockey_agent.core.puck.prediction import predict_fast, prepare_mean_prediction
+from air_hockey_agent.core.puck.prediction import predict_fast, prepare_prediction
 
 VARIANTS = ("straight", "left_bank", "right_bank")  # left: off the y = +W/2 rim, right: off y = -W/2
 SECANT_ITERATIONS = 4
@@ -90,7 +90,7 @@ class ShotPredictor:
         self.mouth = table.goal_mouth
         self.defend_line = table.length / 2 - settings.defend_line   # the opponent's, in our frame
         self.guard_y = -settings.ready_point[1]  # where the opponent's mallet waits (the same agent's ready point)
-        prepare_mean_prediction()  # not in the first decision
+        prepare_prediction()  # not in the first decision
 
     def use_physics(self, params: PuckParams) -> None:
         """Predict shots with these puck physics from now on (the robot's own frame), e.g. what the

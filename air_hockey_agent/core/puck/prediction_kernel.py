@@ -1,21 +1,24 @@
-"""The model's step-by-step prediction of the mean, compiled: rim impacts, goal mouths, line crossings, samples.
+"""The model's step-by-step prediction, compiled: mean and covariance, rim impacts, goal mouths, crossings, samples.
 
-:func:`.prediction.predict_fast` without a covariance (the tactics' shot and contact predictions, the offline
-evaluation, system identification) needs only the mean, the rim impacts, the line crossings and the samples.
-In Python the closed-form jumps cost about 40 us per rim impact and the objects around them, so a shot's
-prediction took about half a millisecond and a Cut ranking up to 100 ms (issue #13's "left open"). Here the
-model's own step (:meth:`.model.PuckModel.step` without the Jacobian: fly to each rim contact, Routh's impact
-with the speed-dependent restitution and the tangential restitution (:func:`.impact.rim_impact`), fly on, then
-the decay of eq. 3.1 with the table acceleration) runs step after step in compiled code, in the same order of
-arithmetic, and the crossings and samples are taken as :class:`.prediction._Recorder` takes them. SI units, the
-table frame (:mod:`air_hockey_agent.core.table`). ``test_prediction.py`` checks it against
-:func:`.prediction.predict_stepwise` to 1e-10.
+:func:`.prediction.predict_fast` runs here. The model's own step (:meth:`.model.PuckModel.step`: fly to each rim
+contact, Routh's impact with the speed-dependent restitution and the tangential restitution
+(:func:`.impact.rim_impact`), fly on, then the decay of eq. 3.1 with the table acceleration) runs step after
+step in compiled code in the same order of arithmetic, with its exact Jacobian ``F`` (the 7x7 event Jacobians
+over the state and the remaining time, as :meth:`.model.PuckModel._event_jacobian`) and ``P <- F P F^T + Q``
+(thesis sec. 4.2), the impact covariance (:func:`.prediction.impact_covariance`) after a step with a rim
+impact; the crossings and samples are taken as :class:`.prediction._Recorder` takes them. A step that cannot
+reach a rim on a flat table (its straight ray's first contact more than ``GLIDE_MARGIN`` beyond the step's
+travel) skips the contact search and only moves and decays along the ray. SI units, the table frame
+(:mod:`air_hockey_agent.core.table`). ``test_prediction.py`` checks it against the Python steps
+(:func:`.prediction.predict_stepwise`): the means to 1e-10, the covariances to 1e-9 relative.
 
-The angle is wrapped to (-pi, pi] by the nearest multiple of 2 pi (numba has no ``math.remainder``): equal to
-:func:`.model.wrap_angle` up to rounding.
+In Python the same prediction took about a millisecond (1.5 s at 120 Hz), the closed-form jumps that replaced
+it 130 us with a covariance (and 1.3 ms with samples every 50 ms, as the agents' predictions take them) and
+about 40 us per rim impact without. The angle is wrapped to (-pi, pi] by the nearest multiple of 2 pi (numba
+has no ``math.remainder``): equal to :func:`.model.wrap_angle` up to rounding.
 
 ``cache=True`` keeps the machine code under the package's ``__pycache__`` (or numba's user cache); numba is
-imported by the first mean-only prediction of a process, or by :func:`warm_up`.
+imported by the first prediction of a process, or by :func:`warm_up`.
 """
 from __future__ import annotations
 
@@ -103,8 +106,9 @@ def _rim_impact(p: np.ndarray, vb: float, vn: float, omega: float) -> tuple[floa
 
 
 @njit(cache=True)
-def _decay(p: np.ndarray, vx: float, vy: float, dt: float) -> tuple[float, float]:
-    """Velocity after the table acceleration and the friction/damping of a step (:meth:`.model.PuckModel.decay`)."""
+def _decay(p: np.ndarray, vx: float, vy: float, dt: float) -> tuple[float, float, float, float, float, float]:
+    """Velocity after the table acceleration and the friction/damping of a step, and its 2x2 Jacobian
+    (j00, j01, j10, j11) (:meth:`.model.PuckModel.decay`)."""
     gx, gy = p[P_GX], p[P_GY]
     if gx != 0.0 or gy != 0.0:
         vx, vy = vx + dt * gx, vy + dt * gy
@@ -112,27 +116,96 @@ def _decay(p: np.ndarray, vx: float, vy: float, dt: float) -> tuple[float, float
     mu_dt = dt * p[P_FRICTION_SURFACE]
     speed = math.hypot(vx, vy)
     if mu_dt == 0.0:
-        return a * vx, a * vy
+        return a * vx, a * vy, a, 0.0, 0.0, a
     new_speed = a * speed - mu_dt
     if speed == 0.0 or new_speed <= 0.0:
-        return 0.0, 0.0
-    return vx / speed * new_speed, vy / speed * new_speed
+        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
+    ux, uy = vx / speed, vy / speed
+    k = mu_dt / speed
+    cross = k * ux * uy
+    return ux * new_speed, uy * new_speed, a - k + k * ux * ux, cross, cross, a - k + k * uy * uy
+
+
+@njit(cache=True)
+def _impact_jacobian(p: np.ndarray, vb: float, vn: float, omega: float) -> tuple:
+    """The rim impact's 3x3 Jacobian d(vb', vn', omega') / d(vb, vn, omega), row-major
+    (:func:`.impact.rim_impact`)."""
+    e0, slope = p[P_RESTITUTION], p[P_SLOPE]
+    e, de = e0 - slope * (abs(vn) - p[P_KNEE]), (slope if vn < 0.0 else -slope)
+    if slope == 0.0 or e >= e0:
+        e, de = e0, 0.0
+    elif e <= p[P_FLOOR]:
+        e, de = min(p[P_FLOOR], e0), 0.0
+    dvn = -e - vn * de
+    r, mu, beta = p[P_RADIUS], p[P_FRICTION_RIM], p[P_TANGENTIAL]
+    slip = vb + r * omega
+    if (1.0 + beta) * abs(slip) > 3.0 * mu * (1.0 + e) * abs(vn):
+        s = 1.0 if slip > 0.0 else -1.0
+        kk = mu * s * (1.0 + e) + mu * s * de * vn
+        return 1.0, kk, 0.0, 0.0, dvn, 0.0, 0.0, 2.0 * kk / r, 1.0
+    q = (1.0 + beta) / 3.0
+    return 1.0 - q, 0.0, -q * r, 0.0, dvn, 0.0, -2.0 * q / r, 0.0, 1.0 - 2.0 * q
+
+
+@njit(cache=True)
+def _event_jacobian(p: np.ndarray, x: float, y: float, vx: float, vy: float, om: float, tau: float, wall: int,
+                    out: np.ndarray) -> None:
+    """7x7 Jacobian of one impact event over (x, y, vx, vy, theta, omega, remaining time), written to ``out``
+    (:meth:`.model.PuckModel._event_jacobian`)."""
+    nx, ny = NORMAL_X[wall], NORMAL_Y[wall]
+    gx = gy = gvx = gvy = 0.0  # gradient of the impact time tau
+    distance = nx * x + ny * y + (p[P_X_LIMIT] if wall == 1 or wall == 3 else p[P_Y_LIMIT])
+    if distance > 0.0:
+        vn = nx * vx + ny * vy
+        gx, gy = -nx / vn, -ny / vn
+        gvx, gvy = distance * nx / vn ** 2, distance * ny / vn ** 2
+    bx, by = ny, -nx
+    s00, s01, s02, s10, s11, s12, s20, s21, s22 = _impact_jacobian(p, bx * vx + by * vy, nx * vx + ny * vy, om)
+    cb, cn = s00 * bx + s01 * nx, s10 * bx + s11 * nx
+    db, dn = s00 * by + s01 * ny, s10 * by + s11 * ny
+    out[:] = 0.0
+    out[0, 0], out[0, 1], out[0, 2], out[0, 3] = 1.0 + vx * gx, vx * gy, tau + vx * gvx, vx * gvy
+    out[1, 0], out[1, 1], out[1, 2], out[1, 3] = vy * gx, 1.0 + vy * gy, vy * gvx, tau + vy * gvy
+    out[2, 2], out[2, 3], out[2, 5] = bx * cb + nx * cn, bx * db + nx * dn, bx * s02 + nx * s12
+    out[3, 2], out[3, 3], out[3, 5] = by * cb + ny * cn, by * db + ny * dn, by * s02 + ny * s12
+    out[4, 0], out[4, 1], out[4, 2], out[4, 3], out[4, 4], out[4, 5] = om * gx, om * gy, om * gvx, om * gvy, 1.0, tau
+    out[5, 2], out[5, 3], out[5, 5] = s20 * bx + s21 * nx, s20 * by + s21 * ny, s22
+    out[6, 0], out[6, 1], out[6, 2], out[6, 3], out[6, 6] = -gx, -gy, -gvx, -gvy, 1.0
+
+
+@njit(cache=True)
+def _free_jacobian(f: np.ndarray, h: float, j00: float, j01: float, j10: float, j11: float) -> None:
+    """``f`` (6x6) := the Jacobian of a step of ``h`` [s] without an impact, decay Jacobian (j00, j01, j10, j11)."""
+    f[:] = 0.0
+    f[0, 0] = f[1, 1] = f[4, 4] = f[5, 5] = 1.0
+    f[0, 2] = f[1, 3] = f[4, 5] = h
+    f[2, 2], f[2, 3], f[3, 2], f[3, 3] = j00, j01, j10, j11
 
 
 @njit(cache=True)
 def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om: float, dt: float, t0: float,
-          impacts: np.ndarray, count: int) -> tuple[float, float, float, float, float, float, int]:
-    """One model step of the state (x, y, vx, vy, th, om) from time ``t0`` [s]
-    (:meth:`.model.PuckModel.step`); its impacts are written to ``impacts`` from row ``count``. Returns the
-    new state and impact count, or the count -1 when ``impacts`` is full (the caller grows it and retakes
-    the step)."""
+          impacts: np.ndarray, count: int, f: np.ndarray, work: np.ndarray) -> tuple:
+    """One model step of the state (x, y, vx, vy, th, om) from time ``t0`` [s] (:meth:`.model.PuckModel.step`);
+    its impacts are written to ``impacts`` from row ``count``, its Jacobian to ``f`` (6x6) unless ``f`` is
+    empty. ``work``: room for three 7x7 matrices. Returns the new state and impact count, or the count -1 when
+    ``impacts`` is full (the caller grows it and retakes the step)."""
+    with_jac, start = f.shape[0] > 0, count
     h = dt
     tau, wall = _first_impact(p, x, y, vx, vy, dt)
+    if with_jac and wall >= 0:
+        jac, event, product = work[0], work[1], work[2]
+        jac[:] = 0.0
+        for k in range(7):
+            jac[k, k] = 1.0
     for _ in range(MAX_IMPACTS_PER_STEP):
         if wall < 0:
             break
         if count == impacts.shape[0]:
             return x, y, vx, vy, th, om, -1
+        if with_jac:
+            _event_jacobian(p, x, y, vx, vy, om, tau, wall, event)
+            _matmul(event, jac, product)
+            jac[:] = product
         nx, ny = NORMAL_X[wall], NORMAL_Y[wall]
         bx, by = ny, -nx
         vb, vn, new_om, sliding = _rim_impact(p, bx * vx + by * vy, nx * vx + ny * vy, om)
@@ -142,7 +215,16 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
         impacts[count, 3], impacts[count, 4] = y, 1.0 if sliding else 0.0
         count += 1
         tau, wall = _first_impact(p, x, y, vx, vy, h)
-    nvx, nvy = _decay(p, vx, vy, dt)
+    nvx, nvy, j00, j01, j10, j11 = _decay(p, vx, vy, dt)
+    if with_jac:
+        _free_jacobian(f, h, j00, j01, j10, j11)
+        if count > start:  # impacts in this step: the flight's 6x7 Jacobian times the events'
+            flight = work[1]
+            flight[:] = 0.0
+            flight[:6, :6] = f
+            flight[0, 6], flight[1, 6], flight[4, 6] = vx, vy, om
+            _matmul(flight, work[0], work[2])
+            f[:] = work[2][:6, :6]
     return x + h * vx, y + h * vy, nvx, nvy, _wrap(th + h * om), om, count
 
 
@@ -183,32 +265,89 @@ def _grown(rows: np.ndarray, count: int) -> np.ndarray:
 
 
 @njit(cache=True)
-def predict_mean(p: np.ndarray, state: np.ndarray, steps: int, remainder: float, dt: float, lines: np.ndarray,
-                 sample_every: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-    """``steps`` model steps of ``dt`` [s] from ``state`` (6), then one of ``remainder`` [s] (none when 0).
+def _matmul(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
+    """``out := a b`` for small square matrices (loops: no BLAS call for 7x7)."""
+    n = a.shape[0]
+    for i in range(n):
+        for j in range(n):
+            acc = 0.0
+            for k in range(n):
+                acc += a[i, k] * b[k, j]
+            out[i, j] = acc
 
-    A step that cannot reach a rim on a flat table (the straight ray's first contact more than
-    ``GLIDE_MARGIN`` beyond the step's travel) only moves and decays along the ray (:func:`_decay`'s speed
-    recurrence; the direction is kept); every other step is :func:`_step`.
 
-    Returns the final state (6), the impacts (rows: ``IMPACT_COLUMNS``), the crossings of ``lines`` (one row
-    each: ``CROSSING_COLUMNS``) and the samples every ``sample_every`` steps (0: none; rows: ``SAMPLE_COLUMNS``).
+@njit(cache=True)
+def _propagate(f: np.ndarray, cov: np.ndarray, q: np.ndarray, q_scale: float, tmp: np.ndarray) -> None:
+    """``cov <- f cov f^T + q_scale q`` (6x6, in place; ``tmp`` 6x6 scratch)."""
+    _matmul(f, cov, tmp)
+    for i in range(6):
+        for j in range(6):
+            acc = q_scale * q[i, j]
+            for k in range(6):
+                acc += tmp[i, k] * f[j, k]
+            cov[i, j] = acc
+
+
+@njit(cache=True)
+def _propagate_free(cov: np.ndarray, h: float, d00: float, d01: float, d10: float, d11: float, q: np.ndarray,
+                    q_scale: float, tmp: np.ndarray) -> None:
+    """:func:`_propagate` for the Jacobian of a step without an impact (:func:`_free_jacobian`), using its
+    blocks: position += h velocity, velocity by the decay's 2x2, angle += h spin."""
+    for j in range(6):
+        tmp[0, j] = cov[0, j] + h * cov[2, j]
+        tmp[1, j] = cov[1, j] + h * cov[3, j]
+        tmp[2, j] = d00 * cov[2, j] + d01 * cov[3, j]
+        tmp[3, j] = d10 * cov[2, j] + d11 * cov[3, j]
+        tmp[4, j] = cov[4, j] + h * cov[5, j]
+        tmp[5, j] = cov[5, j]
+    for i in range(6):
+        cov[i, 0] = tmp[i, 0] + h * tmp[i, 2] + q_scale * q[i, 0]
+        cov[i, 1] = tmp[i, 1] + h * tmp[i, 3] + q_scale * q[i, 1]
+        cov[i, 2] = d00 * tmp[i, 2] + d01 * tmp[i, 3] + q_scale * q[i, 2]
+        cov[i, 3] = d10 * tmp[i, 2] + d11 * tmp[i, 3] + q_scale * q[i, 3]
+        cov[i, 4] = tmp[i, 4] + h * tmp[i, 5] + q_scale * q[i, 4]
+        cov[i, 5] = tmp[i, 5] + q_scale * q[i, 5]
+
+
+@njit(cache=True)
+def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, impact_noise: float, steps: int,
+            remainder: float, dt: float, lines: np.ndarray, sample_every: int) -> tuple:
+    """``steps`` model steps of ``dt`` [s] from ``state`` (6) and ``cov`` (6x6, or 0x0 for the mean alone),
+    then one of ``remainder`` [s] (none when 0); process noise ``q`` per step (scaled by the length of the
+    last), ``impact_noise`` the impact covariance's ratio.
+
+    Returns the final state (6) and covariance (as given: 0x0 without), the impacts (rows: ``IMPACT_COLUMNS``),
+    the crossings of ``lines`` (one row each: ``CROSSING_COLUMNS``), the samples every ``sample_every`` steps
+    (0: none; rows: ``SAMPLE_COLUMNS``) and their covariances (n x 6 x 6, or n x 0 x 0).
     """
     x, y, vx, vy, th, om = state[0], state[1], state[2], state[3], state[4], state[5]
+    with_cov = cov.shape[0] > 0
+    n_cov = 6 if with_cov else 0
+    p_now, f, tmp, work = cov.copy(), np.empty((n_cov, n_cov)), np.empty((6, 6)), np.empty((3, 7, 7))
     flat = p[P_GX] == 0.0 and p[P_GY] == 0.0
     impacts = np.empty((IMPACT_ROWS, IMPACT_COLUMNS))
     crossings = np.zeros((lines.shape[0], CROSSING_COLUMNS))
-    samples = np.empty((steps // sample_every if sample_every > 0 else 0, SAMPLE_COLUMNS))
+    n_samples = steps // sample_every if sample_every > 0 else 0
+    samples, sample_covs = np.empty((n_samples, SAMPLE_COLUMNS)), np.empty((n_samples, n_cov, n_cov))
     ux, uy, speed, room = _room(p, x, y, vx, vy)
     count = taken = 0
     for i in range(steps + 1):
         h = dt if i < steps else remainder
         if h == 0.0:
             break
-        x0, y0, vx0, vy0 = x, y, vx, vy
+        x0, y0, vx0, vy0, before = x, y, vx, vy, count
         if flat and h * speed < room - GLIDE_MARGIN:
-            x, y, room = x + h * vx, y + h * vy, room - h * speed
             keep, mu_h = 1.0 - h * p[P_DAMPING], h * p[P_FRICTION_SURFACE]
+            if with_cov:  # the decay's Jacobian (_decay's, from the speed and direction kept here)
+                if mu_h == 0.0:
+                    d00, d01, d11 = keep, 0.0, keep
+                elif speed == 0.0 or keep * speed - mu_h <= 0.0:
+                    d00, d01, d11 = 0.0, 0.0, 0.0
+                else:
+                    k = mu_h / speed
+                    d00, d01, d11 = keep - k + k * ux * ux, k * ux * uy, keep - k + k * uy * uy
+                _propagate_free(p_now, h, d00, d01, d01, d11, q, h / dt, tmp)
+            x, y, room = x + h * vx, y + h * vy, room - h * speed
             if mu_h == 0.0:
                 vx, vy, speed = keep * vx, keep * vy, keep * speed
             else:
@@ -219,23 +358,35 @@ def predict_mean(p: np.ndarray, state: np.ndarray, steps: int, remainder: float,
                     vx, vy = ux * speed, uy * speed
             th = _wrap(th + h * om)
         else:
-            new = _step(p, x, y, vx, vy, th, om, h, i * dt, impacts, count)
+            new = _step(p, x, y, vx, vy, th, om, h, i * dt, impacts, count, f, work)
             while new[6] < 0:
                 impacts = _grown(impacts, count)
-                new = _step(p, x, y, vx, vy, th, om, h, i * dt, impacts, count)
+                new = _step(p, x, y, vx, vy, th, om, h, i * dt, impacts, count, f, work)
             x, y, vx, vy, th, om, count = new
             if flat:
                 ux, uy, speed, room = _room(p, x, y, vx, vy)
+            if with_cov:
+                _propagate(f, p_now, q, h / dt, tmp)
+        if with_cov:
+            if count > before and impact_noise != 0.0:
+                spread = impact_noise * impact_noise
+                p_now[2, 2] += spread * (vx * vx + vy * vy)
+                p_now[3, 3] += spread * (vx * vx + vy * vy)
+                p_now[5, 5] += spread * om * om
         _cross(crossings, lines, i * dt, h, x0, y0, vx0, vy0, x, y)
         if sample_every > 0 and i < steps and (i + 1) % sample_every == 0:
             samples[taken, 0] = (i + 1) * dt
             samples[taken, 1], samples[taken, 2], samples[taken, 3] = x, y, vx
             samples[taken, 4], samples[taken, 5], samples[taken, 6] = vy, th, om
+            sample_covs[taken] = p_now
             taken += 1
-    return np.array([x, y, vx, vy, th, om]), impacts[:count], crossings, samples
+    return np.array([x, y, vx, vy, th, om]), p_now, impacts[:count], crossings, samples, sample_covs
 
 
 def warm_up() -> None:
-    """Compile (or load from the cache) :func:`predict_mean` now, not in the first mean-only prediction."""
+    """Compile (or load from the cache) :func:`predict` now, with and without a covariance, not in the first
+    prediction."""
     p = np.array([0.9, 0.1, 0.1, 0.5, 0.5, 0.0, 0.1, 0.01, 0.0, 0.01, 0.9, 0.5, 0.1, 0.03])
-    predict_mean(p, np.array([0.0, 0.0, 3.0, 2.0, 0.0, 1.0]), 2, 0.005, 0.01, np.array([0.0]), 1)
+    state, q = np.array([0.0, 0.0, 3.0, 2.0, 0.0, 1.0]), np.eye(6)
+    for cov in (np.empty((0, 0)), np.eye(6)):
+        predict(p, state, cov, q, 0.1, 2, 0.005, 0.01, np.array([0.0]), 1)
