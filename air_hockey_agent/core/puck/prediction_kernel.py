@@ -365,7 +365,9 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
             x, y, vx, vy, th, om, count = new
             if flat:
                 ux, uy, speed, room = _room(p, x, y, vx, vy)
-            if with_cov:
+            if with_cov and count == before:  # no impact: the free Jacobian's blocks
+                _propagate_free(p_now, h, f[2, 2], f[2, 3], f[3, 2], f[3, 3], q, h / dt, tmp)
+            elif with_cov:
                 _propagate(f, p_now, q, h / dt, tmp)
         if with_cov:
             if count > before and impact_noise != 0.0:
