@@ -192,3 +192,14 @@ def test_a_prediction_of_the_wrong_shapes_is_refused_in_one_line():
         predict_fast(m, state, np.ones(6), 0.5, DT, Q)
     with pytest.raises(ValueError, match=r"state \(6,\), got \(4,\)"):
         predict_fast(m, state[:4], None, 0.5, DT, Q)
+
+
+def test_a_horizon_of_zero_or_less_predicts_the_state_itself():
+    m = model()
+    state = np.array([0.1, 0.2, 1.0, -0.5, 0.3, 2.0])
+    for horizon in (0.0, -0.5):
+        for cov in (P0, None):
+            a = predict_stepwise(m, state, cov, horizon, DT, Q, lines=LINES, sample_every=6)
+            b = predict_fast(m, state, cov, horizon, DT, Q, lines=LINES, sample_every=6)
+            assert_agree(a, b)
+            assert np.array_equal(b.state, state) and not b.samples and not b.impacts

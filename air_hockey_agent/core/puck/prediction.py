@@ -6,8 +6,8 @@ Two predictors with one result type:
   times, ``P <- F P F^T + Q`` each step (and :func:`impact_covariance` after a step with a rim impact), then
   one shorter step for the remainder of the horizon (its noise scaled by its length).
 * :func:`predict_fast`: the same steps in compiled code (:mod:`.prediction_kernel`, numba), where a step that
-  cannot reach a rim on a flat table skips the contact search; with ``cov=None`` the mean alone
-  (:func:`predict_mean`). It agrees with :func:`predict_stepwise` up to rounding (``test_prediction.py``).
+  cannot reach a rim on a flat table skips the contact search; with ``cov=None`` the mean alone. It agrees
+  with :func:`predict_stepwise` up to rounding (``test_prediction.py``).
 
 Line crossings (e.g. the robots' defend lines) are interpolated linearly inside the step that
 crosses, identically in both predictors.
@@ -23,7 +23,6 @@ import numpy as np
 
 from air_hockey_agent.core.puck.model import PuckModel
 
-_NO_Q = np.zeros((6, 6))
 STEP_EPS = 1e-9  # [-] fraction of a step below which a horizon remainder is dropped (float rounding)
 
 
@@ -132,7 +131,8 @@ def predict_stepwise(model: PuckModel, state: np.ndarray, cov: np.ndarray | None
 
 _KERNEL: list = []  # the compiled kernel module (:mod:`.prediction_kernel`), loaded by the first use
 _KERNEL_PARAMS: "weakref.WeakKeyDictionary[PuckModel, np.ndarray]" = weakref.WeakKeyDictionary()
-_NO_COVARIANCE = np.empty((0, 0))
+_NO_COVARIANCE = np.empty((0, 0))  # the kernel's "mean alone"
+_NO_Q = np.zeros((6, 6))
 
 
 def prepare_prediction():
@@ -148,11 +148,12 @@ def prepare_prediction():
 
 def _compiled(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horizon: float, dt: float,
               q: np.ndarray, lines: Sequence[float], sample_every: int, impact_noise: float) -> Prediction:
+    """:func:`predict_fast` (its arguments): inputs checked, the kernel's arrays turned into a :class:`Prediction`."""
     kernel = _KERNEL[0] if _KERNEL else prepare_prediction()
     params = _KERNEL_PARAMS.get(model)
     if params is None:
         params = _KERNEL_PARAMS[model] = kernel.kernel_params(model)
-    steps, remainder = _split_horizon(horizon, dt)
+    steps, remainder = _split_horizon(horizon, dt) if horizon > 0.0 else (0, 0.0)
     lines = list(lines)
     with_cov = cov is not None
     state = np.ascontiguousarray(state, float)
@@ -173,12 +174,6 @@ def _compiled(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horiz
         if crossed and line not in result.crossings:
             result.crossings[line] = Crossing(line, time, y, vx, vy)
     return result
-
-
-def predict_mean(model: PuckModel, state: np.ndarray, horizon: float, dt: float, lines: Sequence[float] = (),
-                 sample_every: int = 0) -> Prediction:
-    """The mean of :func:`predict_stepwise` (``cov=None``), compiled; ``Prediction.covariance`` is None."""
-    return _compiled(model, state, None, horizon, dt, _NO_Q, lines, sample_every, 0.0)
 
 
 def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horizon: float, dt: float,
