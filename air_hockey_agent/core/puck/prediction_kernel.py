@@ -27,6 +27,8 @@ import math
 import numpy as np
 from numba import njit
 
+from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS
+
 # rows of the parameter vector (:func:`kernel_params`)
 (P_RESTITUTION, P_FRICTION_RIM, P_SLOPE, P_FLOOR, P_KNEE, P_TANGENTIAL, P_DAMPING, P_FRICTION_SURFACE, P_GX, P_GY,
  P_X_LIMIT, P_Y_LIMIT, P_MOUTH, P_RADIUS) = range(14)
@@ -37,9 +39,9 @@ MAX_IMPACTS_PER_STEP = 4  # as model.MAX_IMPACTS_PER_STEP
 GLIDE_MARGIN = 1e-9  # [m] a step ending closer than this to its ray's rim contact is taken as the model takes it
 IMPACT_ROWS = 8  # impacts room to start with (doubled when full): a prediction's impacts are a few
 TWO_PI = 2.0 * math.pi
-# rims in the order of core/table.py's WALL_NORMALS: inward normal (nx, ny), short (goal-line) rim or not
-NORMAL_X = (0.0, -1.0, 0.0, 1.0)
-NORMAL_Y = (1.0, 0.0, -1.0, 0.0)
+NORMAL_X = tuple(n[0] for n in WALL_NORMALS)  # the rims' inward normals, by rim id (core/table.py)
+NORMAL_Y = tuple(n[1] for n in WALL_NORMALS)
+SHORT_A, SHORT_B = SHORT_WALLS  # the goal-line rims
 
 
 def kernel_params(model) -> np.ndarray:
@@ -73,7 +75,7 @@ def _first_impact(p: np.ndarray, x: float, y: float, vx: float, vy: float, horiz
         vn = nx * vx + ny * vy
         if vn >= 0.0:
             continue
-        short = wall == 1 or wall == 3
+        short = wall == SHORT_A or wall == SHORT_B
         distance = nx * x + ny * y + (p[P_X_LIMIT] if short else p[P_Y_LIMIT])
         if short and distance < 0.0:
             continue  # in a goal
@@ -87,22 +89,34 @@ def _first_impact(p: np.ndarray, x: float, y: float, vx: float, vy: float, horiz
 
 
 @njit(cache=True)
-def _rim_impact(p: np.ndarray, vb: float, vn: float, omega: float) -> tuple[float, float, float, bool]:
-    """Post-impact (vb, vn, omega) and whether the impact slid (:func:`.impact.rim_impact`)."""
+def _restitution(p: np.ndarray, vn: float) -> tuple[float, float]:
+    """The impact's restitution at normal velocity ``vn`` [m/s] and d e / d vn (:func:`.impact.speed_restitution`)."""
     e0, slope = p[P_RESTITUTION], p[P_SLOPE]
     e = e0 - slope * (abs(vn) - p[P_KNEE])
     if slope == 0.0 or e >= e0:
-        e = e0
-    elif e <= p[P_FLOOR]:
-        e = min(p[P_FLOOR], e0)
+        return e0, 0.0
+    if e <= p[P_FLOOR]:
+        return min(p[P_FLOOR], e0), 0.0
+    return e, (slope if vn < 0.0 else -slope)
+
+
+@njit(cache=True)
+def _rim_impact(p: np.ndarray, vb: float, vn: float, omega: float) -> tuple:
+    """Post-impact (vb, vn, omega) in the impact frame, whether the impact slid, and its 3x3 Jacobian
+    d(vb', vn', omega') / d(vb, vn, omega) as a row-major 9-tuple (:func:`.impact.rim_impact`)."""
+    e, de = _restitution(p, vn)
+    dvn = -e - vn * de
     r, mu, beta = p[P_RADIUS], p[P_FRICTION_RIM], p[P_TANGENTIAL]
     slip = vb + r * omega
     if (1.0 + beta) * abs(slip) > 3.0 * mu * (1.0 + e) * abs(vn):
         s = 1.0 if slip > 0.0 else -1.0
         k = mu * s * (1.0 + e)
-        return vb + k * vn, -e * vn, omega + 2.0 * k * vn / r, True
+        dk = k + mu * s * de * vn
+        return (vb + k * vn, -e * vn, omega + 2.0 * k * vn / r, True,
+                (1.0, dk, 0.0, 0.0, dvn, 0.0, 0.0, 2.0 * dk / r, 1.0))
     q = (1.0 + beta) / 3.0
-    return vb - q * slip, -e * vn, omega - 2.0 * q * slip / r, False
+    return (vb - q * slip, -e * vn, omega - 2.0 * q * slip / r, False,
+            (1.0 - q, 0.0, -q * r, 0.0, dvn, 0.0, -2.0 * q / r, 0.0, 1.0 - 2.0 * q))
 
 
 @njit(cache=True)
@@ -127,40 +141,19 @@ def _decay(p: np.ndarray, vx: float, vy: float, dt: float) -> tuple[float, float
 
 
 @njit(cache=True)
-def _impact_jacobian(p: np.ndarray, vb: float, vn: float, omega: float) -> tuple:
-    """The rim impact's 3x3 Jacobian d(vb', vn', omega') / d(vb, vn, omega), row-major
-    (:func:`.impact.rim_impact`)."""
-    e0, slope = p[P_RESTITUTION], p[P_SLOPE]
-    e, de = e0 - slope * (abs(vn) - p[P_KNEE]), (slope if vn < 0.0 else -slope)
-    if slope == 0.0 or e >= e0:
-        e, de = e0, 0.0
-    elif e <= p[P_FLOOR]:
-        e, de = min(p[P_FLOOR], e0), 0.0
-    dvn = -e - vn * de
-    r, mu, beta = p[P_RADIUS], p[P_FRICTION_RIM], p[P_TANGENTIAL]
-    slip = vb + r * omega
-    if (1.0 + beta) * abs(slip) > 3.0 * mu * (1.0 + e) * abs(vn):
-        s = 1.0 if slip > 0.0 else -1.0
-        kk = mu * s * (1.0 + e) + mu * s * de * vn
-        return 1.0, kk, 0.0, 0.0, dvn, 0.0, 0.0, 2.0 * kk / r, 1.0
-    q = (1.0 + beta) / 3.0
-    return 1.0 - q, 0.0, -q * r, 0.0, dvn, 0.0, -2.0 * q / r, 0.0, 1.0 - 2.0 * q
-
-
-@njit(cache=True)
 def _event_jacobian(p: np.ndarray, x: float, y: float, vx: float, vy: float, om: float, tau: float, wall: int,
-                    out: np.ndarray) -> None:
-    """7x7 Jacobian of one impact event over (x, y, vx, vy, theta, omega, remaining time), written to ``out``
-    (:meth:`.model.PuckModel._event_jacobian`)."""
+                    s_local: tuple, out: np.ndarray) -> None:
+    """7x7 Jacobian of one impact event over (x, y, vx, vy, theta, omega, remaining time), written to ``out``,
+    from the impact's own 3x3 Jacobian ``s_local`` (:meth:`.model.PuckModel._event_jacobian`)."""
     nx, ny = NORMAL_X[wall], NORMAL_Y[wall]
     gx = gy = gvx = gvy = 0.0  # gradient of the impact time tau
-    distance = nx * x + ny * y + (p[P_X_LIMIT] if wall == 1 or wall == 3 else p[P_Y_LIMIT])
+    distance = nx * x + ny * y + (p[P_X_LIMIT] if wall == SHORT_A or wall == SHORT_B else p[P_Y_LIMIT])
     if distance > 0.0:
         vn = nx * vx + ny * vy
         gx, gy = -nx / vn, -ny / vn
         gvx, gvy = distance * nx / vn ** 2, distance * ny / vn ** 2
     bx, by = ny, -nx
-    s00, s01, s02, s10, s11, s12, s20, s21, s22 = _impact_jacobian(p, bx * vx + by * vy, nx * vx + ny * vy, om)
+    s00, s01, s02, s10, s11, s12, s20, s21, s22 = s_local
     cb, cn = s00 * bx + s01 * nx, s10 * bx + s11 * nx
     db, dn = s00 * by + s01 * ny, s10 * by + s11 * ny
     out[:] = 0.0
@@ -202,13 +195,13 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
             break
         if count == impacts.shape[0]:
             return x, y, vx, vy, th, om, -1
-        if with_jac:
-            _event_jacobian(p, x, y, vx, vy, om, tau, wall, event)
-            _matmul(event, jac, product)
-            jac[:] = product
         nx, ny = NORMAL_X[wall], NORMAL_Y[wall]
         bx, by = ny, -nx
-        vb, vn, new_om, sliding = _rim_impact(p, bx * vx + by * vy, nx * vx + ny * vy, om)
+        vb, vn, new_om, sliding, s_local = _rim_impact(p, bx * vx + by * vy, nx * vx + ny * vy, om)
+        if with_jac:
+            _event_jacobian(p, x, y, vx, vy, om, tau, wall, s_local, event)
+            _matmul(event, jac, product)
+            jac[:] = product
         x, y, th, h = x + tau * vx, y + tau * vy, th + tau * om, h - tau
         vx, vy, om = bx * vb + nx * vn, by * vb + ny * vn, new_om
         impacts[count, 0], impacts[count, 1], impacts[count, 2] = t0 + (dt - h), wall, x
