@@ -2,9 +2,9 @@
 
 Random puck states on the table (speeds up to 3 m/s, spins up to 20 rad/s), parameters and noise from
 ``config/tracker.yaml`` (and ``--params-file``); the same states go through both predictors in one run.
-Thesis table 5.1: one 180-step prediction took 75.7 us mean (C++, without covariance). With a table
-acceleration (``table_acceleration`` not zero) and surface friction (``friction_surface`` > 0) as well,
-no closed form is known and the fast predictor marches the free steps (compiled): a ratio of about 8, not 15.
+Thesis table 5.1: one 180-step prediction took 75.7 us mean (C++, without covariance). The fast predictor is
+the same steps compiled (:mod:`air_hockey_agent.core.puck.prediction_kernel`); with a table acceleration
+(``table_acceleration`` not zero) every step searches for its rim contact, so its ratio is lower.
 """
 from __future__ import annotations
 
