@@ -12,7 +12,7 @@ def test_bench_tracker_json_shape():
     assert out.returncode == 0, out.stderr
     result = json.loads(out.stdout)
     assert set(result["update_us"]) == {"mean", "p99"}
-    for method in ("stepwise", "fast"):
+    for method in ("stepwise", "fast", "fast_mean_only"):
         assert set(result["predict_us"][method]) == {"0.5", "1.0", "1.5"}
         assert all(v["mean"] > 0 for v in result["predict_us"][method].values())
 
