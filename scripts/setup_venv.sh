@@ -6,6 +6,7 @@
 #   3. pinned ROS 2 Jazzy wheels, scientific stack, HEBO stack (requirements/*.txt)
 #   4. build msg_defs/ (interface package air_hockey_msgs) into the venv with CMake
 #   5. install air_hockey_agent in editable mode + its ament layout in the venv prefix
+#   6. compile the puck prediction's numba kernel (cached; about a second when nothing changed)
 #
 # Each step records a hash of its inputs in .venv/.stamps/ and is skipped when they have not changed,
 # so a second run takes seconds. Set AIR_HOCKEY_SETUP_FORCE=1 to redo every step.
@@ -109,10 +110,21 @@ install_package() {
   "$PY" -m air_hockey_agent.tools.ament_layout --prefix "$VENV" --source "$ROOT"
 }
 
+compile_kernels() {
+  # The first process to predict compiles core/puck/prediction_kernel.py (about 15 s here, once per machine and
+  # change of the file): here, not in the first game's nodes, which start at once and must be up in
+  # config/game.yaml's startup_timeout. Later processes load the cached machine code.
+  local start=$SECONDS
+  "$PY" -c 'from air_hockey_agent.core.puck.prediction import prepare_prediction; prepare_prediction()' ||
+    die "the puck prediction's numba kernel did not compile"
+  log "puck prediction kernel ready ($((SECONDS - start)) s)"
+}
+
 mkdir -p "$ROOT/build"
 ensure_system_tools
 ensure_venv
 install_requirements
 build_interfaces
 install_package
+compile_kernels
 log "ready: $VENV"

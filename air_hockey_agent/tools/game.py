@@ -37,6 +37,7 @@ from air_hockey_agent.sim.params import ROBOTS
 SHARED_NODES = ("table_sim", "referee")
 VIEW_NODE = "visualizer"
 PER_ROBOT_NODES = ("puck_tracker", "tactics", "trajectory_generator")
+KERNEL_COMPILE_NOTICE = 3.0  # [s] a kernel warm-up longer than this was a compilation: say so (a load takes ~1 s)
 
 GAME_PARAMS = (
     ParamSpec("startup_timeout", float, "[s] time for all nodes to come up", 1.0, 600.0),
@@ -148,13 +149,21 @@ def _check_args(args: argparse.Namespace) -> None:
             raise GameError(f"--record {args.record}: directory {bag.parent} does not exist", 2)
 
 
-def prepare_speed_map(say) -> None:
-    """Build the tactics' fastest-hit table once here, so the two tactics nodes do not both build it."""
+def prepare_for_nodes(say) -> None:
+    """Build the tactics' fastest-hit table and compile (or load) the numba kernels once here (the motion
+    layer's with the planner, the puck prediction's), so the nodes, which start at once, do not each
+    build or compile them within ``startup_timeout``."""
     from air_hockey_agent.agent_params import load_agent_params
     from air_hockey_agent.core.game.speed_map import load_or_build
+    from air_hockey_agent.core.puck.prediction import prepare_prediction
     from air_hockey_agent.motion_params import build_planner, load_motion_params
     motion = load_motion_params()
     load_or_build(build_planner(motion, ROBOTS[0]), motion, load_agent_params()["speed_map_grid"], log=say)
+    start = time.monotonic()
+    prepare_prediction()
+    if time.monotonic() - start > KERNEL_COMPILE_NOTICE:
+        say(f"compiled the puck prediction kernel in {time.monotonic() - start:.0f} s (once per change of "
+            "core/puck/prediction_kernel.py; make setup does it)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -166,7 +175,7 @@ def run(args: argparse.Namespace) -> int:
         if args.gui and not display_available():
             raise GameError("--gui needs a display (DISPLAY is not set); leave --gui out to play headless", 2)
         rtf = args.real_time_factor if args.real_time_factor is not None else (1.0 if args.gui else 0.0)
-        prepare_speed_map(say)
+        prepare_for_nodes(say)
         if args.in_process:
             result = _play_in_process(args, settings, rtf, say)
         else:

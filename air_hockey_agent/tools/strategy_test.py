@@ -25,7 +25,7 @@ from pathlib import Path
 from air_hockey_agent.core.game.strategy.report import summarise, table
 from air_hockey_agent.core.game.strategy.scoring import TrialResult
 from air_hockey_agent.tools.files import write_text_atomic
-from air_hockey_agent.tools.game import PER_ROBOT_NODES, prepare_speed_map, robot_node
+from air_hockey_agent.tools.game import PER_ROBOT_NODES, prepare_for_nodes, robot_node
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.ros_env import node_executable, ros_environment
@@ -161,7 +161,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"air-hockey strategy-test: error: {problem}", file=sys.stderr)
         return 2
     say = lambda text: print(f"[strategy-test] {text}", file=sys.stderr, flush=True)  # noqa: E731
-    prepare_speed_map(say)
+    prepare_for_nodes(say)
     keys = [k for group in sorted(args.strategies) for k in GROUPS[group]]
     trials = [(k, i) for i in range(args.trials) for k in keys]
     domain0 = args.domain_id or 50 + os.getpid() % (52 - args.workers)

@@ -156,7 +156,7 @@ def _event_jacobian(p: np.ndarray, x: float, y: float, vx: float, vy: float, om:
     s00, s01, s02, s10, s11, s12, s20, s21, s22 = s_local
     cb, cn = s00 * bx + s01 * nx, s10 * bx + s11 * nx
     db, dn = s00 * by + s01 * ny, s10 * by + s11 * ny
-    out[:] = 0.0
+    _zero(out)
     out[0, 0], out[0, 1], out[0, 2], out[0, 3] = 1.0 + vx * gx, vx * gy, tau + vx * gvx, vx * gvy
     out[1, 0], out[1, 1], out[1, 2], out[1, 3] = vy * gx, 1.0 + vy * gy, vy * gvx, tau + vy * gvy
     out[2, 2], out[2, 3], out[2, 5] = bx * cb + nx * cn, bx * db + nx * dn, bx * s02 + nx * s12
@@ -169,7 +169,7 @@ def _event_jacobian(p: np.ndarray, x: float, y: float, vx: float, vy: float, om:
 @njit(cache=True)
 def _free_jacobian(f: np.ndarray, h: float, j00: float, j01: float, j10: float, j11: float) -> None:
     """``f`` (6x6) := the Jacobian of a step of ``h`` [s] without an impact, decay Jacobian (j00, j01, j10, j11)."""
-    f[:] = 0.0
+    _zero(f)
     f[0, 0] = f[1, 1] = f[4, 4] = f[5, 5] = 1.0
     f[0, 2] = f[1, 3] = f[4, 5] = h
     f[2, 2], f[2, 3], f[3, 2], f[3, 3] = j00, j01, j10, j11
@@ -187,7 +187,7 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
     tau, wall = _first_impact(p, x, y, vx, vy, dt)
     if with_jac and wall >= 0:
         jac, event, product = work[0], work[1], work[2]
-        jac[:] = 0.0
+        _zero(jac)
         for k in range(7):
             jac[k, k] = 1.0
     for _ in range(MAX_IMPACTS_PER_STEP):
@@ -201,7 +201,7 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
         if with_jac:
             _event_jacobian(p, x, y, vx, vy, om, tau, wall, s_local, event)
             _matmul(event, jac, product)
-            jac[:] = product
+            _copy_into(product, jac, 7, 7)
         x, y, th, h = x + tau * vx, y + tau * vy, th + tau * om, h - tau
         vx, vy, om = bx * vb + nx * vn, by * vb + ny * vn, new_om
         impacts[count, 0], impacts[count, 1], impacts[count, 2] = t0 + (dt - h), wall, x
@@ -213,11 +213,11 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
         _free_jacobian(f, h, j00, j01, j10, j11)
         if count > start:  # impacts in this step: the flight's 6x7 Jacobian times the events'
             flight = work[1]
-            flight[:] = 0.0
-            flight[:6, :6] = f
+            _zero(flight)
+            _copy_into(f, flight, 6, 6)
             flight[0, 6], flight[1, 6], flight[4, 6] = vx, vy, om
             _matmul(flight, work[0], work[2])
-            f[:] = work[2][:6, :6]
+            _copy_into(work[2], f, 6, 6)
     return x + h * vx, y + h * vy, nvx, nvy, _wrap(th + h * om), om, count
 
 
@@ -253,8 +253,24 @@ def _cross(crossings: np.ndarray, lines: np.ndarray, t0: float, dt: float, x0: f
 def _grown(rows: np.ndarray, count: int) -> np.ndarray:
     """``rows`` with twice the room, its first ``count`` rows kept."""
     grown = np.empty((2 * rows.shape[0], rows.shape[1]))
-    grown[:count] = rows[:count]
+    _copy_into(rows, grown, count, rows.shape[1])
     return grown
+
+
+@njit(cache=True)
+def _zero(a: np.ndarray) -> None:
+    """``a[:] = 0`` for a matrix, in loops (numba compiles a slice assignment slowly: seconds each)."""
+    for i in range(a.shape[0]):
+        for j in range(a.shape[1]):
+            a[i, j] = 0.0
+
+
+@njit(cache=True)
+def _copy_into(src: np.ndarray, dst: np.ndarray, rows: int, cols: int) -> None:
+    """``dst[:rows, :cols] = src[:rows, :cols]``, in loops (see :func:`_zero`)."""
+    for i in range(rows):
+        for j in range(cols):
+            dst[i, j] = src[i, j]
 
 
 @njit(cache=True)
@@ -373,7 +389,7 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
             samples[taken, 0] = (i + 1) * dt
             samples[taken, 1], samples[taken, 2], samples[taken, 3] = x, y, vx
             samples[taken, 4], samples[taken, 5], samples[taken, 6] = vy, th, om
-            sample_covs[taken] = p_now
+            _copy_into(p_now, sample_covs[taken], n_cov, n_cov)
             taken += 1
     return np.array([x, y, vx, vy, th, om]), p_now, impacts[:count], crossings, samples, sample_covs
 
