@@ -285,9 +285,9 @@ class PuckEKF:
     def plausible(self, z: Sequence[float]) -> bool:
         """A measurement (x, y, theta) can be the puck: finite and on the table within
         ``outside_table_margin`` (farther out it is a glitch, dropped before the gate)."""
-        z = np.asarray(z, float)
-        margin = self.settings.outside_table_margin
-        return bool(np.all(np.isfinite(z))) and self.model.table.contains(z[0], z[1], margin)
+        values = z.tolist() if isinstance(z, np.ndarray) else [float(v) for v in z]  # scalars: no numpy calls
+        return all(map(math.isfinite, values)) and self.model.table.contains(values[0], values[1],
+                                                                             self.settings.outside_table_margin)
 
     def process(self, t: float, z: Sequence[float] | None) -> int:
         """Handle one mocap frame at time ``t`` [s]: measurement ``z`` (x, y, theta) or None (lost).
