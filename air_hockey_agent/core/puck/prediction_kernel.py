@@ -129,15 +129,27 @@ def _decay(p: np.ndarray, vx: float, vy: float, dt: float) -> tuple[float, float
     a = 1.0 - dt * p[P_DAMPING]
     mu_dt = dt * p[P_FRICTION_SURFACE]
     speed = math.hypot(vx, vy)
+    ux, uy = (vx / speed, vy / speed) if speed > 0.0 else (0.0, 0.0)
+    d00, d01, d11 = _decay_jacobian(a, mu_dt, speed, ux, uy)
     if mu_dt == 0.0:
-        return a * vx, a * vy, a, 0.0, 0.0, a
+        return a * vx, a * vy, d00, d01, d01, d11
     new_speed = a * speed - mu_dt
     if speed == 0.0 or new_speed <= 0.0:
-        return 0.0, 0.0, 0.0, 0.0, 0.0, 0.0
-    ux, uy = vx / speed, vy / speed
+        return 0.0, 0.0, d00, d01, d01, d11
+    return ux * new_speed, uy * new_speed, d00, d01, d01, d11
+
+
+@njit(cache=True)
+def _decay_jacobian(keep: float, mu_dt: float, speed: float, ux: float, uy: float) -> tuple[float, float, float]:
+    """The decay's 2x2 Jacobian (d00, d01 = d10, d11) for a velocity of ``speed`` [m/s] along (ux, uy), with
+    ``keep = 1 - dt d`` and ``mu_dt = dt mu_s`` [m/s]: ``keep`` I without friction, zero where the friction
+    stops the puck (:meth:`.model.PuckModel.decay`)."""
+    if mu_dt == 0.0:
+        return keep, 0.0, keep
+    if speed == 0.0 or keep * speed - mu_dt <= 0.0:
+        return 0.0, 0.0, 0.0
     k = mu_dt / speed
-    cross = k * ux * uy
-    return ux * new_speed, uy * new_speed, a - k + k * ux * ux, cross, cross, a - k + k * uy * uy
+    return keep - k + k * ux * ux, k * ux * uy, keep - k + k * uy * uy
 
 
 @njit(cache=True)
@@ -347,14 +359,8 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
         x0, y0, vx0, vy0, before = x, y, vx, vy, count
         if flat and h * speed < room - GLIDE_MARGIN:
             keep, mu_h = 1.0 - h * p[P_DAMPING], h * p[P_FRICTION_SURFACE]
-            if with_cov:  # the decay's Jacobian (_decay's, from the speed and direction kept here)
-                if mu_h == 0.0:
-                    d00, d01, d11 = keep, 0.0, keep
-                elif speed == 0.0 or keep * speed - mu_h <= 0.0:
-                    d00, d01, d11 = 0.0, 0.0, 0.0
-                else:
-                    k = mu_h / speed
-                    d00, d01, d11 = keep - k + k * ux * ux, k * ux * uy, keep - k + k * uy * uy
+            if with_cov:  # from the speed and direction kept here
+                d00, d01, d11 = _decay_jacobian(keep, mu_h, speed, ux, uy)
                 _propagate_free(p_now, h, d00, d01, d01, d11, q, h / dt, tmp)
             x, y, room = x + h * vx, y + h * vy, room - h * speed
             if mu_h == 0.0:
