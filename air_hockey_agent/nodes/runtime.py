@@ -5,7 +5,6 @@ A node subclasses :class:`AirHockeyNode`, lists its default parameter files and 
 """
 from __future__ import annotations
 
-import gc
 import signal
 import sys
 from typing import Any, ClassVar, Sequence
@@ -23,6 +22,7 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from air_hockey_agent.params import (ParameterFileError, ParameterValueError, ParamSpec, check_command_line,
                                      check_parameter_file, load_defaults, ros_param_args)
 from air_hockey_agent.paths import config_file
+from air_hockey_agent.start_up import freeze_start_up
 
 EXIT_BAD_PARAMETERS = 2
 READY_MARKER = "node ready:"  # logged once a node is constructed; the game launcher waits for it
@@ -159,14 +159,6 @@ def check_names(node_cls: type[AirHockeyNode], argv: Sequence[str]) -> None:
     check_command_line(argv, node_cls.NAME, own)
     for path in ros_param_args(argv)[1]:
         check_parameter_file(path, node_cls.NAME, own, node_parameters())
-
-
-def freeze_start_up() -> None:
-    """Move every object made so far (the node, its models, loaded modules) out of the garbage collector's
-    reach: a full collection otherwise walks them all and stalls a callback by tens of milliseconds
-    (``air-hockey bench tactics``: decision time max about 100 ms without, about 35 ms with)."""
-    gc.collect()
-    gc.freeze()
 
 
 def run(node_cls: type[AirHockeyNode], argv: Sequence[str] | None = None) -> int:

@@ -11,7 +11,6 @@ units of one tracker prediction timed in the same process.
 from __future__ import annotations
 
 import argparse
-import gc
 import json
 import math
 import time
@@ -62,13 +61,13 @@ def run(args: argparse.Namespace) -> int:
     from air_hockey_agent.core.game.tactics.selector import ACCEPTED, RUNNING
     from air_hockey_agent.core.puck.prediction import predict_fast
     from air_hockey_agent.core.estimation.ekf import PuckEKF
+    from air_hockey_agent.start_up import freeze_start_up
     from air_hockey_agent.tracker_params import load_tracker_params
     selector, _ = build_selector(load_agent_params(), ROBOT)
     model = selector.shots.model
     settings = PuckEKF.from_params(load_tracker_params()).settings  # the tracker's prediction, as it publishes it
     rng = np.random.default_rng(args.seed)
-    gc.collect()  # as the tactics node does once it stands (nodes/runtime.freeze_start_up)
-    gc.freeze()
+    freeze_start_up()  # as the tactics node does once it stands
     step_ms, build_ms, predict_ms, tactics, commands = [], [], [], Counter(), 0
     progress = Progress("[bench tactics] episodes", args.json)
     for e in range(args.episodes):
