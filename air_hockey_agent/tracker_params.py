@@ -76,6 +76,8 @@ TRACKER_PARAMS = (
     ParamSpec("rim_adaptation.knee_count", int, "restitution knees tried, evenly from 0 to knee_max (0: the "
               "configured one only)", 0, 1000),
     ParamSpec("rim_adaptation.knee_max", float, "[m/s] the fastest restitution knee tried", 0.0, 20.0),
+    ParamSpec("rim_adaptation.stick_friction_rim", float, "[-] mu_rim of a learned rim law whose tangential impulse "
+              "is a fraction of Routh's sticking one", 0.0, 100.0),
     ParamSpec("acceleration_adaptation.enabled", bool, "learn this table's acceleration (tilt, air film's mean) "
               "online from free flight"),
     ParamSpec("acceleration_adaptation.prior_std", float, "[m/s^2] std of the configured table_acceleration",

@@ -29,13 +29,25 @@ def finite_difference_jacobian(m: PuckModel, state: np.ndarray, dt: float, h: fl
 def session_on_testbed(ekf, shots: int, seed: int):
     """A session on the test bed with config/synthetic.yaml's shots, effects and mocap, as synth-bag
     --source testbed writes it."""
-    from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
     from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
+    return _session(ekf, shots, seed, lambda cfg, rng: testbed_shots(
+        TableEffects.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"], cfg["fine_dt"], rng))
+
+
+def session_on_mujoco(ekf, shots: int, seed: int):
+    """A session on the MuJoCo table with config/synthetic.yaml's shots, physics and mocap, as synth-bag
+    --source mujoco writes it."""
+    from air_hockey_agent.sim.mujoco_table import MujocoTable, mujoco_shots
+    return _session(ekf, shots, seed, lambda cfg, rng: mujoco_shots(
+        MujocoTable.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"], rng))
+
+
+def _session(ekf, shots: int, seed: int, source):
+    from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
     from air_hockey_agent.params import load_node_params
     from air_hockey_agent.tools.synth_bag import SESSION_PARAMS
     cfg = load_node_params(["synthetic.yaml"], "/synth_bag", SESSION_PARAMS, [])
     ranges = ShotRanges(tuple(cfg["speed"]), tuple(cfg["spin"]), cfg["shot_duration"], cfg["pause"])
-    simulate = testbed_shots(TableEffects.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"],
-                             cfg["fine_dt"], np.random.default_rng([seed, 1]))
+    simulate = source(cfg, np.random.default_rng([seed, 1]))
     return synthetic_session(ekf.model, ranges, shots, cfg["rate"], MocapImperfections.from_params(cfg),
                              np.random.default_rng(seed), cfg["fine_dt"], simulate)

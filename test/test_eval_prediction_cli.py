@@ -33,7 +33,9 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
                            "reinit_per_s", "nis", "nis_by_regime", "by_path", "rim_law", "table_acceleration",
                            "thesis_style"}
     law = report["rim_law"]  # the bags' shots are flown with the configured physics: learning it keeps it
-    assert set(law) == {"impacts", "restitution_scale", "fall_scale", "knee", "tangential_scale", "params"}
+    assert set(law) == {"impacts", "restitution_scale", "fall_scale", "knee", "tangential_scale", "stick_fraction",
+                        "tangential_form", "params"}
+    assert law["tangential_form"] == "scaled"
     assert law["impacts"] >= 3 and abs(law["restitution_scale"] - 1.0) < 0.02
     assert abs(law["fall_scale"] - 1.0) < 0.1 and abs(law["tangential_scale"] - 1.0) < 0.1
     assert law["params"]["restitution_knee"] == law["knee"]
@@ -172,3 +174,17 @@ def test_synth_bag_from_the_table_simulation(tmp_path):
     assert "truth from the sim" in out.stdout
     report = cli("eval-prediction", tmp_path / "sim", "--json")
     assert report.returncode == 0 and json.loads(report.stdout)["frames"] > 500
+
+
+def test_synth_bag_from_the_mujoco_table(tmp_path):
+    """The MuJoCo table as a user writes its bag; a bad mujoco.* parameter is one line naming it."""
+    out = cli("synth-bag", tmp_path / "mj", "--shots", 2, "--source", "mujoco", "--seed", 3)
+    assert out.returncode == 0, out.stderr
+    assert "truth from the mujoco" in out.stdout
+    report = cli("eval-prediction", tmp_path / "mj", "--json")
+    assert report.returncode == 0 and json.loads(report.stdout)["frames"] > 300  # a shot that scores ends
+    bad = tmp_path / "bad.yaml"
+    bad.write_text("/**/synth_bag:\n  ros__parameters:\n    mujoco:\n      rim_solimp: [0.9, 0.95]\n")
+    out = cli("synth-bag", tmp_path / "mj2", "--source", "mujoco", "--params-file", bad)
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+    assert "mujoco.rim_solimp" in out.stderr and not (tmp_path / "mj2").exists()

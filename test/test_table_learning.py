@@ -85,6 +85,31 @@ def test_the_test_beds_rims_are_recovered_from_its_impacts(params):
     assert 0.3 < learned[5.0].tangential_scale < 0.3 + 5.0 / 305 + 0.01
     report = learned[0.0].report()
     assert report["impacts"] == 300 and report["params"]["friction_rim"] == pytest.approx(0.3 * base.friction_rim, rel=0.05)
+    assert report["tangential_form"] == "scaled" and not learned[5.0].stick_form  # Coulomb's bound, scaled, fits
+
+
+@pytest.mark.parametrize("prior", [0.0, 5.0])
+def test_rims_pushing_a_fraction_of_rouths_sticking_impulse_are_learned_in_that_form(params, prior):
+    """Soft rims (a MuJoCo table's) push along themselves 0.45 of Routh's sticking impulse whatever the
+    normal speed, never capped by Coulomb's bound: no scale of the configured law (mu_rim 0.098, mostly
+    sliding) fits them; the stick-fraction form does, and is chosen: exactly 0.45 without a prior, pulled
+    toward the configured law's impulses by 5 impacts' weight with it. The learned law reproduces them."""
+    base = base_law(params)
+    truth = base.with_values(friction_rim=50.0, tangential_restitution=-0.55)
+    adapt = RimAdaptation(base, TABLE, AdaptationSettings(**{**SETTINGS.__dict__, "prior_impacts": prior}))
+    impacts = random_impacts(np.random.default_rng(6), 200)
+    for before in impacts:
+        out = impact_of(truth, before)
+        assert adapt.observe(before, (out.vb, out.vn, out.omega))
+    assert adapt.stick_form and adapt.report()["tangential_form"] == "stick fraction"
+    if prior == 0.0:
+        assert adapt.stick_fraction == pytest.approx(0.45, abs=1e-9)
+    else:
+        assert 0.45 < adapt.stick_fraction < 0.45 + 5.0 / 205 * 0.6
+    learned = adapt.params()
+    assert learned.friction_rim == SETTINGS.stick_friction_rim
+    errors = [abs(impact_of(learned, b).vb - impact_of(truth, b).vb) for b in impacts]
+    assert np.median(errors) < (1e-9 if prior == 0.0 else 0.02)
 
 
 @pytest.mark.parametrize("fast", [True, False])

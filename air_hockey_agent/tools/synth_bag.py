@@ -12,6 +12,10 @@ bag with known parameters can test system identification.
 surface, an uneven air film, random accelerations, rim restitution falling with the normal speed and
 a tangential impulse softer than Coulomb's, effects the tracker's model lacks (issue #13 item 1).
 
+``--source mujoco`` takes it from a MuJoCo table (``air_hockey_agent/sim/mujoco_table.py``, ``mujoco.*`` in
+config/synthetic.yaml): another physics engine, whose soft rim contacts and damping no code of ours
+wrote; the shots are human hits from rest as on the test bed (``testbed.hit_delay``).
+
 ``--source sim`` takes the truth from the pybullet table instead (``config/sim.yaml``, the puck alone
 at the simulation's physics rate): the same shots and imperfections, with the simulation's physics
 (its own air film, rim impact coefficients and goals: a puck in a goal stops there, where the
@@ -67,6 +71,17 @@ SESSION_PARAMS = (
     ParamSpec("testbed.friction_rim", float, "[-] rim friction of the Coulomb bound", 0.0, 2.0),
     ParamSpec("testbed.tangential_scale", float, "[-] tangential impulse as a fraction of Coulomb's", 0.0, 1.0),
     ParamSpec("testbed.hit_delay", list, "[s] range of the rest before the human hit", 0.0, 600.0, 2),
+    ParamSpec("mujoco.timestep", float, "[s] MuJoCo table's integration step", 1e-5, 0.01),
+    ParamSpec("mujoco.puck_mass", float, "[kg] MuJoCo table's puck mass", 1e-4, 10.0),
+    ParamSpec("mujoco.damping", float, "[1/s] MuJoCo table's viscous damping", 0.0, 10.0),
+    ParamSpec("mujoco.angular_damping", float, "[1/s] MuJoCo table's spin damping", 0.0, 100.0),
+    ParamSpec("mujoco.tilt", float, "[rad] slope of the MuJoCo table's surface", 0.0, 0.1),
+    ParamSpec("mujoco.tilt_heading", float, "[rad] direction the MuJoCo table's surface falls toward", -7.0, 7.0),
+    ParamSpec("mujoco.rim_timeconst", float, "[s] MuJoCo solref time constant of the rim contact", 1e-4, 1.0),
+    ParamSpec("mujoco.rim_dampratio", float, "[-] MuJoCo solref damping ratio of the rim contact", 0.0, 10.0),
+    ParamSpec("mujoco.rim_solimp", list, "MuJoCo solimp of the rim contact (dmin, dmax, width [m], midpoint, "
+              "power)", 0.0, 10.0, 5),
+    ParamSpec("mujoco.rim_friction", float, "[-] MuJoCo table's rim sliding friction", 0.0, 1e5),
 )
 
 
@@ -77,9 +92,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--shots", type=count(1), help="number of shots (default: config/synthetic.yaml)")
     parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
     parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="bag storage (default mcap)")
-    parser.add_argument("--source", choices=("model", "sim", "testbed"), default="model",
-                        help="truth from the puck model (default), the pybullet table simulation, or the test "
-                             "bed's real-table physics (testbed.* in config/synthetic.yaml)")
+    parser.add_argument("--source", choices=("model", "sim", "testbed", "mujoco"), default="model",
+                        help="truth from the puck model (default), the pybullet table simulation, the test "
+                             "bed's real-table physics (testbed.* in config/synthetic.yaml) or the MuJoCo "
+                             "table (mujoco.*)")
     parser.add_argument("--params-file", type=Path, action="append", default=[],
                         help="parameter YAML overriding the tracker's model parameters and/or the session "
                              "(synth_bag node); may be repeated")
@@ -123,14 +139,20 @@ def run(args: argparse.Namespace) -> int:
 
 @contextlib.contextmanager
 def _truth_source(source: str, params_files, session, table, seed: int):
-    """None for the puck model (synthetic_session's default), the test bed's shot simulator, or one on
-    the pybullet table without robots (imported here: pybullet prints a banner when loaded)."""
+    """None for the puck model (synthetic_session's default), the test bed's shot simulator, the MuJoCo
+    table's (human hits after ``testbed.hit_delay`` as on the test bed), or one on the pybullet table
+    without robots (imported here: pybullet prints a banner when loaded)."""
     if source == "model":
         yield None
         return
     if source == "testbed":
         yield testbed_shots(TableEffects.from_params(session), table, session["testbed.hit_delay"],
                             session["fine_dt"], np.random.default_rng([seed, 1]))
+        return
+    if source == "mujoco":  # imported here: only this source needs the engine
+        from air_hockey_agent.sim.mujoco_table import MujocoTable, mujoco_shots
+        yield mujoco_shots(MujocoTable.from_params(session), table, session["testbed.hit_delay"],
+                           np.random.default_rng([seed, 1]))
         return
     from air_hockey_agent.sim.params import load_sim_params
     from air_hockey_agent.sim.world import SimSettings, TableWorld, simulate_shot

@@ -17,9 +17,16 @@ scales the configured law by numbers it estimates from each rim impact it observ
   least sum of squares (the prior's pseudo-impacts included) wins, another knee than the configured one
   only by more than the Bayesian information criterion's price of one more parameter (``ln n`` times the
   best fit's residual variance, n impacts): noise alone does not move it;
-* ``tangential_scale`` s: the tangential impulse is s times the configured law's (Routh's sticking
-  impulse with ``(1 + beta)`` scaled by s, Coulomb's bound with ``mu_rim`` scaled by s: the same impacts
-  stick and slide).
+* the tangential impulse, in one of two forms, whichever fits the impacts better (the configured
+  form unless the other beats it by BIC's price of a parameter, as the knee):
+
+  - ``tangential_scale`` s: s times the configured law's (Routh's sticking impulse with ``(1 + beta)``
+    scaled by s, Coulomb's bound with ``mu_rim`` scaled by s: the same impacts stick and slide);
+  - ``stick_fraction`` q: q times Routh's sticking impulse ``-m c / 3`` on every impact (tangential
+    restitution ``beta = q - 1``) with ``mu_rim`` raised to ``stick_friction_rim``, so Coulomb's bound
+    no longer decides: soft rims whose impulse follows the contact point's slip, not the normal impulse
+    (a MuJoCo table's rims return 0.45 of Routh's sticking impulse on every impact and stay far below
+    Coulomb's bound: ``sim/mujoco_table.py``; issue #13's other engine pushed far less than Coulomb's).
 
 Each is a least-squares estimate with the configured law (scales 1) as a prior worth ``prior_impacts``
 impacts of the mean size seen that the law predicts exactly. An impact is observed in its rim's frame
@@ -41,7 +48,7 @@ from air_hockey_agent.core.puck.model import PuckParams
 from air_hockey_agent.core.table import WALL_NORMALS, TableGeometry
 
 RimState = tuple[float, float, float]  # (vb, vn, omega) [m/s, m/s, rad/s] in a rim's frame
-TIE = 1e-9  # [-] of the sum of squares: knees whose fits differ by less are tied (rounding)
+TIE = 1e-9  # [-] of the sum of squares: knees (or tangential forms) whose fits differ by less are tied (rounding)
 PRIOR_FLOOR = 1e-9  # [-] of the level's information added to the fall's: solvable before a fall is seen
 
 
@@ -58,13 +65,14 @@ class AdaptationSettings:
     max_incoming_uncertainty: float  # [-] velocity std before the impact, as a fraction of the speed, at most
     knee_count: int = 0       # knees tried, evenly from 0 to knee_max (0: the configured knee only)
     knee_max: float = 0.0     # [m/s] the fastest knee tried
+    stick_friction_rim: float = 1.0  # [-] mu_rim of a learned law in the stick-fraction form
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AdaptationSettings":
         p = "rim_adaptation."
         return cls(*(params[p + name] for name in ("enabled", "prior_impacts", "window", "min_frames",
                                                     "min_normal_speed", "max_scale", "max_incoming_uncertainty",
-                                                    "knee_count", "knee_max")))
+                                                    "knee_count", "knee_max", "stick_friction_rim")))
 
     def knees(self, configured: float) -> np.ndarray:
         """The knees tried [m/s]: the configured one first, then ``knee_count`` from 0 to ``knee_max``."""
@@ -133,7 +141,13 @@ class RimAdaptation:
             np.zeros((len(self.knees), 2))
         self._oo = self._cc = 0.0
         self._fit = (1.0, 1.0, base.restitution_knee)  # (k, f, knee) of the impacts so far (:meth:`_restitution`)
+        # tangential, over impacts: the law's impulse per mass a [m/s] (configured form) and Routh's sticking
+        # one x = -c / 3 (stick-fraction form), seen = (from vb, from the spin): sums of a (seen0 + seen1),
+        # 2 a^2; of x (seen0 + seen1), 2 x^2, 2 x a (the prior: the configured law's impulses); seen0^2 + seen1^2
         self._tangential = [0.0, 0.0]
+        self._stick = [0.0, 0.0, 0.0]
+        self._seen_square = 0.0
+        self._stick_form = False
 
     @property
     def restitution_scale(self) -> float:
@@ -185,6 +199,31 @@ class RimAdaptation:
         """Least squares of the observed tangential impulses on the law's, with the prior."""
         return self._scale(self._tangential)
 
+    @property
+    def stick_fraction(self) -> float:
+        """q: least squares of the observed tangential impulses on Routh's sticking impulse, with
+        ``prior_impacts`` pseudo-impacts of the configured law's impulses at the impacts seen; in [0, 2]."""
+        cross, square, prior = self._stick
+        if square <= 0.0:
+            return 1.0 + self.base.tangential_restitution
+        w = self.settings.prior_impacts / self.impacts
+        return min(max((cross + w * prior) / ((1.0 + w) * square), 0.0), 2.0)
+
+    @property
+    def stick_form(self) -> bool:
+        """True when the stick-fraction form fits the impacts better than the configured law scaled, by
+        more than BIC's ``ln n`` residual variances (n impacts)."""
+        return self._stick_form
+
+    def _prefers_stick(self) -> bool:
+        s, q = self.tangential_scale, self.stick_fraction
+        (cross_a, square_a), (cross_x, square_x, _) = self._tangential, self._stick
+        scaled = self._seen_square - 2.0 * s * cross_a + s * s * square_a
+        stick = self._seen_square - 2.0 * q * cross_x + q * q * square_x
+        variance = max(min(scaled, stick), 0.0) / max(2 * self.impacts - 1, 1)
+        # ties (both fit, as one impact does) keep the configured form
+        return stick + np.log(self.impacts) * variance < scaled - TIE * self._seen_square
+
     def _scale(self, sums: list) -> float:
         """``(prior + sum a b) / (prior + sum a^2)``: the prior is ``prior_impacts`` impacts of the mean size
         seen that the law predicts exactly (1 before any)."""
@@ -199,7 +238,11 @@ class RimAdaptation:
         if self.impacts == 0:
             return self.base
         k, f, knee = self._fit
-        return scaled_params(self.base, k, self.tangential_scale, f, knee)
+        if not self._stick_form:
+            return scaled_params(self.base, k, self.tangential_scale, f, knee)
+        law = scaled_params(self.base, k, 1.0, f, knee)
+        return law.with_values(friction_rim=max(law.friction_rim, self.settings.stick_friction_rim),
+                               tangential_restitution=self.stick_fraction - 1.0)
 
     def report(self) -> dict:
         """The law learned so far, for reports: impacts learned from, both scales and the scaled rim
@@ -207,13 +250,16 @@ class RimAdaptation:
         p = self.params()
         k, f, knee = self._fit
         return {"impacts": self.impacts, "restitution_scale": k, "fall_scale": f, "knee": knee,
-                "tangential_scale": self.tangential_scale,
+                "tangential_scale": self.tangential_scale, "stick_fraction": self.stick_fraction,
+                "tangential_form": "stick fraction" if self._stick_form else "scaled",
                 "params": {n: getattr(p, n) for n in ("restitution", "restitution_knee", "restitution_slope",
                                                       "restitution_min", "friction_rim", "tangential_restitution")}}
 
     def observe(self, before: RimState, after: RimState) -> bool:
         """Learn from one impact (incoming ``before``, vn < 0; outgoing ``after``); False when it is left
-        out (too slow, not leaving the rim, or a ratio beyond ``max_scale``: a hit, not the rim)."""
+        out (too slow, not leaving the rim, a normal speed beyond ``max_scale`` times the law's or a
+        tangential impulse, from vb or from the spin, beyond ``max_scale`` times the larger of either
+        form's at scale 1: a hit, not the rim)."""
         vb, vn, omega = before
         if -vn < self.settings.min_normal_speed or after[1] <= 0.0:
             return False
@@ -223,10 +269,12 @@ class RimAdaptation:
         law = scaled_params(self.base, k, 1.0, f, knee)
         model = self._impact(law, before).vb - vb  # the law's tangential impulse per mass [m/s], e learned so far
         seen = (after[0] - vb, 0.5 * self.radius * (after[2] - omega))  # from vb, and from the spin
+        stick = -(vb + self.radius * omega) / 3.0  # Routh's sticking impulse per mass [m/s]
         bound = self.settings.max_scale
         if not 1.0 / bound <= ratio <= bound:
             return False
-        if abs(model) > 1e-9 and not -bound <= (seen[0] + seen[1]) / (2.0 * model) <= bound:
+        largest = max(abs(model), abs(stick))  # of either form's impulse at scale 1
+        if largest > 1e-9 and max(abs(seen[0]), abs(seen[1])) > bound * largest:
             return False
         self.impacts += 1
         x = self._regressors(vn)
@@ -238,6 +286,11 @@ class RimAdaptation:
         self._fit = self._restitution()
         self._tangential[0] += model * (seen[0] + seen[1])
         self._tangential[1] += 2.0 * model * model
+        self._stick[0] += stick * (seen[0] + seen[1])
+        self._stick[1] += 2.0 * stick * stick
+        self._stick[2] += 2.0 * stick * model
+        self._seen_square += seen[0] * seen[0] + seen[1] * seen[1]
+        self._stick_form = self._prefers_stick()
         return True
 
     def _regressors(self, vn: float) -> np.ndarray:
@@ -253,9 +306,11 @@ class RimAdaptation:
 def describe(report: dict) -> str:
     """A learned law's :meth:`RimAdaptation.report` in words, for logs and tables."""
     impacts = report["impacts"]
+    tangential = f"{report['stick_fraction']:.3f} of Routh's sticking one, uncapped" \
+        if report["tangential_form"] == "stick fraction" else f"x{report['tangential_scale']:.3f}"
     return (f"from {impacts} impact{'' if impacts == 1 else 's'}: restitution x{report['restitution_scale']:.3f} "
             f"(its fall with speed x{report['fall_scale']:.3f} from {report['knee']:.2f} m/s), tangential impulse "
-            f"x{report['tangential_scale']:.3f}")
+            f"{tangential}")
 
 
 def outgoing_fit(times: Sequence[float], poses: Sequence[Sequence[float]], t_impact: float,

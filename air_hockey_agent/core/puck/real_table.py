@@ -185,21 +185,26 @@ def hit_from_rest(table: TableGeometry, speed: tuple[float, float], rng: np.rand
         v * np.array([math.cos(heading), math.sin(heading)])
 
 
+def held_then_hit(state: np.ndarray, table: TableGeometry, hit_delay: tuple[float, float],
+                  rng: np.random.Generator, margin: float = 0.1) -> tuple[np.ndarray, float, np.ndarray]:
+    """A human hit of a session's shot ``state`` (x, y, vx, vy, theta, omega): the puck rests where the shot
+    starts (at least ``margin`` [m] inside the rims, no spin), held for a random delay in ``hit_delay``
+    [s], then hit to the shot's velocity. Returns (resting state, delay [s], hit velocity [m/s])."""
+    rest = np.array(state, float)
+    rest[0] = np.clip(rest[0], -table.x_limit + margin, table.x_limit - margin)
+    rest[1] = np.clip(rest[1], -table.y_limit + margin, table.y_limit - margin)
+    rest[2:4], rest[5] = 0.0, 0.0
+    return rest, float(rng.uniform(*hit_delay)), np.array(state[2:4], float)
+
+
 def testbed_shots(effects: TableEffects, table: TableGeometry, hit_delay: tuple[float, float], fine_dt: float,
                   rng: np.random.Generator):
     """Shots on the test bed's table (``simulate(state, duration) -> (times, states)`` for
-    :func:`~air_hockey_agent.core.estimation.synthetic.synthetic_session`): the puck rests where the shot
-    starts (at least 10 cm inside the rims), held for a random delay in ``hit_delay`` [s], then a human hit
-    gives it the shot's velocity (speed and direction as drawn by the session); ``fine_dt`` [s] is the
-    integration step."""
-    margin = 0.1
+    :func:`~air_hockey_agent.core.estimation.synthetic.synthetic_session`): each a human hit
+    (:func:`held_then_hit`); ``fine_dt`` [s] is the integration step."""
 
     def simulate(state: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
         puck = RealTablePuck(table, effects, rng)
-        rest = state.copy()
-        rest[0] = np.clip(rest[0], -table.x_limit + margin, table.x_limit - margin)
-        rest[1] = np.clip(rest[1], -table.y_limit + margin, table.y_limit - margin)
-        rest[2:4], rest[5] = 0.0, 0.0
-        delay = rng.uniform(*hit_delay)
-        return puck.simulate(rest, duration, fine_dt, delay, state[2:4])
+        rest, delay, velocity = held_then_hit(state, table, hit_delay, rng)
+        return puck.simulate(rest, duration, fine_dt, delay, velocity)
     return simulate
