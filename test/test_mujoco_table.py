@@ -1,13 +1,18 @@
 """The MuJoCo table (sim/mujoco_table.py): its scene checked against closed forms and a conservation law,
 then the tracker measured on trajectories MuJoCo made (no code of ours integrates them)."""
+import json
 import math
+import subprocess
+import sys
 from dataclasses import replace
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
+from air_hockey_agent.core.puck.impact import speed_restitution
 from air_hockey_agent.sim.mujoco_table import MujocoPuck, MujocoTable
 from air_hockey_agent.tracker_params import load_tracker_params
 from model_fixtures import TABLE, session_on_mujoco
@@ -95,22 +100,49 @@ def test_the_tracker_learns_the_mujoco_tables_flight(mujoco_session):
         assert abs(flight["value"][axis] - CONFIGURED.tilt_acceleration[axis]) < 3 * flight["std"][axis]
 
 
-def test_the_tracker_learns_the_mujoco_rims_in_the_stick_fraction_form(mujoco_session):
+@pytest.fixture(scope="module")
+def mujoco_rims():
+    """MuJoCo's own rims, measured: (median fraction of Routh's sticking impulse, median restitution) of
+    ten impacts at 0.3-3 m/s normal speed."""
+    rng = np.random.default_rng(7)
+    impacts = [rim_impact_on_mujoco(rng.uniform(-1.5, 1.5), -rng.uniform(0.3, 3.0), rng.uniform(-15, 15))
+               for _ in range(10)]
+    return (float(np.median([(a[0] - b[0]) / (-(b[0] + R * b[2]) / 3) for b, a in impacts])),
+            float(np.median([-a[1] / b[1] for b, a in impacts])))
+
+
+def restitution_at(p: dict, speed: float) -> float:
+    return speed_restitution(p["restitution"], p["restitution_slope"], -speed, p["restitution_min"],
+                             p["restitution_knee"])[0]
+
+
+def test_the_tracker_learns_the_mujoco_rims_in_the_stick_fraction_form(mujoco_session, mujoco_rims):
     """MuJoCo's rims push along themselves in proportion to the slip, far below Coulomb's bound: the
     stick-fraction form is chosen, its fraction within 15 % of the one measured from MuJoCo's own
     impacts, and the learned restitution at 1 m/s within 10 % of MuJoCo's."""
     law = mujoco_session[0]["rim_law"]
     assert law["tangential_form"] == "stick fraction"
-    rng = np.random.default_rng(7)
-    impacts = [rim_impact_on_mujoco(rng.uniform(-1.5, 1.5), -rng.uniform(0.3, 3.0), rng.uniform(-15, 15))
-               for _ in range(10)]
-    fraction = np.median([(a[0] - b[0]) / (-(b[0] + R * b[2]) / 3) for b, a in impacts])
-    restitution = np.median([-a[1] / b[1] for b, a in impacts])
-    assert law["stick_fraction"] == pytest.approx(fraction, rel=0.15)
-    p = law["params"]
-    learned = max(p["restitution"] - p["restitution_slope"] * max(1.0 - p["restitution_knee"], 0.0),
-                  p["restitution_min"])
-    assert learned == pytest.approx(restitution, rel=0.1)
+    assert law["stick_fraction"] == pytest.approx(mujoco_rims[0], rel=0.15)
+    assert restitution_at(law["params"], 1.0) == pytest.approx(mujoco_rims[1], rel=0.1)
+
+
+def test_split_sysid_finds_the_mujoco_tables_physics(tmp_path, mujoco_rims):
+    """Issue #13 item 5's recovery test on another engine's bag, as a user runs it: damping and the tilt's
+    acceleration within 10 % of MuJoCo's, restitution at 0.5, 1 and 2 m/s and the sticking fraction
+    (1 + beta) within 10 % of MuJoCo's own impacts."""
+    exe = Path(sys.executable).parent / "air-hockey"
+    made = subprocess.run([exe, "synth-bag", tmp_path / "mj", "--source", "mujoco", "--shots", "12", "--seed", "2"],
+                          capture_output=True, text=True, timeout=300)
+    assert made.returncode == 0, made.stderr
+    run = subprocess.run([exe, "sysid", tmp_path / "mj", "--json"], capture_output=True, text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    found = json.loads(run.stdout)["identified"]
+    assert found["damping"] == pytest.approx(CONFIGURED.damping, rel=0.1)
+    assert found["table_acceleration"][0] == pytest.approx(CONFIGURED.tilt_acceleration[0], rel=0.1)
+    assert abs(found["table_acceleration"][1]) < 0.1 * CONFIGURED.tilt_acceleration[0]
+    for speed in (0.5, 1.0, 2.0):
+        assert restitution_at(found, speed) == pytest.approx(mujoco_rims[1], rel=0.1)
+    assert 1.0 + found["tangential_restitution"] == pytest.approx(mujoco_rims[0], rel=0.1)
 
 
 def test_predictions_on_the_mujoco_table(mujoco_session):
