@@ -63,6 +63,8 @@ TRACKER_PARAMS = (
               "angle is not fused (1 dof)", 0.1, 1e6),
     ParamSpec("measurement_noise_per_speed", float, "[s] position noise std added per m/s of speed", 0.0, 1.0),
     ParamSpec("impact_noise", float, "[-] velocity/spin std after a rim impact, fraction of their size", 0.0, 10.0),
+    ParamSpec("impact_contact_time", float, "[s] position std after a rim impact, as the puck's travel in this "
+              "time", 0.0, 0.1),
     ParamSpec("rim_adaptation.enabled", bool, "learn this table's rim law online from the impacts seen"),
     ParamSpec("rim_adaptation.prior_impacts", float, "[-] weight of the configured rim law, in impacts", 0.0, 1e6),
     ParamSpec("rim_adaptation.window", float, "[s] fused frames after an impact fitted for its outcome", 0.01, 2.0),

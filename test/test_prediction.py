@@ -43,12 +43,15 @@ def assert_agree(a, b):
         assert (crossing.vx, crossing.vy) == pytest.approx((b.crossings[line].vx, b.crossings[line].vy), abs=1e-10)
 
 
-@pytest.mark.parametrize("friction, impact_noise", [(0.0, 0.0), (2.28e-4, 0.0), (0.05, 0.0), (2.28e-4, 0.15)])
-def test_fast_prediction_agrees_with_stepwise(friction, impact_noise):
+@pytest.mark.parametrize("friction, impact_noise, contact_time", [(0.0, 0.0, 0.0), (2.28e-4, 0.0, 0.0), (0.05, 0.0, 0.0),
+                                                                 (2.28e-4, 0.15, 0.0), (2.28e-4, 0.15, 0.002),
+                                                                 (0.0, 0.0, 0.001)])
+def test_fast_prediction_agrees_with_stepwise(friction, impact_noise, contact_time):
     m = model(friction_surface=friction)
+    noise = {"impact_noise": impact_noise, "impact_contact_time": contact_time}
     for state, horizon in random_states(60, seed=int(friction * 1e6)):
-        a = predict_stepwise(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, impact_noise=impact_noise)
-        b = predict_fast(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, impact_noise=impact_noise)
+        a = predict_stepwise(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, **noise)
+        b = predict_fast(m, state, P0, horizon, DT, Q, lines=LINES, sample_every=6, **noise)
         assert_agree(a, b)
 
 
@@ -113,6 +116,27 @@ def test_impact_noise_adds_its_covariance_after_a_rim_impact_only():
         assert extra[2, 2] == pytest.approx(0.04 * speed2, rel=0.1)
         assert extra[3, 3] == pytest.approx(0.04 * speed2, rel=0.1)
         assert extra[5, 5] > 0.0
+
+
+
+def test_the_impact_contact_time_adds_position_uncertainty_after_a_rim_impact_only():
+    """The outgoing path of a rim impact is offset by up to the puck's travel during the contact: the
+    position variance grows by (contact time x speed)^2 at the impact (then carried on); velocity and spin
+    get nothing from it; a step without an impact gets nothing."""
+    m = model()
+    toward_rim = np.array([0.0, 0.4, 0.0, 2.0, 0.0, 5.0])
+    along = np.array([0.0, 0.0, 1.0, 0.0, 0.0, 5.0])
+    for state, impacts in ((toward_rim, True), (along, False)):
+        plain = predict_fast(m, state, P0, 0.1, DT, Q)
+        offset = predict_fast(m, state, P0, 0.1, DT, Q, impact_contact_time=0.002)
+        extra = offset.covariance - plain.covariance
+        if not impacts:
+            assert np.array_equal(extra, np.zeros((6, 6)))
+            continue
+        speed2 = float(plain.state[2] ** 2 + plain.state[3] ** 2)
+        assert extra[0, 0] == pytest.approx(0.002 ** 2 * speed2, rel=0.1)
+        assert extra[1, 1] == pytest.approx(0.002 ** 2 * speed2, rel=0.1)
+        assert np.allclose(extra[2:, 2:], 0.0, atol=1e-15)
 
 
 @pytest.mark.parametrize("accel, damping", [((0.02, -0.01), 0.125), ((-0.3, 0.5), 0.5), ((0.4, 0.0), 0.0),

@@ -77,7 +77,8 @@ def run(args: argparse.Namespace) -> int:
         while t < EPISODE:
             w0 = time.perf_counter()
             pred = predict_fast(model, state, settings.p0, HORIZON, FRAME, settings.q, sample_every=SAMPLE_EVERY,
-                                impact_noise=settings.impact_noise)
+                                impact_noise=settings.impact_noise,
+                                impact_contact_time=settings.impact_contact_time)
             w1 = time.perf_counter()
             sit = build_situation(ROBOT, t, state, [t + s[0] for s in pred.samples], np.array([s[1] for s in pred.samples]),
                                   [(t + i[0], i[2], i[3]) for i in pred.impacts])

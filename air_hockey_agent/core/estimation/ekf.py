@@ -66,6 +66,7 @@ class FilterSettings:
     r_per_speed: float = 0.0         # [s] position noise std added (in quadrature) per m/s of puck speed
     angle_gate_threshold: float = math.inf  # squared angle innovation / its variance; beyond: position only
     impact_noise: float = 0.0        # [-] velocity/spin std after a rim impact, as a fraction of their size
+    impact_contact_time: float = 0.0  # [s] position std after a rim impact, as the travel in this time
     ukf_alpha: float = 1.0           # [-] sigma-point spread (filter: ukf, mee_ukf; :mod:`.ukf`)
     ukf_beta: float = 2.0            # [-] prior-distribution term of the centre's covariance weight
     mee_kernel: float = 3.0          # [std] Gaussian kernel bandwidth of the MEE update (filter: mee_ukf)
@@ -88,6 +89,7 @@ class FilterSettings:
                    max_prediction_gap=params["max_prediction_gap"], glitch_speed=params["glitch_speed"],
                    r_per_speed=params["measurement_noise_per_speed"],
                    angle_gate_threshold=params["angle_gate_threshold"], impact_noise=params["impact_noise"],
+                   impact_contact_time=params["impact_contact_time"],
                    ukf_alpha=params["ukf.alpha"], ukf_beta=params["ukf.beta"], mee_kernel=params["mee.kernel"],
                    mee_fiducial=params["mee.fiducial"], mee_max_iterations=params["mee.max_iterations"],
                    imm_switch_probability=params["imm.switch_probability"],
@@ -241,10 +243,12 @@ class PuckEKF:
             res = self.model.step(self.x, dt)
             self.x = res.state
             p = res.jacobian @ self.P @ res.jacobian.T + q
-            self.P = with_impact_noise(p, self.x, res.impacts, self.settings.impact_noise)
+            self.P = with_impact_noise(p, self.x, res.impacts, self.settings.impact_noise,
+                                       self.settings.impact_contact_time)
         else:
             pred = predict_fast(self.model, self.x, self.P, dt, self.settings.dt, self.settings.q,
-                                impact_noise=self.settings.impact_noise)
+                                impact_noise=self.settings.impact_noise,
+                                impact_contact_time=self.settings.impact_contact_time)
             self.x, self.P = pred.state, pred.covariance
         self.stamp = t
 
@@ -397,4 +401,5 @@ class PuckEKF:
     def predict(self, horizon: float, lines: Sequence[float] = (), sample_every: int = 0) -> Prediction:
         """Prediction from the current estimate over ``horizon`` [s] (filter state unchanged)."""
         return predict_fast(self.model, self.x, self.P, horizon, self.settings.dt, self.settings.q,
-                            lines=lines, sample_every=sample_every, impact_noise=self.settings.impact_noise)
+                            lines=lines, sample_every=sample_every, impact_noise=self.settings.impact_noise,
+                            impact_contact_time=self.settings.impact_contact_time)

@@ -85,7 +85,8 @@ class PuckIMM(PuckEKF):
         """What mode ``mode`` adds to the common process noise in a step ``res`` of ``dt`` [s]: an impact's
         noise (the rim mode's larger), and for the contact mode its velocity change."""
         ratio = self.settings.imm_rim_impact_noise if mode == _RIM else self.settings.impact_noise
-        extra = impact_covariance(res.state, ratio) if res.impacts and ratio else 0.0
+        contact_time = self.settings.impact_contact_time
+        extra = impact_covariance(res.state, ratio, contact_time) if res.impacts and (ratio or contact_time) else 0.0
         return extra + self._contact_noise(dt) if mode == _CONTACT else extra
 
     def _mixed(self) -> tuple[np.ndarray, list, list]:

@@ -58,7 +58,8 @@ class PuckUKF(PuckEKF):
         spread = deviations - mean_offset
         p = (spread.T * wc) @ spread + self.settings.process_noise(points[0]) * (dt / self.settings.dt)
         self.x = x
-        self.P = with_impact_noise(0.5 * (p + p.T), x, stepped[0].impacts, self.settings.impact_noise)
+        self.P = with_impact_noise(0.5 * (p + p.T), x, stepped[0].impacts, self.settings.impact_noise,
+                                   self.settings.impact_contact_time)
         self.stamp = t
 
     def _sigma_points(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

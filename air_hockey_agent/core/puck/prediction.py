@@ -48,11 +48,14 @@ class Prediction:
     crossings: dict = field(default_factory=dict)    # line_x -> Crossing (first crossing only)
 
 
-def impact_covariance(state: np.ndarray, ratio: float) -> np.ndarray:
-    """Process noise [6x6] of a rim impact: velocity and spin uncertain by ``ratio`` of their size after it
-    (restitution and rim friction of real rims vary with the impact: issue #13)."""
+def impact_covariance(state: np.ndarray, ratio: float, contact_time: float = 0.0) -> np.ndarray:
+    """Process noise [6x6] of a rim impact, from the state after it: velocity and spin uncertain by ``ratio``
+    of their size (restitution and rim friction of real rims vary with the impact: issue #13), the position
+    by the distance the puck travels in ``contact_time`` [s] (a real rim's contact lasts milliseconds,
+    where the model's impact is instantaneous: the outgoing path is offset by up to that travel)."""
     q = np.zeros((6, 6))
     speed2 = state[2] ** 2 + state[3] ** 2
+    q[0, 0] = q[1, 1] = contact_time ** 2 * speed2
     q[2, 2] = q[3, 3] = ratio ** 2 * speed2
     q[5, 5] = ratio ** 2 * state[5] ** 2
     return q
@@ -92,7 +95,7 @@ class _Recorder:
 
 
 def _finish(model: PuckModel, rec: _Recorder, s: np.ndarray, p: np.ndarray | None, t: float, remainder: float,
-            dt: float, q: np.ndarray, impact_noise: float) -> Prediction:
+            dt: float, q: np.ndarray, impact_noise: float, contact_time: float) -> Prediction:
     """Last, shorter step of the horizon (noise scaled by its length); store the final state."""
     if remainder:
         res = model.step(s, remainder, with_jacobian=p is not None)
@@ -100,22 +103,22 @@ def _finish(model: PuckModel, rec: _Recorder, s: np.ndarray, p: np.ndarray | Non
         s = res.state
         if p is not None:
             p = with_impact_noise(res.jacobian @ p @ res.jacobian.T + q * (remainder / dt), s, res.impacts,
-                                   impact_noise)
+                                  impact_noise, contact_time)
     rec.result.state, rec.result.covariance = s, p
     return rec.result
 
 
-def with_impact_noise(p: np.ndarray, state: np.ndarray, impacts, ratio: float) -> np.ndarray:
-    """``p`` plus the impact covariance when the step had a rim impact (and ``ratio`` > 0)."""
-    return p + impact_covariance(state, ratio) if impacts and ratio else p
+def with_impact_noise(p: np.ndarray, state: np.ndarray, impacts, ratio: float, contact_time: float = 0.0) -> np.ndarray:
+    """``p`` plus the impact covariance when the step had a rim impact (and ``ratio`` or ``contact_time`` > 0)."""
+    return p + impact_covariance(state, ratio, contact_time) if impacts and (ratio or contact_time) else p
 
 
 def predict_stepwise(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horizon: float, dt: float,
                      q: np.ndarray, lines: Sequence[float] = (), sample_every: int = 0,
-                     impact_noise: float = 0.0) -> Prediction:
+                     impact_noise: float = 0.0, impact_contact_time: float = 0.0) -> Prediction:
     """Reference prediction: ``horizon`` [s] in model steps of ``dt`` [s] with per-step noise ``q`` (and
-    :func:`impact_covariance` of ``impact_noise`` after each step with a rim impact); ``cov=None``
-    propagates the mean only."""
+    :func:`impact_covariance` of ``impact_noise`` and ``impact_contact_time`` after each step with a rim
+    impact); ``cov=None`` propagates the mean only."""
     steps, remainder = _split_horizon(horizon, dt)
     rec = _Recorder(lines, sample_every)
     s, p = np.asarray(state, float), (None if cov is None else np.asarray(cov, float))
@@ -124,9 +127,10 @@ def predict_stepwise(model: PuckModel, state: np.ndarray, cov: np.ndarray | None
         rec.step(i * dt, dt, s, res.state, res.impacts)
         s = res.state
         if p is not None:
-            p = with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, s, res.impacts, impact_noise)
+            p = with_impact_noise(res.jacobian @ p @ res.jacobian.T + q, s, res.impacts, impact_noise,
+                                  impact_contact_time)
         rec.sample(i + 1, (i + 1) * dt, s, p)
-    return _finish(model, rec, s, p, steps * dt, remainder, dt, q, impact_noise)
+    return _finish(model, rec, s, p, steps * dt, remainder, dt, q, impact_noise, impact_contact_time)
 
 
 _KERNEL: list = []  # the compiled kernel module (:mod:`.prediction_kernel`), loaded by the first use
@@ -147,7 +151,8 @@ def prepare_prediction():
 
 
 def _compiled(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horizon: float, dt: float,
-              q: np.ndarray, lines: Sequence[float], sample_every: int, impact_noise: float) -> Prediction:
+              q: np.ndarray, lines: Sequence[float], sample_every: int, impact_noise: float,
+              contact_time: float) -> Prediction:
     """:func:`predict_fast` (its arguments): inputs checked, the kernel's arrays turned into a :class:`Prediction`."""
     kernel = _KERNEL[0] if _KERNEL else prepare_prediction()
     params = _KERNEL_PARAMS.get(model)
@@ -165,8 +170,8 @@ def _compiled(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horiz
     elif state.shape != (6,):
         raise ValueError(f"prediction needs a state (6,), got {state.shape}")
     final, p, impacts, crossings, samples, sample_covs = kernel.predict(
-        params, state, cov if with_cov else _NO_COVARIANCE, q if with_cov else _NO_Q, float(impact_noise), steps,
-        remainder, dt, np.array(lines, float), sample_every)
+        params, state, cov if with_cov else _NO_COVARIANCE, q if with_cov else _NO_Q, float(impact_noise),
+        float(contact_time), steps, remainder, dt, np.array(lines, float), sample_every)
     result = Prediction(final, p if with_cov else None)
     result.impacts = [(t, int(wall), x, y, sliding != 0.0) for t, wall, x, y, sliding in impacts.tolist()]
     result.samples = [(float(row[0]), row[1:], c if with_cov else None) for row, c in zip(samples, sample_covs)]
@@ -178,9 +183,10 @@ def _compiled(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horiz
 
 def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, horizon: float, dt: float,
                  q: np.ndarray, lines: Sequence[float] = (), sample_every: int = 0,
-                 impact_noise: float = 0.0) -> Prediction:
+                 impact_noise: float = 0.0, impact_contact_time: float = 0.0) -> Prediction:
     """:func:`predict_stepwise` in compiled code (:mod:`.prediction_kernel`): ``horizon`` [s] in model steps of
-    ``dt`` [s] with per-step noise ``q`` (6x6) and the impact covariance of ratio ``impact_noise``; with
+    ``dt`` [s] with per-step noise ``q`` (6x6) and the impact covariance of ratio ``impact_noise`` and contact
+    time ``impact_contact_time`` [s]; with
     ``cov=None`` the mean alone (``Prediction.covariance`` None: the tactics, the offline evaluation and system
     identification need no covariance)."""
-    return _compiled(model, state, cov, horizon, dt, q, lines, sample_every, impact_noise)
+    return _compiled(model, state, cov, horizon, dt, q, lines, sample_every, impact_noise, impact_contact_time)

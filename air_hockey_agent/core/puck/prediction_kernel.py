@@ -331,11 +331,12 @@ def _propagate_free(cov: np.ndarray, h: float, d00: float, d01: float, d10: floa
 
 
 @njit(cache=True)
-def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, impact_noise: float, steps: int,
-            remainder: float, dt: float, lines: np.ndarray, sample_every: int) -> tuple:
+def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, impact_noise: float,
+            contact_time: float, steps: int, remainder: float, dt: float, lines: np.ndarray,
+            sample_every: int) -> tuple:
     """``steps`` model steps of ``dt`` [s] from ``state`` (6) and ``cov`` (6x6, or 0x0 for the mean alone),
     then one of ``remainder`` [s] (none when 0); process noise ``q`` per step (scaled by the length of the
-    last), ``impact_noise`` the impact covariance's ratio.
+    last), ``impact_noise`` the impact covariance's ratio and ``contact_time`` [s] its position part.
 
     Returns the final state (6) and covariance (as given: 0x0 without), the impacts (rows: ``IMPACT_COLUMNS``),
     the crossings of ``lines`` (one row each: ``CROSSING_COLUMNS``), the samples every ``sample_every`` steps
@@ -385,8 +386,10 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
             elif with_cov:
                 _propagate(f, p_now, q, h / dt, tmp)
         if with_cov:
-            if count > before and impact_noise != 0.0:
-                spread = impact_noise * impact_noise
+            if count > before and (impact_noise != 0.0 or contact_time != 0.0):
+                spread, offset = impact_noise * impact_noise, contact_time * contact_time
+                p_now[0, 0] += offset * (vx * vx + vy * vy)
+                p_now[1, 1] += offset * (vx * vx + vy * vy)
                 p_now[2, 2] += spread * (vx * vx + vy * vy)
                 p_now[3, 3] += spread * (vx * vx + vy * vy)
                 p_now[5, 5] += spread * om * om
@@ -406,4 +409,4 @@ def warm_up() -> None:
     p = np.array([0.9, 0.1, 0.1, 0.5, 0.5, 0.0, 0.1, 0.01, 0.0, 0.01, 0.9, 0.5, 0.1, 0.03])
     state, q = np.array([0.0, 0.0, 3.0, 2.0, 0.0, 1.0]), np.eye(6)
     for cov in (np.empty((0, 0)), np.eye(6)):
-        predict(p, state, cov, q, 0.1, 2, 0.005, 0.01, np.array([0.0]), 1)
+        predict(p, state, cov, q, 0.1, 0.001, 2, 0.005, 0.01, np.array([0.0]), 1)
