@@ -234,6 +234,8 @@ def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     assert all((plots / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" for name in names)
     assert report["method"] == "split" and set(report["identified"]) == set(SPLIT_IDENTIFIABLE)
     assert report["objective"]["flight"]["windows"] > 0 and report["objective"]["impacts"]["impacts"] > 0
+    spin = report["objective"]["flight"]["spin_decay"]  # the test bed's spin is constant in flight, as the model's
+    assert abs(spin["rate_per_s"]) < 3 * spin["std_per_s"] + 0.01 and spin["windows"] > 20
     assert report["after"]["validation"]["loss_m"] < report["before"]["validation"]["loss_m"]
     assert len(report["identified"]["table_acceleration"]) == 2
     text = out.read_text()
@@ -270,3 +272,17 @@ def test_cli_split_errors_are_one_line(tmp_path):
     run = cli("sysid", bag, "--method", "split", "--params-file", few)
     assert run.returncode == 2 and "usable rim impacts: too few to identify" in run.stderr
     assert "Traceback" not in run.stderr
+
+
+def test_the_spin_decay_check_finds_a_known_rate_and_drops_outliers():
+    """Windows whose spin rate is -0.3 w plus the noise their angle fits carry, and a few a hand moved:
+    the rate comes back within its error, the hand's windows dropped; spinless windows give no rate."""
+    from air_hockey_agent.core.identification.spin_fit import fit_spin_decay
+    rng = np.random.default_rng(3)
+    gain, angle_variance = 500.0, 9.05e-5  # wdot std sqrt(gain * variance) = 0.21 rad/s^2
+    windows = [(w, -0.3 * w + rng.normal(0.0, math.sqrt(gain * angle_variance)), gain)
+               for w in rng.uniform(-15.0, 15.0, 300)]
+    windows += [(5.0, 40.0, gain)] * 5
+    decay = fit_spin_decay(windows, angle_variance, 3.0)
+    assert decay.dropped >= 5 and abs(decay.rate - 0.3) < 3 * decay.std and decay.std < 0.01
+    assert fit_spin_decay([(0.0, 0.1, gain)] * 10, angle_variance, 3.0) is None

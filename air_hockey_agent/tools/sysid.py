@@ -223,6 +223,10 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
             objective["flight"]["field"] = {"cells": c.cells, "largest_m_s2": c.largest, "f_statistic": c.f_statistic,
                                             "p_value": c.p_value,
                                             "varies": c.p_value < settings["split.field_significance"]}
+        if split.spin is not None:
+            s = split.spin
+            objective["flight"]["spin_decay"] = {"rate_per_s": s.rate, "std_per_s": s.std, "windows": s.windows,
+                                                 "dropped": s.dropped, "rms_spin_rad_s": s.rms_spin}
     if split.impacts is not None:
         i = split.impacts
         objective["impacts"] = {"impacts": i.impacts, "dropped": i.dropped, "rms_normal_speed_m_s": i.rms_normal,
@@ -385,6 +389,8 @@ def _format_split(result: dict, out: Path | None) -> str:
                      f"{f['rms_acceleration_m_s2']:.4f} m/s^2")
         if "field" in f:
             lines.append(_field_text(f["field"]))
+        if "spin_decay" in f:
+            lines.append(_spin_text(f["spin_decay"]))
     if "impacts" in o:
         i = o["impacts"]
         lines.append(f"impact fit: {i['impacts']} impacts ({i['dropped']} dropped), residual RMS normal "
@@ -415,6 +421,17 @@ def _field_text(field: dict) -> str:
         return (f"warning: the free flight's acceleration varies over the table ({where}): an uneven air film "
                 f"or a warped surface, which the constant table_acceleration cannot hold")
     return f"table acceleration field: none shown ({where}): the constant table_acceleration suffices"
+
+
+def _spin_text(spin: dict) -> str:
+    """One line on the spin check: does the spin decay in free flight (the model keeps it constant)?"""
+    rate, std = spin["rate_per_s"], spin["std_per_s"]
+    seen = (f"{rate:.3f} +- {std:.3f} 1/s over {spin['windows']} windows ({spin['dropped']} dropped, RMS spin "
+            f"{spin['rms_spin_rad_s']:.2f} rad/s)")
+    if abs(rate) > 3.0 * std:
+        return (f"note: the spin decays in free flight at {seen}, where the model keeps it constant: the angle's "
+                f"innovations grow with it")
+    return f"spin decay: none shown ({seen}): the model's constant spin holds"
 
 
 def _value_text(value) -> str:

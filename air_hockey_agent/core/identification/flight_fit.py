@@ -85,9 +85,14 @@ class FieldCheck:
 
 def flight_windows(traj: GridTrajectory, table: TableGeometry, settings: FlightSettings) -> list[LocalFit]:
     """Quadratic fits of the trajectory's windows that lie inside the rim margin and move fast enough."""
+    return [fit for _, fit in free_flight_windows(traj, table, settings)]
+
+
+def free_flight_windows(traj: GridTrajectory, table: TableGeometry, settings: FlightSettings):
+    """(rows, quadratic fit of their positions) of each window of the trajectory inside the rim margin,
+    covered enough and moving at least ``min_speed``."""
     rows_per_window = max(5, int(round(settings.window / traj.dt)) + 1)
     hop = max(1, rows_per_window // 2)
-    fits = []
     for start in range(0, len(traj) - rows_per_window + 1, hop):
         rows = rows_in(traj.z, start, start + rows_per_window)
         if len(rows) < settings.min_coverage * rows_per_window:
@@ -98,8 +103,7 @@ def flight_windows(traj: GridTrajectory, table: TableGeometry, settings: FlightS
         times = rows * traj.dt
         fit = fit_positions(times, xy, float(np.mean(times)), 2)
         if fit is not None and math.hypot(*fit.v) >= settings.min_speed:
-            fits.append(fit)
-    return fits
+            yield rows, fit
 
 
 def _closest_to_rims(table: TableGeometry, xy: np.ndarray) -> float:

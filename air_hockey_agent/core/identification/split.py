@@ -18,6 +18,7 @@ from air_hockey_agent.core.identification.flight_fit import (FieldCheck, FlightF
                                                            field_check, flight_law, identify_flight)
 from air_hockey_agent.core.identification.impact_fit import ImpactFit, ImpactSettings, find_impacts, fit_impacts
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
+from air_hockey_agent.core.identification.spin_fit import SpinDecay, fit_spin_decay, spin_windows
 from air_hockey_agent.core.table import TableGeometry
 
 FLIGHT = ("damping", "friction_surface", "table_acceleration")
@@ -34,6 +35,7 @@ class SplitResult:
     flight: FlightFit | None
     impacts: ImpactFit | None
     field: FieldCheck | None = None  # whether the free flight's acceleration varies over the table
+    spin: SpinDecay | None = None    # whether the spin decays in free flight (the model keeps it constant)
 
 
 def flight_settings(settings: Mapping[str, Any]) -> FlightSettings:
@@ -62,7 +64,7 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
     flight_values = {"damping": tracker["damping"], "friction_surface": tracker["friction_surface"],
                      AXES[0]: tracker["table_acceleration"][0], AXES[1]: tracker["table_acceleration"][1]}
     identified, std = {}, {}
-    flight = field = None
+    flight = field = spin = None
     if any(n in FLIGHT for n in names):
         fixed = {k: v for k, v in flight_values.items()
                  if (k in AXES and "table_acceleration" not in names) or (k not in AXES and k not in names)}
@@ -72,6 +74,8 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
         flight_values = flight.values
         _collect(flight.values, flight.std, names, identified, std)
         field = field_check(flight, table, settings["split.field_grid"], settings["split.field_min_windows"])
+        spin = fit_spin_decay(spin_windows(trajectories, table, flight_settings(settings)),
+                              tracker["measurement_noise"][2], settings["split.outlier_factor"])
     impacts = None
     if any(n in IMPACT for n in names):
         fixed = {n: tracker[n] for n in IMPACT if n not in names}
@@ -80,7 +84,7 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
         found = [o for traj in trajectories for o in find_impacts(traj, table, law, noise, chosen)]
         impacts = fit_impacts(found, table.puck_radius, fixed, bounds, chosen, {n: tracker[n] for n in IMPACT})
         _collect(impacts.values, {}, names, identified, std)
-    return SplitResult(identified, std, flight, impacts, field)
+    return SplitResult(identified, std, flight, impacts, field, spin)
 
 
 def _collect(values: Mapping[str, float], errors: Mapping[str, float], names: Sequence[str], identified: dict,
