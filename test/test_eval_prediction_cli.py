@@ -188,3 +188,7 @@ def test_synth_bag_from_the_mujoco_table(tmp_path):
     out = cli("synth-bag", tmp_path / "mj2", "--source", "mujoco", "--params-file", bad)
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
     assert "mujoco.rim_solimp" in out.stderr and not (tmp_path / "mj2").exists()
+    bad.write_text("/**/synth_bag:\n  ros__parameters:\n    mujoco:\n      rim_solimp: [2.0, 0.95, 0.001, 0.5, 2]\n")
+    out = cli("synth-bag", tmp_path / "mj2", "--source", "mujoco", "--params-file", bad)  # MuJoCo would clamp it
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1
+    assert "dmin and dmax in (0, 1)" in out.stderr and not (tmp_path / "mj2").exists()

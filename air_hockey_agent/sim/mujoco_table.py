@@ -56,6 +56,13 @@ class MujocoTable:
     rim_solimp: tuple            # MuJoCo solimp of the rim contact (dmin, dmax, width [m], midpoint, power)
     rim_friction: float          # [-] sliding friction of the rim contact
 
+    def __post_init__(self) -> None:
+        """MuJoCo clamps a solimp out of its ranges without a word: refuse it instead (ValueError)."""
+        dmin, dmax, width, midpoint, power = self.rim_solimp
+        if not (0.0 < dmin < 1.0 and 0.0 < dmax < 1.0 and width > 0.0 and 0.0 < midpoint < 1.0 and power >= 1.0):
+            raise ValueError(f"parameter 'mujoco.rim_solimp' = {list(self.rim_solimp)} is not MuJoCo's solimp "
+                             "(dmin and dmax in (0, 1), width > 0 [m], midpoint in (0, 1), power >= 1)")
+
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "mujoco.") -> "MujocoTable":
         """From parameters named ``<prefix><field>`` (e.g. ``mujoco.damping``)."""

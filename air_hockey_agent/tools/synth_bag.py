@@ -111,6 +111,13 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if args.shots is not None:
         session["shots"] = SESSION_PARAMS[0].check(args.shots)
+    if args.source == "mujoco":  # checked before the (possibly long) session; imported here: only it needs MuJoCo
+        from air_hockey_agent.sim.mujoco_table import MujocoTable
+        try:
+            MujocoTable.from_params(session)
+        except ValueError as exc:
+            print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
+            return 2
     model = PuckEKF.from_params(tracker).model
     shots = ShotRanges(tuple(session["speed"]), tuple(session["spin"]), session["shot_duration"], session["pause"])
     try:  # before the (possibly long) session: an existing OUT is refused at once
