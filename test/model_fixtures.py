@@ -42,11 +42,16 @@ def session_on_mujoco(ekf, shots: int, seed: int):
         MujocoTable.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"], rng))
 
 
-def _session(ekf, shots: int, seed: int, source):
-    from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
+def synthetic_config() -> dict:
+    """config/synthetic.yaml's session parameters, as synth-bag reads them."""
     from air_hockey_agent.params import load_node_params
     from air_hockey_agent.tools.synth_bag import SESSION_PARAMS
-    cfg = load_node_params(["synthetic.yaml"], "/synth_bag", SESSION_PARAMS, [])
+    return load_node_params(["synthetic.yaml"], "/synth_bag", SESSION_PARAMS, [])
+
+
+def _session(ekf, shots: int, seed: int, source):
+    from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
+    cfg = synthetic_config()
     ranges = ShotRanges(tuple(cfg["speed"]), tuple(cfg["spin"]), cfg["shot_duration"], cfg["pause"])
     simulate = source(cfg, np.random.default_rng([seed, 1]))
     return synthetic_session(ekf.model, ranges, shots, cfg["rate"], MocapImperfections.from_params(cfg),

@@ -15,17 +15,9 @@ from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evalua
 from air_hockey_agent.core.puck.impact import speed_restitution
 from air_hockey_agent.sim.mujoco_table import MujocoPuck, MujocoTable
 from air_hockey_agent.tracker_params import load_tracker_params
-from model_fixtures import TABLE, session_on_mujoco
+from model_fixtures import TABLE, session_on_mujoco, synthetic_config
 
-
-
-def _mujoco_config():
-    from air_hockey_agent.params import load_node_params
-    from air_hockey_agent.tools.synth_bag import SESSION_PARAMS
-    return load_node_params(["synthetic.yaml"], "/synth_bag", SESSION_PARAMS, [])
-
-
-CONFIGURED = MujocoTable.from_params(_mujoco_config())
+CONFIGURED = MujocoTable.from_params(synthetic_config())
 FLAT = replace(CONFIGURED, tilt=0.0)
 R = TABLE.puck_radius
 

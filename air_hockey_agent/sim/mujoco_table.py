@@ -66,9 +66,8 @@ class MujocoTable:
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "mujoco.") -> "MujocoTable":
         """From parameters named ``<prefix><field>`` (e.g. ``mujoco.damping``)."""
-        values = {f.name: params[prefix + f.name] for f in fields(cls)}
-        values["rim_solimp"] = tuple(float(v) for v in values["rim_solimp"])
-        return cls(**{k: (v if k == "rim_solimp" else float(v)) for k, v in values.items()})
+        scalars = {f.name: float(params[prefix + f.name]) for f in fields(cls) if f.name != "rim_solimp"}
+        return cls(rim_solimp=tuple(float(v) for v in params[prefix + "rim_solimp"]), **scalars)
 
     @property
     def tilt_acceleration(self) -> np.ndarray:

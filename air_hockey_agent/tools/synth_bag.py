@@ -111,10 +111,11 @@ def run(args: argparse.Namespace) -> int:
         return 2
     if args.shots is not None:
         session["shots"] = SESSION_PARAMS[0].check(args.shots)
+    mujoco_physics = None
     if args.source == "mujoco":  # checked before the (possibly long) session; imported here: only it needs MuJoCo
         from air_hockey_agent.sim.mujoco_table import MujocoTable
         try:
-            MujocoTable.from_params(session)
+            mujoco_physics = MujocoTable.from_params(session)
         except ValueError as exc:
             print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
             return 2
@@ -126,7 +127,7 @@ def run(args: argparse.Namespace) -> int:
     except BagExistsError as exc:
         print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
         return 2
-    with _truth_source(args.source, args.params_file, session, model.table, args.seed) as simulate:
+    with _truth_source(args.source, args.params_file, session, model.table, args.seed, mujoco_physics) as simulate:
         frames = synthetic_session(model, shots, session["shots"], session["rate"],
                                    MocapImperfections.from_params(session), np.random.default_rng(args.seed),
                                    session["fine_dt"], simulate)
@@ -145,10 +146,11 @@ def run(args: argparse.Namespace) -> int:
 
 
 @contextlib.contextmanager
-def _truth_source(source: str, params_files, session, table, seed: int):
+def _truth_source(source: str, params_files, session, table, seed: int, mujoco_physics=None):
     """None for the puck model (synthetic_session's default), the test bed's shot simulator, the MuJoCo
-    table's (human hits after ``testbed.hit_delay`` as on the test bed), or one on the pybullet table
-    without robots (imported here: pybullet prints a banner when loaded)."""
+    table's (``mujoco_physics``, checked by the caller; human hits after ``testbed.hit_delay`` as on the
+    test bed), or one on the pybullet table without robots (imported here: pybullet prints a banner when
+    loaded)."""
     if source == "model":
         yield None
         return
@@ -157,9 +159,8 @@ def _truth_source(source: str, params_files, session, table, seed: int):
                             session["fine_dt"], np.random.default_rng([seed, 1]))
         return
     if source == "mujoco":  # imported here: only this source needs the engine
-        from air_hockey_agent.sim.mujoco_table import MujocoTable, mujoco_shots
-        yield mujoco_shots(MujocoTable.from_params(session), table, session["testbed.hit_delay"],
-                           np.random.default_rng([seed, 1]))
+        from air_hockey_agent.sim.mujoco_table import mujoco_shots
+        yield mujoco_shots(mujoco_physics, table, session["testbed.hit_delay"], np.random.default_rng([seed, 1]))
         return
     from air_hockey_agent.sim.params import load_sim_params
     from air_hockey_agent.sim.world import SimSettings, TableWorld, simulate_shot

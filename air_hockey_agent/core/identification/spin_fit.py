@@ -59,9 +59,10 @@ def fit_spin_decay(windows: Sequence[tuple[float, float, float]], angle_variance
     w, wdot, gain = (np.array(c, float) for c in zip(*windows))
     weight = 1.0 / (gain * angle_variance)
     rate = _rate(w, wdot, weight)  # all windows, then without the outlying residuals
-    keep = smooth_fits(np.abs(wdot + rate * w) * np.sqrt(weight), outlier_factor) if rate is not None else None
-    rate = None if keep is None else _rate(w[keep], wdot[keep], weight[keep])
-    n = 0 if keep is None else int(keep.sum())
+    if rate is None:
+        return None
+    keep = smooth_fits(np.abs(wdot + rate * w) * np.sqrt(weight), outlier_factor)
+    rate, n = _rate(w[keep], wdot[keep], weight[keep]), int(keep.sum())
     if rate is None or n < 2:
         return None
     information = float(np.sum(weight[keep] * w[keep] ** 2))

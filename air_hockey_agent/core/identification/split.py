@@ -69,12 +69,13 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
         fixed = {k: v for k, v in flight_values.items()
                  if (k in AXES and "table_acceleration" not in names) or (k not in AXES and k not in names)}
         axis_bounds = {axis: bounds.get("table_acceleration", (-np.inf, np.inf)) for axis in AXES}
-        flight = identify_flight(trajectories, table, noise, flight_settings(settings), fixed,
+        windows = flight_settings(settings)
+        flight = identify_flight(trajectories, table, noise, windows, fixed,
                                  {**bounds, **axis_bounds})
         flight_values = flight.values
         _collect(flight.values, flight.std, names, identified, std)
         field = field_check(flight, table, settings["split.field_grid"], settings["split.field_min_windows"])
-        spin = fit_spin_decay(spin_windows(trajectories, table, flight_settings(settings)),
+        spin = fit_spin_decay(spin_windows(trajectories, table, windows),
                               tracker["measurement_noise"][2], settings["split.outlier_factor"])
     impacts = None
     if any(n in IMPACT for n in names):

@@ -387,11 +387,11 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
                 _propagate(f, p_now, q, h / dt, tmp)
         if with_cov:
             if count > before and (impact_noise != 0.0 or contact_time != 0.0):
-                spread, offset = impact_noise * impact_noise, contact_time * contact_time
-                p_now[0, 0] += offset * (vx * vx + vy * vy)
-                p_now[1, 1] += offset * (vx * vx + vy * vy)
-                p_now[2, 2] += spread * (vx * vx + vy * vy)
-                p_now[3, 3] += spread * (vx * vx + vy * vy)
+                spread, offset, speed2 = impact_noise * impact_noise, contact_time * contact_time, vx * vx + vy * vy
+                p_now[0, 0] += offset * speed2
+                p_now[1, 1] += offset * speed2
+                p_now[2, 2] += spread * speed2
+                p_now[3, 3] += spread * speed2
                 p_now[5, 5] += spread * om * om
         _cross(crossings, lines, i * dt, h, x0, y0, vx0, vy0, x, y)
         if sample_every > 0 and i < steps and (i + 1) % sample_every == 0:
