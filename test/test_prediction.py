@@ -58,7 +58,8 @@ def test_fast_prediction_agrees_with_stepwise(friction, impact_noise, contact_ti
 @pytest.mark.parametrize("physics", [{}, {"friction_surface": 0.0},
                                      {"restitution_slope": 0.2, "restitution_min": 0.6, "restitution_knee": 0.5,
                                       "tangential_restitution": -0.6, "friction_rim": 0.3},
-                                     {"friction_surface": 0.01, "damping": 0.12, "table_acceleration": (0.02, -0.03)}])
+                                     {"friction_surface": 0.01, "damping": 0.12, "table_acceleration": (0.02, -0.03)},
+                                     {"spin_damping": 0.4, "tangential_restitution": -0.5}])
 def test_the_compiled_mean_is_the_stepwise_mean(physics):
     """Without a covariance predict_fast takes the model's own steps in compiled code (prediction_kernel): the same
     states, rim impacts (rim, time, contact point, sliding or not), samples and line crossings as the Python
@@ -152,6 +153,23 @@ def test_fast_prediction_on_a_tilted_table_agrees_with_stepwise(accel, damping):
             b = predict_fast(m, state, cov, horizon, DT, Q, lines=LINES, sample_every=every, impact_noise=0.15)
             assert_agree(a, b)
         assert np.linalg.norm(b.state[:2] - predict_fast(flat, state, None, horizon, DT, Q).state[:2]) > 1e-4
+
+
+@pytest.mark.parametrize("physics", [{"spin_damping": 0.4}, {"spin_damping": 2.0, "table_acceleration": (0.02, -0.01)},
+                                     {"spin_damping": 0.4, "friction_surface": 0.0}])
+def test_fast_prediction_with_spin_damping_agrees_with_stepwise(physics):
+    """The spin's decay in both of the kernel's paths (the glide of a flat table, the full step), with the
+    covariance (its spin row and column scaled by the decay), samples and impacts."""
+    m = model(**physics)
+    for state, horizon in random_states(60, seed=17):
+        for cov, every in ((P0, 6), (None, 6), (P0, 0)):
+            a = predict_stepwise(m, state, cov, horizon, DT, Q, lines=LINES, sample_every=every, impact_noise=0.15,
+                                 impact_contact_time=0.001)
+            b = predict_fast(m, state, cov, horizon, DT, Q, lines=LINES, sample_every=every, impact_noise=0.15,
+                             impact_contact_time=0.001)
+            assert_agree(a, b)
+    slow = predict_fast(m, np.array([0.0, 0.0, 0.05, 0.02, 0.0, 5.0]), P0, 1.0, DT, Q)  # no rim within 1 s
+    assert not slow.impacts and slow.state[5] == pytest.approx(5.0 * (1 - DT * physics["spin_damping"]) ** 120)
 
 
 def test_a_puck_at_rest_on_a_tilted_table_slides_downhill_into_the_rim():

@@ -35,6 +35,21 @@ def test_free_motion_matches_closed_form_without_friction():
     assert s[4] == pytest.approx(wrap_angle(3.0 * n * DT))
 
 
+def test_spin_decays_at_its_rate_and_the_angle_follows_the_sum_of_the_spins():
+    """omega_n = b^n omega_0 with b = 1 - dt k; the angle advances by dt omega before each decay, so it is
+    dt omega_0 (1 - b^n) / (1 - b); position and velocity are the spinless model's."""
+    k, om0, n = 0.4, 6.0, 90
+    m, spinless = model(spin_damping=k), model()
+    s = t = np.array([-0.5, 0.0, 1.0, 0.2, 0.0, om0])
+    for _ in range(n):
+        s, t = m.step(s, DT).state, spinless.step(t, DT).state
+    b = 1 - DT * k
+    assert s[5] == pytest.approx(om0 * b ** n, rel=1e-12)
+    assert s[4] == pytest.approx(wrap_angle(DT * om0 * (1 - b ** n) / (1 - b)), abs=1e-10)
+    assert np.array_equal(s[:4], t[:4])
+    assert s[5] == pytest.approx(om0 * math.exp(-k * n * DT), rel=1e-3)  # the continuous decay, to the step's order
+
+
 def test_surface_friction_decelerates_along_the_velocity_and_stops_the_puck():
     m = model(damping=0.0, friction_surface=0.5)
     s = np.array([0.0, 0.0, 0.03, 0.04, 0.0, 0.0])  # 0.05 m/s
@@ -93,18 +108,19 @@ def test_impact_on_each_rim_with_each_branch(name):
     assert nx * res.state[2] + ny * res.state[3] > 0  # moving away from the rim afterwards
 
 
-@pytest.mark.parametrize("slope,accel,beta,knee", [(0.0, (0.0, 0.0), 0.0, 0.0), (0.15, (0.0, 0.0), 0.0, 0.0),
-                                                   (0.15, (0.0, 0.0), 0.0, 1.1), (0.0, (0.03, -0.02), 0.0, 0.0),
-                                                   (0.0, (0.0, 0.0), -0.6, 0.0)],
+@pytest.mark.parametrize("slope,accel,beta,knee,spin", [
+    (0.0, (0.0, 0.0), 0.0, 0.0, 0.0), (0.15, (0.0, 0.0), 0.0, 0.0, 0.0), (0.15, (0.0, 0.0), 0.0, 1.1, 0.0),
+    (0.0, (0.03, -0.02), 0.0, 0.0, 0.0), (0.0, (0.0, 0.0), -0.6, 0.0, 0.0), (0.0, (0.0, 0.0), 0.0, 0.0, 0.4)],
                          ids=["constant e", "e falls with speed", "e falls beyond a knee", "tilted table",
-                              "soft tangential impulse"])
+                              "soft tangential impulse", "spin decays"])
 @pytest.mark.parametrize("name", list(IMPACT_CASES) + ["free", "corner", "goal"])
-def test_step_jacobian_matches_central_finite_differences(name, slope, accel, beta, knee):
+def test_step_jacobian_matches_central_finite_differences(name, slope, accel, beta, knee, spin):
     states = {"free": np.array([0.1, 0.2, 1.0, 0.5, 0.3, 2.0]),
               "corner": np.array([X - 0.004, Y - 0.007, 1.0, 1.3, 0.1, 5.0]),
               "goal": np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0])}
     state = states.get(name, IMPACT_CASES.get(name, (None,))[0])
-    m = model(restitution_slope=slope, table_acceleration=accel, tangential_restitution=beta, restitution_knee=knee)
+    m = model(restitution_slope=slope, table_acceleration=accel, tangential_restitution=beta, restitution_knee=knee,
+              spin_damping=spin)
     assert np.allclose(m.step(state, DT).jacobian, finite_difference_jacobian(m, state, DT), atol=2e-6)
 
 
@@ -134,3 +150,5 @@ def test_invalid_parameters_are_refused_with_the_name():
         model(restitution_knee=-0.5)
     with pytest.raises(ValueError, match=r"tangential_restitution must be in \[-1, 1\]"):
         model(tangential_restitution=-1.5)
+    with pytest.raises(ValueError, match="spin_damping must be >= 0"):
+        model(spin_damping=-0.1)

@@ -236,6 +236,7 @@ def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     assert report["objective"]["flight"]["windows"] > 0 and report["objective"]["impacts"]["impacts"] > 0
     spin = report["objective"]["flight"]["spin_decay"]  # the test bed's spin is constant in flight, as the model's
     assert abs(spin["rate_per_s"]) < 3 * spin["std_per_s"] + 0.01 and spin["windows"] > 20
+    assert 0.0 <= report["identified"]["spin_damping"] == max(0.0, spin["rate_per_s"])  # its bounds: [0, 5]
     assert report["after"]["validation"]["loss_m"] < report["before"]["validation"]["loss_m"]
     assert len(report["identified"]["table_acceleration"]) == 2
     text = out.read_text()
@@ -250,7 +251,7 @@ def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     assert "flight fit:" in text_run.stdout and "impact fit:" in text_run.stdout and "polish: " in text_run.stdout
     polished = json.loads(cli("sysid", bag, "--method", "split", "--polish", 4, "--json").stdout)["objective"]["polish"]
     assert polished["evaluations"] >= 4 and polished["final_m"] <= polished["initial_m"]
-    assert "table_acceleration" not in polished["values"]  # stays as fitted
+    assert "table_acceleration" not in polished["values"] and "spin_damping" not in polished["values"]  # as fitted
 
 
 def test_cli_split_errors_are_one_line(tmp_path):
@@ -259,11 +260,15 @@ def test_cli_split_errors_are_one_line(tmp_path):
     for args, message in (
             (("--method", "hebo", "--identify", "table_acceleration"),
              "--identify table_acceleration: only --method split identifies it"),
+            (("--method", "hebo", "--identify", "damping", "spin_damping"),
+             "--identify spin_damping: only --method split identifies it"),
             (("--cross-validate",), "--cross-validate: only with --method hebo"),
             (("--batch", "3"), "--batch: only with --method hebo"),
             (("--method", "hebo", "--plot", tmp_path), "--plot: only with --method split"),
             (("--method", "split", "--plot", bag / "metadata.yaml"), "is a file; it names the directory"),
-            (("--method", "split", "--identify", "table_acceleration", "--polish", "3"), "--polish: nothing to polish")):
+            (("--method", "split", "--identify", "table_acceleration", "--polish", "3"), "--polish: nothing to polish"),
+            (("--method", "split", "--identify", "spin_damping", "table_acceleration", "--polish", "3"),
+             "they stay as fitted")):
         run = cli("sysid", bag, *args)
         assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
         assert len(run.stderr.strip().splitlines()) == 1

@@ -64,8 +64,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
     parser.add_argument("--identify", nargs="+", choices=SPLIT_IDENTIFIABLE, metavar="NAME",
-                        help="parameters to identify (default: hebo the thesis's four, split all nine; "
-                             "table_acceleration only with --method split; also restitution_slope, "
+                        help="parameters to identify (default: hebo the thesis's four, split all ten; "
+                             "table_acceleration and spin_damping only with --method split; also restitution_slope, "
                              "the rims' loss with impact speed); choices: " + ", ".join(IDENTIFIABLE))
     parser.add_argument("--polish", type=count(0), metavar="EVALUATIONS",
                         help="then a Nelder-Mead polish of the scalar parameters on the prediction loss at "
@@ -118,13 +118,19 @@ class _Objective:
                 for i in range(len(candidates))]
 
 
+# split's fits the polish leaves alone: the table acceleration (two axes, fitted from every window) and the
+# spin's decay (the position loss hardly depends on it)
+UNPOLISHED = ("table_acceleration", "spin_damping")
+
+
 def _chosen_names(args: argparse.Namespace) -> tuple[list[str], str]:
     """Parameters to identify (as given, without repeats) and a one-line error ('' when fine)."""
     if args.identify is None:
         return list(PHYSICAL if args.method == "hebo" else SPLIT_IDENTIFIABLE), ""
     names = list(dict.fromkeys(args.identify))
-    if args.method == "hebo" and any(n not in IDENTIFIABLE for n in names):
-        return names, "--identify table_acceleration: only --method split identifies it"
+    split_only = [n for n in names if n not in IDENTIFIABLE]
+    if args.method == "hebo" and split_only:
+        return names, f"--identify {split_only[0]}: only --method split identifies it"
     return names, ""
 
 
@@ -142,8 +148,9 @@ def run(args: argparse.Namespace) -> int:
         problem = "--plot: only with --method split (`air-hockey plot` shows HEBO's predictions)"
     if not problem and args.plot is not None and args.plot.exists() and not args.plot.is_dir():
         problem = f"--plot {args.plot} is a file; it names the directory the PNGs are written to"
-    if not problem and args.polish and names == ["table_acceleration"]:
-        problem = "--polish: nothing to polish (--identify table_acceleration alone: it stays as fitted)"
+    if not problem and args.polish and all(n in UNPOLISHED for n in names):
+        problem = (f"--polish: nothing to polish (--identify {' '.join(names)}: "
+                   f"{'it stays' if len(names) == 1 else 'they stay'} as fitted)")
     if problem:
         return report_error(PROG, problem)
     args.identify = names
@@ -250,8 +257,8 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
 
 def _polish_split(args, tracker: dict, settings: dict, train: list, split_values: dict) -> dict:
     """Nelder-Mead on the training set's position loss at --horizon from the split result, over its
-    scalar parameters (the table acceleration stays as fitted)."""
-    names = [n for n in split_values if n != "table_acceleration"]
+    parameters but ``UNPOLISHED`` (they stay as fitted)."""
+    names = [n for n in split_values if n not in UNPOLISHED]
     box = bounds(settings, names)
     start = {n: float(min(max(split_values[n], box[n][0]), box[n][1])) for n in names}
     _WORK.update(tracker={**tracker, **split_values}, trajectories=train, loss="position", stride=settings["stride"])
@@ -390,7 +397,7 @@ def _format_split(result: dict, out: Path | None) -> str:
         if "field" in f:
             lines.append(_field_text(f["field"]))
         if "spin_decay" in f:
-            lines.append(_spin_text(f["spin_decay"]))
+            lines.append(_spin_text(f["spin_decay"], "spin_damping" in result["identified"]))
     if "impacts" in o:
         i = o["impacts"]
         lines.append(f"impact fit: {i['impacts']} impacts ({i['dropped']} dropped), residual RMS normal "
@@ -423,15 +430,17 @@ def _field_text(field: dict) -> str:
     return f"table acceleration field: none shown ({where}): the constant table_acceleration suffices"
 
 
-def _spin_text(spin: dict) -> str:
-    """One line on the spin check: does the spin decay in free flight (the model keeps it constant)?"""
+def _spin_text(spin: dict, identified: bool) -> str:
+    """One line on the spin's decay in free flight (spin_damping's fit), and whether it was identified."""
     rate, std = spin["rate_per_s"], spin["std_per_s"]
     seen = (f"{rate:.3f} +- {std:.3f} 1/s over {spin['windows']} windows ({spin['dropped']} dropped, RMS spin "
             f"{spin['rms_spin_rad_s']:.2f} rad/s)")
-    if abs(rate) > 3.0 * std:
-        return (f"note: the spin decays in free flight at {seen}, where the model keeps it constant: the angle's "
-                f"innovations grow with it")
-    return f"spin decay: none shown ({seen}): the model's constant spin holds"
+    if abs(rate) <= 3.0 * std:
+        return f"spin decay: none shown ({seen}): a constant spin holds"
+    if identified:
+        return f"spin decay: the spin decays in free flight at {seen}: spin_damping identified"
+    return (f"note: the spin decays in free flight at {seen}; spin_damping was not identified (--identify "
+            f"spin_damping): the angle's innovations grow with it")
 
 
 def _value_text(value) -> str:

@@ -22,9 +22,10 @@ from air_hockey_agent.core.identification.spin_fit import SpinDecay, fit_spin_de
 from air_hockey_agent.core.table import TableGeometry
 
 FLIGHT = ("damping", "friction_surface", "table_acceleration")
+SPIN = ("spin_damping",)  # from the angles of the flight fit's windows (:mod:`.spin_fit`)
 IMPACT = ("restitution", "restitution_slope", "restitution_min", "restitution_knee", "friction_rim",
           "tangential_restitution")
-SPLIT_IDENTIFIABLE = FLIGHT + IMPACT
+SPLIT_IDENTIFIABLE = FLIGHT + SPIN + IMPACT
 AXES = ("table_acceleration_x", "table_acceleration_y")
 
 
@@ -35,7 +36,7 @@ class SplitResult:
     flight: FlightFit | None
     impacts: ImpactFit | None
     field: FieldCheck | None = None  # whether the free flight's acceleration varies over the table
-    spin: SpinDecay | None = None    # whether the spin decays in free flight (the model keeps it constant)
+    spin: SpinDecay | None = None    # the spin's decay in free flight (spin_damping's fit)
 
 
 def flight_settings(settings: Mapping[str, Any]) -> FlightSettings:
@@ -65,18 +66,22 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
                      AXES[0]: tracker["table_acceleration"][0], AXES[1]: tracker["table_acceleration"][1]}
     identified, std = {}, {}
     flight = field = spin = None
+    windows = flight_settings(settings)
     if any(n in FLIGHT for n in names):
         fixed = {k: v for k, v in flight_values.items()
                  if (k in AXES and "table_acceleration" not in names) or (k not in AXES and k not in names)}
         axis_bounds = {axis: bounds.get("table_acceleration", (-np.inf, np.inf)) for axis in AXES}
-        windows = flight_settings(settings)
         flight = identify_flight(trajectories, table, noise, windows, fixed,
                                  {**bounds, **axis_bounds})
         flight_values = flight.values
         _collect(flight.values, flight.std, names, identified, std)
         field = field_check(flight, table, settings["split.field_grid"], settings["split.field_min_windows"])
+    if any(n in FLIGHT + SPIN for n in names):
         spin = fit_spin_decay(spin_windows(trajectories, table, windows),
                               tracker["measurement_noise"][2], settings["split.outlier_factor"])
+    if "spin_damping" in names and spin is not None:  # without spinning windows it stays as configured
+        low, high = bounds["spin_damping"]
+        identified["spin_damping"], std["spin_damping"] = float(min(max(spin.rate, low), high)), spin.std
     impacts = None
     if any(n in IMPACT for n in names):
         fixed = {n: tracker[n] for n in IMPACT if n not in names}

@@ -9,7 +9,10 @@ One step of length ``dt`` (thesis eq. 3.1, with the surface friction acting alon
   and it flies on with the new velocity for the rest of the step (several impacts per step allowed,
   e.g. in a corner). Crossing a short rim inside the goal opening is no impact.
 * decay: ``v <- v - dt (d v + mu_s v/|v|)``, i.e. speed ``|v| <- max(a |v| - dt mu_s, 0)`` with
-  ``a = 1 - dt d``; the direction is kept. Spin has no decay (eq. 3.1).
+  ``a = 1 - dt d``; the direction is kept. The spin decays as ``omega <- b omega`` with ``b = 1 - dt k``,
+  ``k`` the spin damping (0: the thesis's eq. 3.1, whose spin is constant; a uniform viscous air film damps
+  the spin at the velocity's own rate d, a MuJoCo hinge as it is set). The angle advances with the spin
+  before its decay, as the position with the velocity.
 * table acceleration (issue #13 item 3; zero unless identified): before the decay, ``v <- v + dt g``
   with a constant ``g`` [m/s^2] in the table frame (a tilted surface gives g sin(tilt) downhill). The
   surface friction then holds a resting puck when ``|g| <= mu_s``.
@@ -69,13 +72,14 @@ class PuckParams:
     restitution_knee: float = 0.0   # [m/s] ... and only beyond this normal speed (below it e is restitution)
     table_acceleration: tuple[float, float] = (0.0, 0.0)  # g [m/s^2], table frame: tilt / air film (issue #13)
     tangential_restitution: float = 0.0  # beta [-] in [-1, 1] of a sticking rim impact (0: Routh's, the thesis's)
+    spin_damping: float = 0.0  # k [1/s]: the spin's decay rate in flight (0: constant spin, the thesis's)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "PuckParams":
         return cls(params["friction_surface"], params["damping"], params["restitution"], params["friction_rim"],
                    params["restitution_slope"], params["restitution_min"],
                    params["restitution_knee"], tuple(float(g) for g in params["table_acceleration"]),
-                   params["tangential_restitution"])
+                   params["tangential_restitution"], params["spin_damping"])
 
     @property
     def accelerated(self) -> bool:
@@ -91,7 +95,8 @@ class PuckParams:
                   ("restitution_slope", self.restitution_slope >= 0.0, ">= 0"),
                   ("restitution_min", 0.0 <= self.restitution_min <= 1.0, "in [0, 1]"),
                   ("restitution_knee", self.restitution_knee >= 0.0, ">= 0"),
-                  ("tangential_restitution", -1.0 <= self.tangential_restitution <= 1.0, "in [-1, 1]"))
+                  ("tangential_restitution", -1.0 <= self.tangential_restitution <= 1.0, "in [-1, 1]"),
+                  ("spin_damping", self.spin_damping >= 0.0, ">= 0"))
         for name, ok, rule in checks:
             value = getattr(self, name)
             if not ok or not math.isfinite(value):
@@ -232,12 +237,13 @@ class PuckModel:
         first = self.first_impact(x, y, vx, vy, dt)
         if first is None:  # the common case: straight flight, cheap Jacobian
             nvx, nvy, jd = self.decay(vx, vy, dt)
-            new = np.array([x + dt * vx, y + dt * vy, nvx, nvy, wrap_angle(th + dt * om), om])
+            b = 1.0 - dt * self.params.spin_damping
+            new = np.array([x + dt * vx, y + dt * vy, nvx, nvy, wrap_angle(th + dt * om), b * om])
             if not with_jacobian:
                 return StepResult(new, None, ())
             jac = np.array([[1.0, 0.0, dt, 0.0, 0.0, 0.0], [0.0, 1.0, 0.0, dt, 0.0, 0.0],
                             [0.0, 0.0, jd[0][0], jd[0][1], 0.0, 0.0], [0.0, 0.0, jd[1][0], jd[1][1], 0.0, 0.0],
-                            [0.0, 0.0, 0.0, 0.0, 1.0, dt], [0.0, 0.0, 0.0, 0.0, 0.0, 1.0]])
+                            [0.0, 0.0, 0.0, 0.0, 1.0, dt], [0.0, 0.0, 0.0, 0.0, 0.0, b]])
             return StepResult(new, jac, ())
         return self._step_with_impacts([x, y, vx, vy, th, om, dt], first, dt, with_jacobian)
 
@@ -255,10 +261,11 @@ class PuckModel:
             hit = self.first_impact(z[0], z[1], z[2], z[3], z[6])
         x, y, vx, vy, th, om, h = z
         nvx, nvy, jd = self.decay(vx, vy, dt)
-        new = np.array([x + h * vx, y + h * vy, nvx, nvy, wrap_angle(th + h * om), om])
+        b = 1.0 - dt * self.params.spin_damping
+        new = np.array([x + h * vx, y + h * vy, nvx, nvy, wrap_angle(th + h * om), b * om])
         if jac is None:
             return StepResult(new, None, tuple(impacts))
         flight = np.array([[1.0, 0.0, h, 0.0, 0.0, 0.0, vx], [0.0, 1.0, 0.0, h, 0.0, 0.0, vy],
                            [0.0, 0.0, jd[0][0], jd[0][1], 0.0, 0.0, 0.0], [0.0, 0.0, jd[1][0], jd[1][1], 0.0, 0.0, 0.0],
-                           [0.0, 0.0, 0.0, 0.0, 1.0, h, om], [0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0]])
+                           [0.0, 0.0, 0.0, 0.0, 1.0, h, om], [0.0, 0.0, 0.0, 0.0, 0.0, b, 0.0]])
         return StepResult(new, (flight @ jac)[:, :6], tuple(impacts))

@@ -2,8 +2,8 @@
 
 :func:`.prediction.predict_fast` runs here. The model's own step (:meth:`.model.PuckModel.step`: fly to each rim
 contact, Routh's impact with the speed-dependent restitution and the tangential restitution
-(:func:`.impact.rim_impact`), fly on, then the decay of eq. 3.1 with the table acceleration) runs step after
-step in compiled code in the same order of arithmetic, with its exact Jacobian ``F`` (the 7x7 event Jacobians
+(:func:`.impact.rim_impact`), fly on, then the decay of eq. 3.1 with the table acceleration, and the spin's decay)
+runs step after step in compiled code in the same order of arithmetic, with its exact Jacobian ``F`` (the 7x7 event Jacobians
 over the state and the remaining time, as :meth:`.model.PuckModel._event_jacobian`) and ``P <- F P F^T + Q``
 (thesis sec. 4.2), the impact covariance (:func:`.prediction.impact_covariance`) after a step with a rim
 impact; the crossings and samples are taken as :class:`.prediction._Recorder` takes them. A step that cannot
@@ -31,7 +31,7 @@ from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS
 
 # rows of the parameter vector (:func:`kernel_params`)
 (P_RESTITUTION, P_FRICTION_RIM, P_SLOPE, P_FLOOR, P_KNEE, P_TANGENTIAL, P_DAMPING, P_FRICTION_SURFACE, P_GX, P_GY,
- P_X_LIMIT, P_Y_LIMIT, P_MOUTH, P_RADIUS) = range(14)
+ P_X_LIMIT, P_Y_LIMIT, P_MOUTH, P_RADIUS, P_SPIN_DAMPING) = range(15)
 IMPACT_COLUMNS = 5    # time [s], rim, x, y [m], sliding (0/1)
 CROSSING_COLUMNS = 5  # crossed (0/1), time [s], y [m], vx, vy [m/s]
 SAMPLE_COLUMNS = 7    # time [s], state (6)
@@ -50,7 +50,7 @@ def kernel_params(model) -> np.ndarray:
     return np.array([p.restitution, p.friction_rim, p.restitution_slope, p.restitution_min, p.restitution_knee,
                      p.tangential_restitution, p.damping, p.friction_surface, float(p.table_acceleration[0]),
                      float(p.table_acceleration[1]), table.x_limit, table.y_limit, table.goal_mouth,
-                     table.puck_radius])
+                     table.puck_radius, p.spin_damping])
 
 
 @njit(cache=True)
@@ -179,10 +179,12 @@ def _event_jacobian(p: np.ndarray, x: float, y: float, vx: float, vy: float, om:
 
 
 @njit(cache=True)
-def _free_jacobian(f: np.ndarray, h: float, j00: float, j01: float, j10: float, j11: float) -> None:
-    """``f`` (6x6) := the Jacobian of a step of ``h`` [s] without an impact, decay Jacobian (j00, j01, j10, j11)."""
+def _free_jacobian(f: np.ndarray, h: float, j00: float, j01: float, j10: float, j11: float, spin_keep: float) -> None:
+    """``f`` (6x6) := the Jacobian of a step of ``h`` [s] without an impact, decay Jacobian (j00, j01, j10, j11),
+    the spin kept by ``spin_keep``."""
     _zero(f)
-    f[0, 0] = f[1, 1] = f[4, 4] = f[5, 5] = 1.0
+    f[0, 0] = f[1, 1] = f[4, 4] = 1.0
+    f[5, 5] = spin_keep
     f[0, 2] = f[1, 3] = f[4, 5] = h
     f[2, 2], f[2, 3], f[3, 2], f[3, 3] = j00, j01, j10, j11
 
@@ -221,8 +223,9 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
         count += 1
         tau, wall = _first_impact(p, x, y, vx, vy, h)
     nvx, nvy, j00, j01, j10, j11 = _decay(p, vx, vy, dt)
+    spin_keep = 1.0 - dt * p[P_SPIN_DAMPING]
     if with_jac:
-        _free_jacobian(f, h, j00, j01, j10, j11)
+        _free_jacobian(f, h, j00, j01, j10, j11, spin_keep)
         if count > start:  # impacts in this step: the flight's 6x7 Jacobian times the events'
             flight = work[1]
             _zero(flight)
@@ -230,7 +233,7 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
             flight[0, 6], flight[1, 6], flight[4, 6] = vx, vy, om
             _matmul(flight, work[0], work[2])
             _copy_into(work[2], f, 6, 6)
-    return x + h * vx, y + h * vy, nvx, nvy, _wrap(th + h * om), om, count
+    return x + h * vx, y + h * vy, nvx, nvy, _wrap(th + h * om), spin_keep * om, count
 
 
 @njit(cache=True)
@@ -310,24 +313,24 @@ def _propagate(f: np.ndarray, cov: np.ndarray, q: np.ndarray, q_scale: float, tm
 
 
 @njit(cache=True)
-def _propagate_free(cov: np.ndarray, h: float, d00: float, d01: float, d10: float, d11: float, q: np.ndarray,
-                    q_scale: float, tmp: np.ndarray) -> None:
+def _propagate_free(cov: np.ndarray, h: float, d00: float, d01: float, d10: float, d11: float, spin_keep: float,
+                    q: np.ndarray, q_scale: float, tmp: np.ndarray) -> None:
     """:func:`_propagate` for the Jacobian of a step without an impact (:func:`_free_jacobian`), using its
-    blocks: position += h velocity, velocity by the decay's 2x2, angle += h spin."""
+    blocks: position += h velocity, velocity by the decay's 2x2, angle += h spin, spin by ``spin_keep``."""
     for j in range(6):
         tmp[0, j] = cov[0, j] + h * cov[2, j]
         tmp[1, j] = cov[1, j] + h * cov[3, j]
         tmp[2, j] = d00 * cov[2, j] + d01 * cov[3, j]
         tmp[3, j] = d10 * cov[2, j] + d11 * cov[3, j]
         tmp[4, j] = cov[4, j] + h * cov[5, j]
-        tmp[5, j] = cov[5, j]
+        tmp[5, j] = spin_keep * cov[5, j]
     for i in range(6):
         cov[i, 0] = tmp[i, 0] + h * tmp[i, 2] + q_scale * q[i, 0]
         cov[i, 1] = tmp[i, 1] + h * tmp[i, 3] + q_scale * q[i, 1]
         cov[i, 2] = d00 * tmp[i, 2] + d01 * tmp[i, 3] + q_scale * q[i, 2]
         cov[i, 3] = d10 * tmp[i, 2] + d11 * tmp[i, 3] + q_scale * q[i, 3]
         cov[i, 4] = tmp[i, 4] + h * tmp[i, 5] + q_scale * q[i, 4]
-        cov[i, 5] = tmp[i, 5] + q_scale * q[i, 5]
+        cov[i, 5] = spin_keep * tmp[i, 5] + q_scale * q[i, 5]
 
 
 @njit(cache=True)
@@ -359,10 +362,10 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
             break
         x0, y0, vx0, vy0, before = x, y, vx, vy, count
         if flat and h * speed < room - GLIDE_MARGIN:
-            keep, mu_h = 1.0 - h * p[P_DAMPING], h * p[P_FRICTION_SURFACE]
+            keep, mu_h, spin_keep = 1.0 - h * p[P_DAMPING], h * p[P_FRICTION_SURFACE], 1.0 - h * p[P_SPIN_DAMPING]
             if with_cov:  # from the speed and direction kept here
                 d00, d01, d11 = _decay_jacobian(keep, mu_h, speed, ux, uy)
-                _propagate_free(p_now, h, d00, d01, d01, d11, q, h / dt, tmp)
+                _propagate_free(p_now, h, d00, d01, d01, d11, spin_keep, q, h / dt, tmp)
             x, y, room = x + h * vx, y + h * vy, room - h * speed
             if mu_h == 0.0:
                 vx, vy, speed = keep * vx, keep * vy, keep * speed
@@ -372,7 +375,7 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
                     vx, vy, speed = 0.0, 0.0, 0.0
                 else:
                     vx, vy = ux * speed, uy * speed
-            th = _wrap(th + h * om)
+            th, om = _wrap(th + h * om), spin_keep * om
         else:
             new = _step(p, x, y, vx, vy, th, om, h, i * dt, impacts, count, f, work)
             while new[6] < 0:
@@ -382,7 +385,7 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
             if flat:
                 ux, uy, speed, room = _room(p, x, y, vx, vy)
             if with_cov and count == before:  # no impact: the free Jacobian's blocks
-                _propagate_free(p_now, h, f[2, 2], f[2, 3], f[3, 2], f[3, 3], q, h / dt, tmp)
+                _propagate_free(p_now, h, f[2, 2], f[2, 3], f[3, 2], f[3, 3], f[5, 5], q, h / dt, tmp)
             elif with_cov:
                 _propagate(f, p_now, q, h / dt, tmp)
         if with_cov:
@@ -406,7 +409,7 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
 def warm_up() -> None:
     """Compile (or load from the cache) :func:`predict` now, with and without a covariance, not in the first
     prediction."""
-    p = np.array([0.9, 0.1, 0.1, 0.5, 0.5, 0.0, 0.1, 0.01, 0.0, 0.01, 0.9, 0.5, 0.1, 0.03])
+    p = np.array([0.9, 0.1, 0.1, 0.5, 0.5, 0.0, 0.1, 0.01, 0.0, 0.01, 0.9, 0.5, 0.1, 0.03, 0.1])
     state, q = np.array([0.0, 0.0, 3.0, 2.0, 0.0, 1.0]), np.eye(6)
     for cov in (np.empty((0, 0)), np.eye(6)):
         predict(p, state, cov, q, 0.1, 0.001, 2, 0.005, 0.01, np.array([0.0]), 1)
