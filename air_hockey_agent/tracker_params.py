@@ -94,6 +94,10 @@ TRACKER_PARAMS = (
     ParamSpec("acceleration_adaptation.min_speed", float, "[m/s] frames of a slower puck are not used", 0.0, 10.0),
     ParamSpec("acceleration_adaptation.gate", float, "squared Mahalanobis distance (2 dof) beyond which a window "
               "is not learned from", 0.1, 1e6),
+    ParamSpec("acceleration_adaptation.spin_prior_std", float, "[1/s] std of the configured spin_damping (0: not "
+              "learned)", 0.0, 100.0),
+    ParamSpec("acceleration_adaptation.spin_gate", float, "squared distance (1 dof) beyond which a window's spin "
+              "is left out", 0.1, 1e6),
     ParamSpec("max_consecutive_rejections", int, "rejected frames in a row before re-initialising", 1, 1000),
     ParamSpec("outside_table_margin", float, "[m] drop measurements this far beyond the rims", 0.0, 10.0),
     ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),

@@ -10,6 +10,7 @@ from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, _filter_pass, evaluate_stream
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, fall_regressors,
                                                              outgoing_fit, scaled_params)
+from air_hockey_agent.core.estimation.spin_adaptation import SpinAdaptation
 from air_hockey_agent.core.estimation.table_learning import AccelerationAdaptation, AccelerationSettings, quadratic_fit
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.puck.real_table import TableEffects, real_rim_impact
@@ -258,7 +259,7 @@ def test_on_the_models_own_rims_the_law_stays_and_predictions_use_the_law_of_the
 
 
 FLIGHT = AccelerationSettings(enabled=True, prior_std=0.03, damping_prior_std=0.1, field_std=0.01, window=0.25,
-                              min_frames=15, min_speed=0.1, gate=13.82)
+                              min_frames=15, min_speed=0.1, gate=13.82, spin_prior_std=0.5, spin_gate=10.83)
 
 
 def test_the_quadratic_fit_is_exact_and_its_variance_follows_the_noise():
@@ -329,3 +330,46 @@ def test_the_filter_learns_the_test_beds_tilt_and_the_models_own_flight_stays(pa
     learned = ekf.learning.acceleration
     assert learned.windows >= 30
     assert learned.value == pytest.approx((0.0, 0.0), abs=3e-3) and learned.damping == pytest.approx(0.125, abs=0.01)
+
+
+def decaying_angles(rng, k, spin, noise, frames=30, rate=120.0):
+    """A window's measured angles [rad] of a spin decaying at ``k`` [1/s] from ``spin`` [rad/s] (exact
+    exponential, not the model's steps), wrapped, with Gaussian noise of std ``noise`` [rad]."""
+    times = np.arange(frames) / rate + rng.uniform(0.0, 5.0)
+    t = times - times[0]
+    theta = rng.uniform(-np.pi, np.pi) + spin * (1.0 - np.exp(-k * t)) / k + rng.normal(0.0, noise, frames)
+    return times, np.angle(np.exp(1j * theta))
+
+
+def test_the_spins_decay_is_learned_from_windows_and_a_hand_turned_window_is_left_out():
+    """Windows of a spin decaying exactly as exp(-0.4 t) (another engine's hinge), 3-20 rad/s either way,
+    at the lab's angle noise (9.5 mrad): the decay within 3 std of 0.4 (and 5 %); a window a hand spun up
+    is refused; a constant spin learns about zero; without windows the configured value stays."""
+    rng = np.random.default_rng(12)
+    learned = SpinAdaptation(0.0, 0.5, 10.83, 9.05e-5)
+    for _ in range(150):
+        spin = rng.choice([-1, 1]) * rng.uniform(3.0, 20.0)
+        assert learned.observe(*decaying_angles(rng, 0.4, spin, 0.0095))
+    assert abs(learned.value - 0.4) < 3 * learned.std and learned.value == pytest.approx(0.4, rel=0.05)
+    times = np.arange(30) / 120.0
+    spun_up = 8.0 * times + 0.5 * 60.0 * times ** 2  # a hand: +60 rad/s^2
+    assert not learned.observe(times, spun_up + rng.normal(0.0, 0.0095, 30)) and learned.windows == 150
+    steady = SpinAdaptation(0.0, 0.5, 10.83, 9.05e-5)
+    for _ in range(150):
+        steady.observe(*decaying_angles(rng, 1e-9, rng.uniform(3.0, 20.0), 0.0095))
+    assert steady.value < 3 * steady.std and steady.std < 0.05
+    assert SpinAdaptation(0.125, 0.5, 10.83, 9.05e-5).value == 0.125
+
+
+def test_the_filter_learns_no_spin_decay_where_the_spin_is_constant(params):
+    """The test bed's pucks keep their spin in flight (core/puck/real_table.py): the filter's learned decay
+    stays within 3 std of zero; without spin_prior_std it is not learned at all."""
+    ekf = PuckEKF.from_params(params)
+    frames = [(f.stamp, f.measurement) for f in session_on_testbed(ekf, 8, 4)]
+    evaluate_stream(ekf, frames, EvaluationTotals((1.0,)))
+    spin = ekf.learning.report()["spin_damping"]
+    assert spin["windows"] >= 50 and spin["value"] < 3 * spin["std"]
+    assert ekf.model.params.spin_damping == spin["value"]
+    off = PuckEKF.from_params({**params, "acceleration_adaptation.spin_prior_std": 0.0})
+    evaluate_stream(off, frames, EvaluationTotals((1.0,)))
+    assert off.learning.report()["spin_damping"] is None and off.model.params.spin_damping == 0.0

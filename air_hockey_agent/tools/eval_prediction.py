@@ -90,7 +90,8 @@ def run(args: argparse.Namespace) -> int:
         if not args.json:
             print(f"{bag}: {len(frames)} frames", file=sys.stderr)
     summary = totals.summary()
-    summary.update(ekf.learning.report() if ekf.learning is not None else {"rim_law": None, "table_acceleration": None})
+    summary.update(ekf.learning.report() if ekf.learning is not None else {"rim_law": None, "table_acceleration": None,
+                                                                              "spin_damping": None})
     summary["thesis_style"] = thesis_style(params, cut, args.horizons)
     print(json.dumps(summary) if args.json else format_table(summary))
     return 2 if failed else 0

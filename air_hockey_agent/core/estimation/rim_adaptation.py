@@ -314,14 +314,15 @@ def describe(report: dict) -> str:
 
 
 def outgoing_fit(times: Sequence[float], poses: Sequence[Sequence[float]], t_impact: float,
-                 acceleration) -> tuple[float, float, float] | None:
+                 acceleration, spin_damping: float = 0.0) -> tuple[float, float, float] | None:
     """Velocity (vx, vy) [m/s] and spin [rad/s] just after an impact at ``t_impact`` [s] from the measured
     poses (x, y, theta) at ``times`` after it: line fits (:mod:`~air_hockey_agent.core.identification.
     local_fit`, as split sysid's impact fits), the flight law's acceleration ``acceleration(v) -> a``
-    [m/s^2] removed from the positions; None with fewer than three poses."""
+    [m/s^2] removed from the positions, the spin's decay ``spin_damping`` [1/s] from the angles'; None with
+    fewer than three poses."""
     times, z = np.asarray(times, float), np.asarray(poses, float)
     fit = line_fit(times, z[:, :2], t_impact, acceleration)
-    omega = fit_angle_rate(times, z[:, 2])
+    omega = fit_angle_rate(times, z[:, 2], t_impact, spin_damping)
     if fit is None or omega is None:
         return None
     return float(fit.v[0]), float(fit.v[1]), omega

@@ -1,4 +1,5 @@
-"""What the tracker learns online of its table (issue #13 item 3): the rim law and the table acceleration.
+"""What the tracker learns online of its table (issue #13 item 3): the rim law, the table acceleration and
+the spin's decay.
 
 The configured physics is a prior, not a given table's. After each mocap frame the filter hands this
 module the frame and the state it predicted from:
@@ -13,7 +14,8 @@ module the frame and the state it predicted from:
   thesis's conclusion proposes this constant-acceleration extension). The estimate is Gaussian: the
   configured ``table_acceleration`` with std ``prior_std`` as the prior, each window's fit with its own
   variance (from its residuals) plus ``field_std`` squared, for what the constant cannot follow
-  (an uneven air film), so the estimate is the mean over windows across the table.
+  (an uneven air film), so the estimate is the mean over windows across the table; the same windows'
+  angles give the spin's decay (:mod:`.spin_adaptation`) unless ``spin_prior_std`` is 0.
 
 A rejected frame, a re-initialisation or a restart ends any watch or window (a hit). What was learned
 stays: it is the table's, not the track's.
@@ -29,6 +31,7 @@ import numpy as np
 from air_hockey_agent.core.identification.local_fit import fit_positions
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe, outgoing_fit,
                                                              rim_frame)
+from air_hockey_agent.core.estimation.spin_adaptation import SpinAdaptation, describe_spin
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, flight_acceleration
 from air_hockey_agent.core.table import TableGeometry
 
@@ -45,12 +48,15 @@ class AccelerationSettings:
     min_frames: int      # fused frames a window needs
     min_speed: float     # [m/s] frames of a slower puck are not used (at rest the surface may hold it)
     gate: float          # squared Mahalanobis distance (2 dof) beyond which a window is no free flight
+    spin_prior_std: float  # [1/s] of the configured spin_damping (0: it is not learned)
+    spin_gate: float     # squared distance (1 dof) beyond which a window's spin is not the table's
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AccelerationSettings":
         p = "acceleration_adaptation."
         return cls(*(params[p + name] for name in ("enabled", "prior_std", "damping_prior_std", "field_std", "window",
-                                                    "min_frames", "min_speed", "gate")))
+                                                    "min_frames", "min_speed", "gate", "spin_prior_std",
+                                                    "spin_gate")))
 
 
 class AccelerationAdaptation:
@@ -132,10 +138,15 @@ class TableLearning:
     """The rim law and the table acceleration learned online on top of ``base`` (either may be off)."""
 
     def __init__(self, base: PuckParams, table: TableGeometry, rim: AdaptationSettings | None,
-                 acceleration: AccelerationSettings | None) -> None:
+                 acceleration: AccelerationSettings | None, angle_variance: float) -> None:
         self.base, self.table = base, table
         self.rim = None if rim is None else RimAdaptation(base, table, rim)
         self.acceleration = None if acceleration is None else AccelerationAdaptation(base, acceleration)
+        self.angle_variance = angle_variance  # [rad^2] the measured angle's noise (R's last entry)
+        self.spin = (SpinAdaptation(base.spin_damping, acceleration.spin_prior_std, acceleration.spin_gate,
+                                    angle_variance)
+                     if acceleration is not None and acceleration.spin_prior_std > 0.0 else None)
+        self.windows = 0  # free-flight windows learned from (the acceleration's, the spin's or both)
         self.limits = (table.x_limit, table.y_limit)  # [m] largest |x|, |y| of the centre off the rims
         self._watch: _ImpactWatch | None = None
         self._times: list[float] = []   # the free-flight window being collected
@@ -147,18 +158,21 @@ class TableLearning:
         rim, acc = AdaptationSettings.from_params(params), AccelerationSettings.from_params(params)
         if not (rim.enabled or acc.enabled):
             return None
-        return cls(base, table, rim if rim.enabled else None, acc if acc.enabled else None)
+        return cls(base, table, rim if rim.enabled else None, acc if acc.enabled else None,
+                   params["measurement_noise"][2])
 
     def restarted(self, base: PuckParams) -> "TableLearning":
         """The same learning from new configured parameters (nothing learned yet)."""
         return TableLearning(base, self.table, None if self.rim is None else self.rim.settings,
-                             None if self.acceleration is None else self.acceleration.settings)
+                             None if self.acceleration is None else self.acceleration.settings, self.angle_variance)
 
     def params(self) -> PuckParams:
         """The configured parameters with what was learned so far."""
         p = self.base if self.rim is None else self.rim.params()
         if self.acceleration is not None and self.acceleration.windows:
             p = p.with_values(table_acceleration=self.acceleration.value, damping=self.acceleration.damping)
+        if self.spin is not None and self.spin.windows:
+            p = p.with_values(spin_damping=self.spin.value)
         return p
 
     def forget(self) -> None:
@@ -211,7 +225,7 @@ class TableLearning:
             return False
         p = model.params
         fit = outgoing_fit(watch.times, watch.poses, watch.t,
-                           flight_acceleration(p.damping, p.friction_surface, p.table_acceleration))
+                           flight_acceleration(p.damping, p.friction_surface, p.table_acceleration), p.spin_damping)
         if fit is None:
             return False
         vx, vy, omega = fit
@@ -228,16 +242,19 @@ class TableLearning:
             return False
         times, poses = self._times, self._poses
         self._times, self._poses = [], []
-        fit = None if len(times) < settings.min_frames else quadratic_fit(times, poses)
-        if fit is None:
+        if len(times) < settings.min_frames:
             return False
-        return self.acceleration.observe(*fit)
+        fit = quadratic_fit(times, poses)
+        learned = fit is not None and self.acceleration.observe(*fit)
+        if self.spin is not None:
+            learned |= self.spin.observe(times, [pose[2] for pose in poses])
+        self.windows += int(learned)
+        return learned
 
     @property
     def counts(self) -> tuple[int, int]:
         """(rim impacts, free-flight windows) learned from so far."""
-        return (0 if self.rim is None else self.rim.impacts,
-                0 if self.acceleration is None else self.acceleration.windows)
+        return 0 if self.rim is None else self.rim.impacts, self.windows
 
     @property
     def events(self) -> int:
@@ -245,10 +262,12 @@ class TableLearning:
         return sum(self.counts)
 
     def report(self) -> dict:
-        """What was learned: ``rim_law`` (:meth:`RimAdaptation.report`) and ``table_acceleration``
-        (windows, value and std [m/s^2]), each None when not learned."""
+        """What was learned: ``rim_law`` (:meth:`RimAdaptation.report`), ``table_acceleration``
+        (windows, value and std [m/s^2]) and ``spin_damping`` (windows, value and std [1/s]), each None
+        when not learned."""
         return {"rim_law": None if self.rim is None else self.rim.report(),
-                "table_acceleration": None if self.acceleration is None else self.acceleration.report()}
+                "table_acceleration": None if self.acceleration is None else self.acceleration.report(),
+                "spin_damping": None if self.spin is None else self.spin.report()}
 
 
 def describe_learning(report: dict) -> str:
@@ -262,4 +281,6 @@ def describe_learning(report: dict) -> str:
         parts.append(f"table acceleration ({gx:+.4f} +- {sx:.4f}, {gy:+.4f} +- {sy:.4f}) m/s^2 and damping "
                      f"{flight['damping']:.4f} +- {flight['damping_std']:.4f} 1/s from {flight['windows']} "
                      f"free-flight window{'' if flight['windows'] == 1 else 's'}")
+    if report.get("spin_damping") is not None:
+        parts.append(describe_spin(report["spin_damping"]))
     return "; ".join(parts)

@@ -81,8 +81,9 @@ class ImpactFit:
 
 
 def find_impacts(traj: GridTrajectory, table: TableGeometry, acceleration, noise: NoiseModel,
-                 settings: ImpactSettings) -> list[ImpactObservation]:
-    """Rim impacts of one trajectory. ``acceleration(v) -> a`` [m/s^2] is the identified flight law."""
+                 settings: ImpactSettings, spin_damping: float = 0.0) -> list[ImpactObservation]:
+    """Rim impacts of one trajectory. ``acceleration(v) -> a`` [m/s^2] is the identified flight law,
+    ``spin_damping`` [1/s] the spin's decay (the spins before and after are taken at the impact)."""
     z = traj.z
     rows = np.flatnonzero(~np.isnan(z[:, 0]))
     n_rows = max(3, int(round(settings.window / traj.dt)))
@@ -93,7 +94,7 @@ def find_impacts(traj: GridTrajectory, table: TableGeometry, acceleration, noise
             k = int(rows[i])
             if wall in SHORT_WALLS and abs(z[k, 1]) < table.goal_mouth + table.puck_radius:
                 continue  # at a goal mouth: the puck may have entered the goal
-            obs = _observe(traj, table, wall, k, n_rows, acceleration, noise, settings)
+            obs = _observe(traj, table, wall, k, n_rows, acceleration, noise, settings, spin_damping)
             if obs is not None:
                 found.append(obs)
     return found
@@ -109,7 +110,7 @@ def _closest_approaches(distance: np.ndarray, limit: float) -> list[int]:
     return out
 
 
-def _observe(traj, table, wall, k, n_rows, acceleration, noise, settings) -> ImpactObservation | None:
+def _observe(traj, table, wall, k, n_rows, acceleration, noise, settings, spin_damping) -> ImpactObservation | None:
     """Fits before and after row ``k`` (rows k-1..k+1 skipped) and the impact they meet at."""
     z, dt = traj.z, traj.dt
     pre, post = rows_in(z, k - 1 - n_rows, k - 1), rows_in(z, k + 2, k + 2 + n_rows)
@@ -136,7 +137,7 @@ def _observe(traj, table, wall, k, n_rows, acceleration, noise, settings) -> Imp
     v_in, v_out = before.v + tau * before.a, after.v + tau * after.a
     if float(n @ v_in) > -settings.min_normal_speed or float(n @ v_out) <= 0.0:
         return None
-    spins = [fit_angle_rate(rows * dt, z[rows, 2]) for rows in (pre, post)]
+    spins = [fit_angle_rate(rows * dt, z[rows, 2], t_ref + tau, spin_damping) for rows in (pre, post)]
     quality = max(noise.fit_quality(f) for f in fits)
     return ImpactObservation(wall, t_ref + tau, (float(b @ v_in), float(n @ v_in), spins[0]),
                              (float(b @ v_out), float(n @ v_out), spins[1]), quality)

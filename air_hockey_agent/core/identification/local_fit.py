@@ -11,6 +11,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -64,13 +65,33 @@ def line_fit(times: np.ndarray, xy: np.ndarray, t_ref: float, acceleration) -> L
     return fit_positions(times, xy, t_ref, 1, acceleration(first.v))
 
 
-def fit_angle_rate(times: np.ndarray, theta: np.ndarray) -> float | None:
-    """Spin [rad/s]: slope of a line through the unwrapped angles ``theta`` [rad] at ``times`` [s]."""
+def fit_angle_rate(times: np.ndarray, theta: np.ndarray, t_ref: float | None = None,
+                   spin_damping: float = 0.0) -> float | None:
+    """Spin [rad/s]: slope of a line through the unwrapped angles ``theta`` [rad] at ``times`` [s], the spin
+    at their mean time; at ``t_ref`` [s] instead when given, for a spin decaying at ``spin_damping`` [1/s]
+    (the slope of an exponential decay's angles is its spin at the middle, to second order)."""
     if len(times) < 3:
         return None
     unwrapped = np.unwrap(np.asarray(theta, float))
-    tau = np.asarray(times, float) - float(np.mean(times))
-    return float(np.sum(tau * (unwrapped - np.mean(unwrapped))) / np.sum(tau ** 2))
+    middle = float(np.mean(times))
+    tau = np.asarray(times, float) - middle
+    rate = float(np.sum(tau * (unwrapped - np.mean(unwrapped))) / np.sum(tau ** 2))
+    return rate if t_ref is None else rate * math.exp(spin_damping * (middle - t_ref))
+
+
+class SpinFit(NamedTuple):
+    spin: float      # w [rad/s] at the window's mean time
+    rate: float      # wdot [rad/s^2]
+    gain: float      # variance of wdot per rad^2 of angle noise [1/s^4]
+    variance: float  # [rad^2] the angles' residual variance about the quadratic
+
+
+def spin_quadratic(times: np.ndarray, angles: np.ndarray) -> SpinFit | None:
+    """A quadratic through the unwrapped ``angles`` [rad] at ``times`` [s]: spin and its rate of change at the
+    mean time; None with fewer than four angles."""
+    theta = np.unwrap(np.asarray(angles, float))
+    fit = fit_positions(times, np.column_stack((theta, theta)), float(np.mean(times)), 2)  # one axis, twice
+    return None if fit is None else SpinFit(float(fit.v[0]), float(fit.a[0]), fit.a_gain, float(fit.variance[0]))
 
 
 def rows_in(z: np.ndarray, start: int, stop: int) -> np.ndarray:

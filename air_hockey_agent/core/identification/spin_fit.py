@@ -1,7 +1,7 @@
-"""Does the puck's spin decay in free flight? A check of split identification (issue #13).
+"""The spin's decay in free flight from the recorded angles: split sysid's ``spin_damping`` (issue #13).
 
-The model keeps the spin constant in flight (thesis eq. 3.1 has no spin term). A uniform viscous air
-film would damp it at the velocity's own rate d (its shear torque mu pi r^4 omega / 2h over the disc's
+Thesis eq. 3.1 keeps the spin constant in flight; the model's ``spin_damping`` k lets it decay. A uniform
+viscous air film would damp it at the velocity's own rate d (its shear torque mu pi r^4 omega / 2h over the disc's
 inertia m r^2 / 2 is mu A / (h m) = d), and a MuJoCo table damps it as its hinge is set; where the spin
 decays, the filter's angle innovations grow (issue #13: on the lab's recordings most rejections left by
 a larger velocity noise came from the angle). This measures the decay rate from the recordings:
@@ -10,7 +10,7 @@ in the free-flight windows of the flight fit (:func:`.flight_fit.free_flight_win
 angle gets a quadratic, giving the spin w and its rate of change wdot at the window's centre; a decay
 ``wdot = -k w`` is a line through the origin, fitted by weighted least squares (each window weighted by
 the inverse variance of its wdot under the angle noise), windows whose residual is an outlier (a hand,
-a marker flip) dropped. A rate of zero within its error says the model's constant spin holds.
+a marker flip) dropped. A rate of zero within its error says a constant spin holds.
 """
 from __future__ import annotations
 
@@ -21,7 +21,7 @@ from typing import Sequence
 import numpy as np
 
 from air_hockey_agent.core.identification.flight_fit import FlightSettings, free_flight_windows
-from air_hockey_agent.core.identification.local_fit import fit_positions, smooth_fits
+from air_hockey_agent.core.identification.local_fit import smooth_fits, spin_quadratic
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.table import TableGeometry
 
@@ -42,11 +42,9 @@ def spin_windows(trajectories: Sequence[GridTrajectory], table: TableGeometry,
     out = []
     for traj in trajectories:
         for rows, _ in free_flight_windows(traj, table, settings):
-            times = rows * traj.dt
-            theta = np.unwrap(traj.z[rows, 2])
-            fit = fit_positions(times, np.column_stack((theta, theta)), float(np.mean(times)), 2)  # one axis, twice
+            fit = spin_quadratic(rows * traj.dt, traj.z[rows, 2])
             if fit is not None:
-                out.append((float(fit.v[0]), float(fit.a[0]), fit.a_gain))
+                out.append((fit.spin, fit.rate, fit.gain))
     return out
 
 

@@ -87,7 +87,8 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
         fixed = {n: tracker[n] for n in IMPACT if n not in names}
         chosen = impact_settings(settings)
         law = flight_law(flight_values)
-        found = [o for traj in trajectories for o in find_impacts(traj, table, law, noise, chosen)]
+        spin_damping = identified.get("spin_damping", tracker["spin_damping"])
+        found = [o for traj in trajectories for o in find_impacts(traj, table, law, noise, chosen, spin_damping)]
         impacts = fit_impacts(found, table.puck_radius, fixed, bounds, chosen, {n: tracker[n] for n in IMPACT})
         _collect(impacts.values, {}, names, identified, std)
     return SplitResult(identified, std, flight, impacts, field, spin)
