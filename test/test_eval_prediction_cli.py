@@ -47,7 +47,7 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert set(report["nis"]) == {"median", "mean"}
     assert set(report["by_path"]) == set(report["horizons"])
     for key, paths in report["by_path"].items():
-        assert list(paths) == ["rest", "no_impact", "one_impact", "impacts"]
+        assert list(paths) == ["rest", "no_impact", "one_impact", "impacts", "goal"]
         assert sum(v["n"] for v in paths.values()) == report["horizons"][key]["n"]
     assert set(report["nis_by_regime"]) == {"rest", "flight", "impact"}
     assert all(set(v) == {"median", "mean", "n"} for v in report["nis_by_regime"].values())

@@ -7,9 +7,10 @@ valid pose at ``t + h``, fused by the filter or not (marker glitches excepted), 
 not make a filter look better. Reported per horizon: mean, median and 95th percentile of the error [m]
 over all comparisons and their number; frames, lost frames, rejected outliers, the rejected fraction of
 the poses, re-initialisations per second and the normalised innovation squared (NIS), also by regime
-(rest, flight, impact). Where the error comes from: the median per horizon by the predicted path (JSON
-"by_path"): started at rest (a later motion is a hit no model foresees), or through no, one, or two and
-more rim impacts.
+(rest, flight, impact). Where the error comes from: the median and mean per horizon by the predicted path
+(JSON "by_path"): started at rest (a later motion is a hit no model foresees), ended in a goal (the model's
+puck flies on past the goal line; a real one may meet a post), or through no, one, or two and more rim
+impacts.
 
 The bags are one session on one table, in the order given, as for a tracker node that keeps running:
 what the tracker learns online of the table (``rim_adaptation``, ``acceleration_adaptation`` in
@@ -154,17 +155,18 @@ def _thesis_table(thesis: dict) -> list[str]:
 
 
 PATH_TITLES = {"rest": "from rest", "no_impact": "no rim impact", "one_impact": "one rim impact",
-               "impacts": "two or more"}
+               "impacts": "two or more", "goal": "into a goal"}
 
 
 def _path_table(by_path: dict) -> list[str]:
-    """Median error [mm] (and n) per horizon by the predicted path: where the error comes from."""
-    lines = ["median error [mm] (n) by the predicted path",
-             f"{'horizon [s]':>11} " + "".join(f"{title:>18}" for title in PATH_TITLES.values())]
+    """Median and mean error [mm] (and n) per horizon by the predicted path: where the error comes from (the
+    mean times n is a path's share of the all-comparison mean)."""
+    lines = ["median / mean error [mm] (n) by the predicted path",
+             f"{'horizon [s]':>11} " + "".join(f"{title:>22}" for title in PATH_TITLES.values())]
     for key, paths in by_path.items():
-        cells = [("-" if v["median_m"] is None else f"{v['median_m'] * 1e3:.2f}") + f" ({v['n']})"
-                 for v in paths.values()]
-        lines.append(f"{key:>11} " + "".join(f"{c:>18}" for c in cells))
+        cells = [("-" if v["median_m"] is None else f"{v['median_m'] * 1e3:.1f} / {v['mean_m'] * 1e3:.1f}")
+                 + f" ({v['n']})" for v in paths.values()]
+        lines.append(f"{key:>11} " + "".join(f"{c:>22}" for c in cells))
     return lines
 
 

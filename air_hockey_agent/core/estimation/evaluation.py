@@ -118,18 +118,22 @@ class EvaluationTotals:
     def _by_path(self, key: str) -> dict:
         errors, paths = np.asarray(self.errors[key], float), np.asarray(self.paths[key])
         return {p: {"median_m": float(np.median(errors[paths == p])) if np.any(paths == p) else None,
+                    "mean_m": float(np.mean(errors[paths == p])) if np.any(paths == p) else None,
                     "n": int(np.sum(paths == p))} for p in PATHS}
 
 
 REGIMES = ("rest", "flight", "impact")
 # What a prediction went through (eval-prediction's errors by path): it started at rest (a later motion is a
-# hit no model foresees), or it flew with no, one, or two and more rim impacts on the predicted path
-PATHS = ("rest", "no_impact", "one_impact", "impacts")
+# hit no model foresees), it ended in a goal (past a goal line inside the mouth: a puck the model lets in
+# may meet a post or the goal's sides instead), or it flew with no, one, or two and more rim impacts
+PATHS = ("rest", "no_impact", "one_impact", "impacts", "goal")
 
 
-def _path(start_state: np.ndarray, impacts: int, rest_speed: float) -> str:
+def _path(start_state: np.ndarray, end_state: np.ndarray, impacts: int, rest_speed: float, x_limit: float) -> str:
     if np.hypot(start_state[2], start_state[3]) < rest_speed:
         return "rest"
+    if abs(end_state[0]) > x_limit:  # behind a short rim line: only a goal mouth lets the model's puck there
+        return "goal"
     return PATHS[1 + min(impacts, 2)]
 
 
@@ -225,7 +229,8 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
             residual = truth[j].z[:2] - pred.state[:2]
             errors.append(float(np.hypot(*residual)))
             if totals.rest_speed is not None:
-                paths.append(_path(start.x, len(pred.impacts), totals.rest_speed))
+                paths.append(_path(start.x, pred.state, len(pred.impacts), totals.rest_speed,
+                                   start.model.table.x_limit))
             if totals.loglik:
                 nll.append(_neg_log_likelihood(residual, pred.covariance[:2, :2] + ekf.settings.r[:2, :2]))
     totals.nis.extend(r.nis for r in records if r.nis is not None)
