@@ -7,8 +7,9 @@ spin the model keeps while the puck's slows shows in the angle's innovations. Th
 wdot at the window's middle. A decay ``wdot = -k w`` is a line through the origin; k is estimated as a
 Gaussian mean, the configured ``spin_damping`` with std ``spin_prior_std`` as its prior and each window's
 wdot with the variance its angles' noise gives (the configured angle noise, or the fit's residuals' when
-larger: a few dozen residuals estimate a variance too loosely to be trusted below it). A window farther than ``spin_gate`` (squared, 1 dof)
-from what is known was turned by a hand or a mallet, or its angles glitched: left out.
+larger: a few dozen residuals estimate a variance too loosely to be trusted below it). A window farther
+than ``spin_gate`` (squared, 1 dof) from what is known was turned by a hand or a mallet, or its angles
+glitched: left out.
 """
 from __future__ import annotations
 

@@ -2,13 +2,13 @@
 
 :func:`.prediction.predict_fast` runs here. The model's own step (:meth:`.model.PuckModel.step`: fly to each rim
 contact, Routh's impact with the speed-dependent restitution and the tangential restitution
-(:func:`.impact.rim_impact`), fly on, then the decay of eq. 3.1 with the table acceleration, and the spin's decay)
-runs step after step in compiled code in the same order of arithmetic, with its exact Jacobian ``F`` (the 7x7 event Jacobians
-over the state and the remaining time, as :meth:`.model.PuckModel._event_jacobian`) and ``P <- F P F^T + Q``
-(thesis sec. 4.2), the impact covariance (:func:`.prediction.impact_covariance`) after a step with a rim
-impact; the crossings and samples are taken as :class:`.prediction._Recorder` takes them. A step that cannot
-reach a rim on a flat table (its straight ray's first contact more than ``GLIDE_MARGIN`` beyond the step's
-travel) skips the contact search and only moves and decays along the ray. SI units, the table frame
+(:func:`.impact.rim_impact`), fly on, then the decay of eq. 3.1 with the table acceleration, and the spin's
+decay) runs step after step in compiled code in the same order of arithmetic, with its exact Jacobian ``F``
+(the 7x7 event Jacobians over the state and the remaining time, as :meth:`.model.PuckModel._event_jacobian`)
+and ``P <- F P F^T + Q`` (thesis sec. 4.2), the impact covariance (:func:`.prediction.impact_covariance`) after
+a step with a rim impact; the crossings and samples are taken as :class:`.prediction._Recorder` takes them. A
+step that cannot reach a rim on a flat table (its straight ray's first contact more than ``GLIDE_MARGIN``
+beyond the step's travel) skips the contact search and only moves and decays along the ray. SI units, the table frame
 (:mod:`air_hockey_agent.core.table`). ``test_prediction.py`` checks it against the Python steps
 (:func:`.prediction.predict_stepwise`): the means to 1e-10, the covariances to 1e-9 relative.
 
