@@ -113,11 +113,12 @@ def test_impact_on_each_rim_with_each_branch(name):
     (0.0, (0.03, -0.02), 0.0, 0.0, 0.0), (0.0, (0.0, 0.0), -0.6, 0.0, 0.0), (0.0, (0.0, 0.0), 0.0, 0.0, 0.4)],
                          ids=["constant e", "e falls with speed", "e falls beyond a knee", "tilted table",
                               "soft tangential impulse", "spin decays"])
-@pytest.mark.parametrize("name", list(IMPACT_CASES) + ["free", "corner", "goal"])
+@pytest.mark.parametrize("name", list(IMPACT_CASES) + ["free", "corner", "goal", "post"])
 def test_step_jacobian_matches_central_finite_differences(name, slope, accel, beta, knee, spin):
     states = {"free": np.array([0.1, 0.2, 1.0, 0.5, 0.3, 2.0]),
               "corner": np.array([X - 0.004, Y - 0.007, 1.0, 1.3, 0.1, 5.0]),
-              "goal": np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0])}
+              "goal": np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0]),
+              "post": np.array([X - 0.004, 0.04, 0.7, 1.9, 0.1, 5.0])}  # inside the mouth, but steep
     state = states.get(name, IMPACT_CASES.get(name, (None,))[0])
     m = model(restitution_slope=slope, table_acceleration=accel, tangential_restitution=beta, restitution_knee=knee,
               spin_damping=spin)
@@ -137,6 +138,24 @@ def test_goal_opening_has_no_rim():
         assert not res.impacts
         s = res.state
     assert s[0] > TABLE.length / 2  # left the table through the goal
+
+
+@pytest.mark.parametrize("y, degrees, scores", [(0.0, 0.0, True), (0.05, 6.0, True), (0.047, 70.0, False),
+                                                (-0.047, -70.0, False), (0.09, 11.0, False), (0.08, 30.0, False),
+                                                (0.0, 60.0, True)])
+def test_a_puck_meeting_a_post_on_its_way_into_the_goal_bounces_back(y, degrees, scores):
+    """A puck crossing the far goal line at (x_limit, y) inside the mouth at ``degrees`` from the table's axis
+    enters only if its edge clears the posts (the rim's ends at x = L/2, |y| = goal_width/2) until its centre
+    reaches the rim's face; a steep or edge-grazing one bounces off the far rim instead. The post test
+    against the distance of the post from the centre's path, sampled finely (an independent reference)."""
+    v = 2.0 * np.array([math.cos(math.radians(degrees)), math.sin(math.radians(degrees))])
+    path = np.array([X, y]) + np.linspace(0.0, (TABLE.length / 2 - X) / v[0], 20001)[:, None] * v
+    posts = np.array([[TABLE.length / 2, g] for g in (TABLE.goal_width / 2, -TABLE.goal_width / 2)])
+    clear = min(np.linalg.norm(path - post, axis=1).min() for post in posts) >= TABLE.puck_radius
+    assert TABLE.enters_goal(X, y, *v) == scores == clear
+    state = np.array([X - 0.005 * v[0], y - 0.005 * v[1], *v, 0.0, 0.0])  # 5 ms before the line
+    impacts = model().step(state, DT).impacts
+    assert [i.wall for i in impacts] == ([] if scores else [WALL_FAR])
 
 
 def test_invalid_parameters_are_refused_with_the_name():

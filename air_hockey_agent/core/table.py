@@ -3,8 +3,9 @@
 The puck centre moves inside the rectangle |x| <= L/2 - r, |y| <= W/2 - r. Each rim is a line of that
 rectangle described by its inward unit normal ``n`` (pointing from the rim into the table) and the
 signed distance ``n . p + offset`` of the puck centre from it (positive inside). The short rims have
-the goal opening: a puck whose centre crosses a short rim with |y| < goal_width/2 - r enters the goal
-(no impact).
+the goal opening: a puck whose centre crosses a short rim line with |y| < goal_width/2 - r enters the goal
+(no impact), unless its edge meets a post (the rim's end at x = +-L/2, y = +-goal_width/2) before its centre
+reaches the rim's face x = +-L/2: a steep puck does, and comes back (:meth:`TableGeometry.enters_goal`).
 """
 from __future__ import annotations
 
@@ -60,6 +61,33 @@ class TableGeometry:
         """True when a puck centre at this y passes through a goal opening."""
         return abs(y) < self.goal_mouth
 
+    def enters_goal(self, x: float, y: float, vx: float, vy: float) -> bool:
+        """True when a puck whose centre crosses a short rim line at (x, y) [m] with velocity (vx, vy) [m/s]
+        enters the goal: inside the mouth, and its edge does not meet a post on the way from the line to
+        the rim's face (the centre's straight path over that last puck radius; beyond the face the goal's
+        sides only steer it, its motion toward the goal kept)."""
+        r = self.puck_radius  # face and post as the compiled prediction computes them
+        return abs(y) < self.goal_mouth and not meets_post(x, y, vx, vy, self.x_limit + r, self.goal_mouth + r, r)
+
+
     def contains(self, x: float, y: float, margin: float = 0.0) -> bool:
         """True when the puck centre is on the table, up to ``margin`` beyond the rims [m]."""
         return abs(x) <= self.length / 2 + margin and abs(y) <= self.width / 2 + margin
+
+
+def meets_post(x: float, y: float, vx: float, vy: float, face: float, post: float, radius: float) -> bool:
+    """True when a puck of ``radius`` [m] whose centre goes straight from (x, y) with velocity (vx, vy) to
+    the rim face |x| = ``face`` comes within its radius of a post at (+-face, +-post) [m] (table frame);
+    the same arithmetic as the compiled prediction's."""
+    if vx == 0.0:
+        return False
+    end_x = face if vx > 0.0 else -face
+    t = (end_x - x) / vx  # [s] to the face
+    dx, dy = end_x - x, t * vy
+    length2 = dx * dx + dy * dy
+    for post_y in (post, -post):
+        s = 0.0 if length2 == 0.0 else min(1.0, max(0.0, (dx * dx + (post_y - y) * dy) / length2))
+        gx, gy = end_x - (x + s * dx), post_y - (y + s * dy)
+        if gx * gx + gy * gy < radius * radius:
+            return True
+    return False

@@ -37,7 +37,7 @@ from air_hockey_agent.core.puck.model import wrap_angle
 from air_hockey_agent.core.puck.real_table import GRAVITY, held_then_hit
 from air_hockey_agent.core.table import TableGeometry
 
-RIM_HALF_THICKNESS = 0.05  # [m] any size works: the puck meets the rims' inner faces only
+RIM_HALF_THICKNESS = 0.05  # [m] the puck meets the rims' inner faces, and beside a goal mouth their ends (posts)
 RIM_HALF_HEIGHT = 0.02     # [m] below the puck's radius, so the sphere touches a rim's face at its equator
 
 

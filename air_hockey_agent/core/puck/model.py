@@ -7,7 +7,9 @@ One step of length ``dt`` (thesis eq. 3.1, with the surface friction acting alon
 * flight: the puck moves with constant velocity for ``dt``; when its centre reaches a rim line within
   the step it moves to the contact point, the Routh impact (:mod:`.impact`) changes (vx, vy, omega),
   and it flies on with the new velocity for the rest of the step (several impacts per step allowed,
-  e.g. in a corner). Crossing a short rim inside the goal opening is no impact.
+  e.g. in a corner). Crossing a short rim inside the goal opening is no impact, unless the puck's edge
+  meets a post on its way in (:meth:`~air_hockey_agent.core.table.TableGeometry.enters_goal`): then it
+  bounces as off the rim (the post's own, tilted normal is not modelled).
 * decay: ``v <- v - dt (d v + mu_s v/|v|)``, i.e. speed ``|v| <- max(a |v| - dt mu_s, 0)`` with
   ``a = 1 - dt d``; the direction is kept. The spin decays as ``omega <- b omega`` with ``b = 1 - dt k``,
   ``k`` the spin damping (0: the thesis's eq. 3.1, whose spin is constant; a uniform viscous air film damps
@@ -163,7 +165,7 @@ class PuckModel:
             tau = 0.0 if distance <= 0.0 else distance / -vn
             if tau > horizon or (best is not None and tau >= best[0]):
                 continue
-            if wall in SHORT_WALLS and self.table.in_goal_mouth(y + tau * vy):
+            if wall in SHORT_WALLS and self.table.enters_goal(x + tau * vx, y + tau * vy, vx, vy):
                 continue
             best = (tau, wall)
         return best

@@ -82,10 +82,30 @@ def _first_impact(p: np.ndarray, x: float, y: float, vx: float, vy: float, horiz
         tau = 0.0 if distance <= 0.0 else distance / -vn
         if tau > horizon or (best_wall >= 0 and tau >= best_tau):
             continue
-        if short and abs(y + tau * vy) < p[P_MOUTH]:
+        if short and abs(y + tau * vy) < p[P_MOUTH] and not _meets_post(p, x + tau * vx, y + tau * vy, vx, vy):
             continue
         best_tau, best_wall = tau, wall
     return best_tau, best_wall
+
+
+@njit(cache=True)
+def _meets_post(p: np.ndarray, x: float, y: float, vx: float, vy: float) -> bool:
+    """:func:`air_hockey_agent.core.table.meets_post` with the table of ``p``."""
+    if vx == 0.0:
+        return False
+    radius = p[P_RADIUS]
+    face, post = p[P_X_LIMIT] + radius, p[P_MOUTH] + radius
+    end_x = face if vx > 0.0 else -face
+    t = (end_x - x) / vx
+    dx, dy = end_x - x, t * vy
+    length2 = dx * dx + dy * dy
+    for sign in (1.0, -1.0):
+        post_y = sign * post
+        s = 0.0 if length2 == 0.0 else min(1.0, max(0.0, (dx * dx + (post_y - y) * dy) / length2))
+        gx, gy = end_x - (x + s * dx), post_y - (y + s * dy)
+        if gx * gx + gy * gy < radius * radius:
+            return True
+    return False
 
 
 @njit(cache=True)
