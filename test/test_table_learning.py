@@ -373,3 +373,18 @@ def test_the_filter_learns_no_spin_decay_where_the_spin_is_constant(params):
     off = PuckEKF.from_params({**params, "acceleration_adaptation.spin_prior_std": 0.0})
     evaluate_stream(off, frames, EvaluationTotals((1.0,)))
     assert off.learning.report()["spin_damping"] is None and off.model.params.spin_damping == 0.0
+
+
+def test_a_bounce_off_a_goal_post_is_not_learned_from_as_the_rims(params):
+    """A puck the model bounces off a post (steep, inside the mouth: core/table.py) met the post's end, not
+    the rim's face: no impact watch starts; an impact on the far rim beside the goal starts one."""
+    from air_hockey_agent.core.table import WALL_FAR
+    ekf = PuckEKF.from_params(params)
+    learning, table = ekf.learning, ekf.model.table
+    p = np.diag([1e-8, 1e-8, 1e-6, 1e-6, 1e-4, 1e-2])
+    for y, watched in ((0.04, False), (0.3, True)):
+        before = np.array([table.x_limit - 0.005, y, 0.7, 1.9, 0.0, 0.0])
+        assert ekf.model.first_impact(*before[:4], 1 / 120)[1] == WALL_FAR
+        learning.forget()
+        learning.after_frame(ekf.model, 10.0 + 1 / 120, None, before, p, 10.0)
+        assert (learning._watch is not None) == watched
