@@ -144,3 +144,31 @@ def test_a_test_bed_session_takes_no_step_of_the_trackers_model(monkeypatch):
     frames = synthetic_session(model, shots, 3, 120.0, MocapImperfections(jitter_std=2e-4), rng, 1e-3,
                                testbed_shots(TableEffects(), TABLE, (0.3, 0.6), 1e-3, rng))
     assert len(frames) > 300 and any(f.measurement is not None for f in frames)
+
+
+def test_a_post_returns_a_puck_along_the_line_from_it_and_a_clear_puck_scores():
+    """The posts (the short rims' ends beside a goal opening): a spinless puck flying at a post along the
+    line from the post to its centre comes straight back with the restitution (no tangential impulse);
+    a steep puck inside the mouth (70 deg) and one grazing a post (y = 0.11, along x) come back out, the
+    grazing one also pushed away from the post in y; a puck through the middle scores. Energy never grows."""
+    effects = TableEffects(restitution_slow=0.8, restitution_fast=0.8, friction_rim=0.15, tangential_scale=1.0)
+    half_l, post = TABLE.length / 2, TABLE.goal_width / 2
+
+    def run(state, duration=0.3):
+        puck = RealTablePuck(TABLE, effects, np.random.default_rng(0))
+        return puck.simulate(np.array(state, float), duration, 1e-4)[1]
+
+    u = np.array([math.cos(math.radians(30)), math.sin(math.radians(30))])  # from the post into the table
+    start = np.array([half_l, -post]) + (RADIUS + 0.05) * np.array([-u[0], u[1]])  # left of the lower post
+    head_on = run([*start, 1.5 * u[0], -1.5 * u[1], 0.0, 0.0])
+    assert head_on[-1, 2:4] == pytest.approx(-0.8 * 1.5 * np.array([u[0], -u[1]]), abs=1e-9)
+    assert head_on[-1, 5] == pytest.approx(0.0, abs=1e-9)
+    steep = run([half_l - RADIUS - 0.02, 0.0, 0.7, 1.9, 0.0, 0.0])
+    assert steep[-1, 2] < 0.0 and abs(steep[-1, 0]) < half_l
+    grazing = run([half_l - 0.2, 0.11, 2.0, 0.0, 0.0, 0.0])
+    assert grazing[-1, 2] < 0.0 and grazing[-1, 3] < 0.0
+    middle = run([half_l - 0.2, 0.0, 2.0, 0.0, 0.0, 0.0])
+    assert middle[-1, 0] > half_l + RADIUS
+    for states in (head_on, steep, grazing):
+        energy = states[:, 2] ** 2 + states[:, 3] ** 2 + 0.5 * RADIUS ** 2 * states[:, 5] ** 2  # disc: I = m r^2/2
+        assert np.all(np.diff(energy) <= 1e-12)

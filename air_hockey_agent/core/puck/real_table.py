@@ -14,7 +14,9 @@ Integrated with a fixed fine step (semi-implicit Euler), the puck accelerates by
       + w(t)                              random accelerations: a Gaussian value of std sigma held for a
                                           correlation time, then drawn again
 
-and at a rim (the centre on the rim line outside a goal mouth) the normal velocity reverses with a
+and at a rim (the centre on the rim line where the rim's face is, not in a goal opening) or a post (a
+rim's end beside a goal opening, met at its corner: the normal from the post to the centre; the model
+bounces such a puck off the goal line instead) the normal velocity reverses with a
 restitution that falls with the normal speed, from ``restitution_slow`` below the first of
 ``restitution_speeds`` linearly to ``restitution_fast`` above the second (rim rubber: faster impacts lose
 more), while the tangential impulse is the Routh/Coulomb one (thesis eq. 3.2-3.3) scaled by
@@ -134,24 +136,46 @@ class RealTablePuck:
         return self._rims(s, before)
 
     def _rims(self, s: np.ndarray, before: tuple[float, float]) -> np.ndarray:
-        """Reflect a puck whose centre crossed a rim line in this step from ``before`` (outside a goal mouth)
-        and apply the impact. A puck that went into a goal stays there: behind a short rim line there is no
-        rim to bounce it back, wherever its y drifts."""
+        """Reflect a puck whose centre crossed a rim line in this step from ``before`` (where the rim's face
+        is: not in a goal opening) and apply the impact; then the posts. A puck that went into a goal stays
+        there: behind a short rim line there is no rim to bounce it back, wherever its y drifts."""
         table = self.table
         for wall, (nx, ny) in enumerate(WALL_NORMALS):
             distance = nx * s[0] + ny * s[1] + table.wall_offset(wall)
             vn = nx * s[2] + ny * s[3]
             if distance >= 0.0 or vn >= 0.0:
                 continue
-            if wall in SHORT_WALLS and (table.in_goal_mouth(s[1]) or table.distance_to_wall(wall, *before) < 0.0):
+            opening = abs(s[1]) < table.goal_width / 2  # the contact point would be in the goal's opening
+            if wall in SHORT_WALLS and (opening or table.distance_to_wall(wall, *before) < 0.0):
                 continue
-            bx, by = ny, -nx
-            vb = bx * s[2] + by * s[3]
-            vb, vn, s[5] = real_rim_impact(vb, vn, s[5], table.puck_radius, self.effects)
             s[0] -= 2.0 * distance * nx  # mirror the overshoot back onto the table
             s[1] -= 2.0 * distance * ny
-            s[2], s[3] = bx * vb + nx * vn, by * vb + ny * vn
+            self._impact(s, nx, ny)
+        return self._posts(s)
+
+    def _posts(self, s: np.ndarray) -> np.ndarray:
+        """A puck whose edge overlaps a post (a rim's end beside a goal opening, at x = +-L/2, y =
+        +-goal_width/2) while moving toward it: the impact of a rim whose normal points from the post to
+        the centre, and the centre put back at one radius (a corner contact: the model bounces such a puck
+        off the goal line instead)."""
+        r, table = self.table.puck_radius, self.table
+        for px in (table.length / 2, -table.length / 2):
+            for py in (table.goal_width / 2, -table.goal_width / 2):
+                dx, dy = s[0] - px, s[1] - py
+                gap = math.hypot(dx, dy)
+                if gap >= r or gap == 0.0 or dx * s[2] + dy * s[3] >= 0.0:
+                    continue
+                nx, ny = dx / gap, dy / gap
+                s[0], s[1] = px + r * nx, py + r * ny
+                self._impact(s, nx, ny)
         return s
+
+    def _impact(self, s: np.ndarray, nx: float, ny: float) -> None:
+        """The test bed's impact (:func:`real_rim_impact`) on ``s`` with the rim's inward normal (nx, ny)."""
+        bx, by = ny, -nx
+        vb, vn, s[5] = real_rim_impact(bx * s[2] + by * s[3], nx * s[2] + ny * s[3], s[5], self.table.puck_radius,
+                                       self.effects)
+        s[2], s[3] = bx * vb + nx * vn, by * vb + ny * vn
 
     def simulate(self, state: np.ndarray, duration: float, dt: float,
                  hit_at: float | None = None, hit_velocity: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
