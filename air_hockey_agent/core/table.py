@@ -69,7 +69,6 @@ class TableGeometry:
         r = self.puck_radius  # face and post as the compiled prediction computes them
         return abs(y) < self.goal_mouth and not meets_post(x, y, vx, vy, self.x_limit + r, self.goal_mouth + r, r)
 
-
     def contains(self, x: float, y: float, margin: float = 0.0) -> bool:
         """True when the puck centre is on the table, up to ``margin`` beyond the rims [m]."""
         return abs(x) <= self.length / 2 + margin and abs(y) <= self.width / 2 + margin
@@ -77,8 +76,8 @@ class TableGeometry:
 
 def meets_post(x: float, y: float, vx: float, vy: float, face: float, post: float, radius: float) -> bool:
     """True when a puck of ``radius`` [m] whose centre goes straight from (x, y) with velocity (vx, vy) to
-    the rim face |x| = ``face`` comes within its radius of a post at (+-face, +-post) [m] (table frame);
-    the same arithmetic as the compiled prediction's."""
+    the rim face |x| = ``face`` comes within its radius of a post at (+-face, +-post) [m] (table frame).
+    Scalars only: the compiled prediction compiles this function itself."""
     if vx == 0.0:
         return False
     end_x = face if vx > 0.0 else -face

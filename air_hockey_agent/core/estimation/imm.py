@@ -30,7 +30,7 @@ import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import _MEASURED_BLOCK, MEASURED, SINGLE_STEP_LIMIT, PuckEKF
 from air_hockey_agent.core.puck.model import wrap_angle
-from air_hockey_agent.core.puck.prediction import impact_covariance
+from air_hockey_agent.core.puck.prediction import with_impact_noise
 
 MODES = ("free", "rim", "contact")
 _FREE, _RIM, _CONTACT = range(3)
@@ -85,8 +85,7 @@ class PuckIMM(PuckEKF):
         """What mode ``mode`` adds to the common process noise in a step ``res`` of ``dt`` [s]: an impact's
         noise (the rim mode's larger), and for the contact mode its velocity change."""
         ratio = self.settings.imm_rim_impact_noise if mode == _RIM else self.settings.impact_noise
-        contact_time = self.settings.impact_contact_time
-        extra = impact_covariance(res.state, ratio, contact_time) if res.impacts and (ratio or contact_time) else 0.0
+        extra = with_impact_noise(0.0, res.state, res.impacts, ratio, self.settings.impact_contact_time)
         return extra + self._contact_noise(dt) if mode == _CONTACT else extra
 
     def _mixed(self) -> tuple[np.ndarray, list, list]:

@@ -36,6 +36,9 @@ from air_hockey_agent.core.puck.model import PuckModel, PuckParams, flight_accel
 from air_hockey_agent.core.table import SHORT_WALLS, TableGeometry
 
 
+REPORT_KEYS = ("rim_law", "table_acceleration", "spin_damping")  # what TableLearning.report gives, in order
+
+
 @dataclass(frozen=True)
 class AccelerationSettings:
     """``acceleration_adaptation.*`` in ``config/tracker.yaml``."""
@@ -267,9 +270,13 @@ class TableLearning:
         """What was learned: ``rim_law`` (:meth:`RimAdaptation.report`), ``table_acceleration``
         (windows, value and std [m/s^2]) and ``spin_damping`` (windows, value and std [1/s]), each None
         when not learned."""
-        return {"rim_law": None if self.rim is None else self.rim.report(),
-                "table_acceleration": None if self.acceleration is None else self.acceleration.report(),
-                "spin_damping": None if self.spin is None else self.spin.report()}
+        parts = (self.rim, self.acceleration, self.spin)
+        return {key: None if part is None else part.report() for key, part in zip(REPORT_KEYS, parts)}
+
+
+def learning_report(learning: TableLearning | None) -> dict:
+    """:meth:`TableLearning.report`, or its keys all None when the tracker learns nothing."""
+    return {key: None for key in REPORT_KEYS} if learning is None else learning.report()
 
 
 def describe_learning(report: dict) -> str:

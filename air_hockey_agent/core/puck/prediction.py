@@ -108,8 +108,10 @@ def _finish(model: PuckModel, rec: _Recorder, s: np.ndarray, p: np.ndarray | Non
     return rec.result
 
 
-def with_impact_noise(p: np.ndarray, state: np.ndarray, impacts, ratio: float, contact_time: float = 0.0) -> np.ndarray:
-    """``p`` plus the impact covariance when the step had a rim impact (and ``ratio`` or ``contact_time`` > 0)."""
+def with_impact_noise(p: np.ndarray | float, state: np.ndarray, impacts, ratio: float,
+                      contact_time: float = 0.0) -> np.ndarray | float:
+    """``p`` plus the impact covariance when the step had a rim impact (and ``ratio`` or ``contact_time`` > 0);
+    ``p`` 0.0 gives the impact's covariance alone (or 0.0)."""
     return p + impact_covariance(state, ratio, contact_time) if impacts and (ratio or contact_time) else p
 
 
@@ -186,7 +188,6 @@ def predict_fast(model: PuckModel, state: np.ndarray, cov: np.ndarray | None, ho
                  impact_noise: float = 0.0, impact_contact_time: float = 0.0) -> Prediction:
     """:func:`predict_stepwise` in compiled code (:mod:`.prediction_kernel`): ``horizon`` [s] in model steps of
     ``dt`` [s] with per-step noise ``q`` (6x6) and the impact covariance of ratio ``impact_noise`` and contact
-    time ``impact_contact_time`` [s]; with
-    ``cov=None`` the mean alone (``Prediction.covariance`` None: the tactics, the offline evaluation and system
+    time ``impact_contact_time`` [s]; with ``cov=None`` the mean alone (``Prediction.covariance`` None: the tactics, the offline evaluation and system
     identification need no covariance)."""
     return _compiled(model, state, cov, horizon, dt, q, lines, sample_every, impact_noise, impact_contact_time)

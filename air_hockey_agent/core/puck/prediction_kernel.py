@@ -27,7 +27,7 @@ import math
 import numpy as np
 from numba import njit
 
-from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS
+from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, meets_post
 
 # rows of the parameter vector (:func:`kernel_params`)
 (P_RESTITUTION, P_FRICTION_RIM, P_SLOPE, P_FLOOR, P_KNEE, P_TANGENTIAL, P_DAMPING, P_FRICTION_SURFACE, P_GX, P_GY,
@@ -42,6 +42,7 @@ TWO_PI = 2.0 * math.pi
 NORMAL_X = tuple(n[0] for n in WALL_NORMALS)  # the rims' inward normals, by rim id (core/table.py)
 NORMAL_Y = tuple(n[1] for n in WALL_NORMALS)
 SHORT_A, SHORT_B = SHORT_WALLS  # the goal-line rims
+_meets_post = njit(cache=True)(meets_post)  # the table's own post test (core/table.py), compiled
 
 
 def kernel_params(model) -> np.ndarray:
@@ -82,30 +83,12 @@ def _first_impact(p: np.ndarray, x: float, y: float, vx: float, vy: float, horiz
         tau = 0.0 if distance <= 0.0 else distance / -vn
         if tau > horizon or (best_wall >= 0 and tau >= best_tau):
             continue
-        if short and abs(y + tau * vy) < p[P_MOUTH] and not _meets_post(p, x + tau * vx, y + tau * vy, vx, vy):
+        radius = p[P_RADIUS]  # the posts stand at the rim's face x_limit + r, y = +-(mouth + r)
+        if short and abs(y + tau * vy) < p[P_MOUTH] and not _meets_post(
+                x + tau * vx, y + tau * vy, vx, vy, p[P_X_LIMIT] + radius, p[P_MOUTH] + radius, radius):
             continue
         best_tau, best_wall = tau, wall
     return best_tau, best_wall
-
-
-@njit(cache=True)
-def _meets_post(p: np.ndarray, x: float, y: float, vx: float, vy: float) -> bool:
-    """:func:`air_hockey_agent.core.table.meets_post` with the table of ``p``."""
-    if vx == 0.0:
-        return False
-    radius = p[P_RADIUS]
-    face, post = p[P_X_LIMIT] + radius, p[P_MOUTH] + radius
-    end_x = face if vx > 0.0 else -face
-    t = (end_x - x) / vx
-    dx, dy = end_x - x, t * vy
-    length2 = dx * dx + dy * dy
-    for sign in (1.0, -1.0):
-        post_y = sign * post
-        s = 0.0 if length2 == 0.0 else min(1.0, max(0.0, (dx * dx + (post_y - y) * dy) / length2))
-        gx, gy = end_x - (x + s * dx), post_y - (y + s * dy)
-        if gx * gx + gy * gy < radius * radius:
-            return True
-    return False
 
 
 @njit(cache=True)
