@@ -5,7 +5,8 @@ import numpy as np
 import pytest
 
 from air_hockey_agent.core.puck.model import PuckParams, wrap_angle
-from air_hockey_agent.core.table import WALL_FAR, WALL_LEFT, WALL_NEAR, WALL_RIGHT
+from air_hockey_agent.core.table import (FIRST_POST, WALL_FAR, WALL_LEFT, WALL_NEAR, WALL_RIGHT, contact_rim,
+                                         post_contact_time)
 from model_fixtures import DT, TABLE, finite_difference_jacobian, model
 
 X, Y = TABLE.x_limit, TABLE.y_limit
@@ -108,17 +109,29 @@ def test_impact_on_each_rim_with_each_branch(name):
     assert nx * res.state[2] + ny * res.state[3] > 0  # moving away from the rim afterwards
 
 
+def _toward_post(normal_degrees: float, degrees: float, speed: float) -> np.ndarray:
+    """A spinning puck that touches the far rim's +y post in the middle of the next step: its centre then at
+    one radius from the post along ``normal_degrees``, moving at ``speed`` [m/s] along ``degrees``."""
+    phi, heading = math.radians(normal_degrees), math.radians(degrees)
+    contact = np.array([TABLE.length / 2 + TABLE.puck_radius * math.cos(phi),
+                        TABLE.goal_width / 2 + TABLE.puck_radius * math.sin(phi)])
+    v = speed * np.array([math.cos(heading), math.sin(heading)])
+    return np.array([*(contact - 0.4 * DT * v), *v, 0.2, 7.0])
+
+
 @pytest.mark.parametrize("slope,accel,beta,knee,spin", [
     (0.0, (0.0, 0.0), 0.0, 0.0, 0.0), (0.15, (0.0, 0.0), 0.0, 0.0, 0.0), (0.15, (0.0, 0.0), 0.0, 1.1, 0.0),
     (0.0, (0.03, -0.02), 0.0, 0.0, 0.0), (0.0, (0.0, 0.0), -0.6, 0.0, 0.0), (0.0, (0.0, 0.0), 0.0, 0.0, 0.4)],
                          ids=["constant e", "e falls with speed", "e falls beyond a knee", "tilted table",
                               "soft tangential impulse", "spin decays"])
-@pytest.mark.parametrize("name", list(IMPACT_CASES) + ["free", "corner", "goal", "post"])
+@pytest.mark.parametrize("name", list(IMPACT_CASES) + ["free", "corner", "goal", "post", "steep at a post",
+                                                       "grazing a post"])
 def test_step_jacobian_matches_central_finite_differences(name, slope, accel, beta, knee, spin):
     states = {"free": np.array([0.1, 0.2, 1.0, 0.5, 0.3, 2.0]),
               "corner": np.array([X - 0.004, Y - 0.007, 1.0, 1.3, 0.1, 5.0]),
               "goal": np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0]),
-              "post": np.array([X - 0.004, 0.04, 0.7, 1.9, 0.1, 5.0])}  # inside the mouth, but steep
+              "post": _toward_post(200.0, 10.0, 1.5), "steep at a post": _toward_post(225.0, 60.0, 1.0),
+              "grazing a post": _toward_post(250.0, 30.0, 2.5)}
     state = states.get(name, IMPACT_CASES.get(name, (None,))[0])
     m = model(restitution_slope=slope, table_acceleration=accel, tangential_restitution=beta, restitution_knee=knee,
               spin_damping=spin)
@@ -142,20 +155,35 @@ def test_goal_opening_has_no_rim():
 
 @pytest.mark.parametrize("y, degrees, scores", [(0.0, 0.0, True), (0.05, 6.0, True), (0.047, 70.0, False),
                                                 (-0.047, -70.0, False), (0.09, 11.0, False), (0.08, 30.0, False),
-                                                (0.0, 60.0, True)])
-def test_a_puck_meeting_a_post_on_its_way_into_the_goal_bounces_back(y, degrees, scores):
-    """A puck crossing the far goal line at (x_limit, y) inside the mouth at ``degrees`` from the table's axis
-    enters only if its edge clears the posts (the rim's ends at x = L/2, |y| = goal_width/2) until its centre
-    reaches the rim's face; a steep or edge-grazing one bounces off the far rim instead. The post test
-    against the distance of the post from the centre's path, sampled finely (an independent reference)."""
+                                                (0.0, 60.0, True), (0.11, 0.0, False), (0.1, 10.0, False)])
+def test_a_puck_meets_a_post_as_a_corner_on_its_way_into_the_goal(y, degrees, scores):
+    """A puck crossing the far goal line at (x_limit, y) inside the opening at ``degrees`` from the table's axis
+    meets a post (the rim's end at x = L/2, |y| = goal_width/2) where its centre first comes within one radius
+    of it before passing the rim's face, and leaves with the impact in the frame of the normal from the post
+    to its centre; clear of both posts it scores. References, independent of the model's arithmetic: the
+    path sampled finely (first contact), and a frictionless impact's closed form v' = v - (1 + e)(v . n) n."""
     v = 2.0 * np.array([math.cos(math.radians(degrees)), math.sin(math.radians(degrees))])
-    path = np.array([X, y]) + np.linspace(0.0, (TABLE.length / 2 - X) / v[0], 20001)[:, None] * v
-    posts = np.array([[TABLE.length / 2, g] for g in (TABLE.goal_width / 2, -TABLE.goal_width / 2)])
-    clear = min(np.linalg.norm(path - post, axis=1).min() for post in posts) >= TABLE.puck_radius
-    assert TABLE.enters_goal(X, y, *v) == scores == clear
-    state = np.array([X - 0.005 * v[0], y - 0.005 * v[1], *v, 0.0, 0.0])  # 5 ms before the line
-    impacts = model().step(state, DT).impacts
-    assert [i.wall for i in impacts] == ([] if scores else [WALL_FAR])
+    half = TABLE.length / 2
+    times = np.linspace(0.0, (half - X) / v[0], 200001)
+    path = np.array([X, y]) + times[:, None] * v
+    posts = np.array([[half, g] for g in (TABLE.goal_width / 2, -TABLE.goal_width / 2)])
+    near = [np.flatnonzero(np.linalg.norm(path - post, axis=1) < TABLE.puck_radius) for post in posts]
+    assert (not any(len(k) for k in near)) == scores
+    m = model(damping=0.0, friction_surface=0.0, friction_rim=0.0, tangential_restitution=-1.0)
+    first = np.array([X, y]) if scores else path[min(k[0] for k in near if len(k))]
+    res = m.step(np.array([*(first - 0.3 * DT * v), *v, 0.0, 0.0]), DT)  # the line or the contact mid-step
+    if scores:
+        for _ in range(10):
+            assert not res.impacts
+            res = m.step(res.state, DT)
+        assert res.state[0] > half  # past the face: in the goal
+        return
+    post = posts[[len(k) > 0 for k in near].index(True)]
+    (impact,) = res.impacts
+    assert impact.wall == WALL_FAR and np.hypot(impact.x - first[0], impact.y - first[1]) < 2e-5
+    n = (np.array([impact.x, impact.y]) - post) / TABLE.puck_radius
+    assert res.state[2:4] == pytest.approx(v - (1.0 + 0.9) * (v @ n) * n, abs=1e-9)
+    assert np.linalg.norm(res.state[2:4]) <= np.linalg.norm(v)  # energy never grows
 
 
 def test_invalid_parameters_are_refused_with_the_name():
@@ -171,3 +199,19 @@ def test_invalid_parameters_are_refused_with_the_name():
         model(tangential_restitution=-1.5)
     with pytest.raises(ValueError, match="spin_damping must be >= 0"):
         model(spin_damping=-0.1)
+
+
+def test_the_post_contact_time_against_its_geometry():
+    """A post's first contact along a straight path: the time its centre is one radius from the post
+    (a closed form: a head-on puck 0.1 m away at 2 m/s touches after (0.1 - r) / 2 s), 0 when it already
+    overlaps while approaching, none when it moves away, passes wide, or would touch only behind the face."""
+    r, half, post = TABLE.puck_radius, TABLE.length / 2, TABLE.goal_width / 2
+    assert post_contact_time(half - 0.1, post, 2.0, 0.0, half, post, r) == pytest.approx((0.1 - r) / 2.0, rel=1e-12)
+    assert post_contact_time(half - 0.5 * r, post - 0.5 * r, 1.0, 1.0, half, post, r) == 0.0
+    assert post_contact_time(half - 0.5 * r, post - 0.5 * r, -1.0, -1.0, half, post, r) == math.inf
+    assert post_contact_time(half - 0.1, post - 2.0 * r, 2.0, 0.0, half, post, r) == math.inf  # passes below
+    # in the goal, moving back out past the post's far side: its contact would be behind the face
+    assert post_contact_time(half + 0.1, post - 0.5 * r, -2.0, 0.0, half, post, r) == math.inf
+    positions = np.array([TABLE.post_position(c) for c in range(FIRST_POST, FIRST_POST + 4)])
+    assert positions == pytest.approx(np.array([(half, -post), (half, post), (-half, -post), (-half, post)]))
+    assert [contact_rim(c) for c in range(FIRST_POST, FIRST_POST + 4)] == [WALL_FAR, WALL_FAR, WALL_NEAR, WALL_NEAR]

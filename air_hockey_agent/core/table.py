@@ -3,12 +3,16 @@
 The puck centre moves inside the rectangle |x| <= L/2 - r, |y| <= W/2 - r. Each rim is a line of that
 rectangle described by its inward unit normal ``n`` (pointing from the rim into the table) and the
 signed distance ``n . p + offset`` of the puck centre from it (positive inside). The short rims have
-the goal opening: a puck whose centre crosses a short rim line with |y| < goal_width/2 - r enters the goal
-(no impact), unless its edge meets a post (the rim's end at x = +-L/2, y = +-goal_width/2) before its centre
-reaches the rim's face x = +-L/2: a steep puck does, and comes back (:meth:`TableGeometry.enters_goal`).
+the goal opening: where a short rim line is crossed with |y| < goal_width/2 there is no rim face behind it
+(no line impact), but the rim's two ends beside the opening, the posts at x = +-L/2, y = +-goal_width/2,
+stand there: a puck whose edge reaches a post before its centre is past the rim's face x = +-L/2 meets it
+as a corner, with the normal from the post to its centre (:func:`post_contact_time`); a puck whose
+centre gets past the face is in the goal. Contacts are numbered: the four rims (``WALL_*``), then the
+four posts (``FIRST_POST`` + k, :func:`post_position`; :func:`contact_rim` names a post's rim).
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Mapping
 
@@ -17,6 +21,8 @@ WALL_NAMES = ("left", "far", "right", "near")
 # Inward normals: left rim y = -W/2, far rim x = +L/2, right rim y = +W/2, near rim x = -L/2.
 WALL_NORMALS = ((0.0, 1.0), (-1.0, 0.0), (0.0, -1.0), (1.0, 0.0))
 SHORT_WALLS = (WALL_FAR, WALL_NEAR)
+FIRST_POST = 4  # contact ids FIRST_POST + k, k = 0..3: the far rim's posts at y = -, + goal_width/2, then the near's
+POST_COUNT = 4
 
 
 @dataclass(frozen=True)
@@ -61,32 +67,49 @@ class TableGeometry:
         """True when a puck centre at this y passes through a goal opening."""
         return abs(y) < self.goal_mouth
 
-    def enters_goal(self, x: float, y: float, vx: float, vy: float) -> bool:
-        """True when a puck whose centre crosses a short rim line at (x, y) [m] with velocity (vx, vy) [m/s]
-        enters the goal: inside the mouth, and its edge does not meet a post on the way from the line to
-        the rim's face (the centre's straight path over that last puck radius; beyond the face the goal's
-        sides only steer it, its motion toward the goal kept)."""
-        r = self.puck_radius  # face and post as the compiled prediction computes them
-        return abs(y) < self.goal_mouth and not meets_post(x, y, vx, vy, self.x_limit + r, self.goal_mouth + r, r)
+    def post_position(self, contact: int) -> tuple[float, float]:
+        """Where post ``contact`` (``FIRST_POST`` + k) stands [m]: a short rim's end beside its goal opening
+        (computed as the compiled prediction computes it, from the centre's limits)."""
+        r = self.puck_radius
+        return post_position(contact, self.x_limit + r, self.goal_mouth + r)
 
     def contains(self, x: float, y: float, margin: float = 0.0) -> bool:
         """True when the puck centre is on the table, up to ``margin`` beyond the rims [m]."""
         return abs(x) <= self.length / 2 + margin and abs(y) <= self.width / 2 + margin
 
 
-def meets_post(x: float, y: float, vx: float, vy: float, face: float, post: float, radius: float) -> bool:
-    """True when a puck of ``radius`` [m] whose centre goes straight from (x, y) with velocity (vx, vy) to
-    the rim face |x| = ``face`` comes within its radius of a post at (+-face, +-post) [m] (table frame).
-    Scalars only: the compiled prediction compiles this function itself."""
-    if vx == 0.0:
-        return False
-    end_x = face if vx > 0.0 else -face
-    t = (end_x - x) / vx  # [s] to the face
-    dx, dy = end_x - x, t * vy
-    length2 = dx * dx + dy * dy
-    for post_y in (post, -post):
-        s = 0.0 if length2 == 0.0 else min(1.0, max(0.0, (dx * dx + (post_y - y) * dy) / length2))
-        gx, gy = end_x - (x + s * dx), post_y - (y + s * dy)
-        if gx * gx + gy * gy < radius * radius:
-            return True
-    return False
+def post_position(contact: int, half_length: float, half_goal: float) -> tuple[float, float]:
+    """Post ``contact`` (``FIRST_POST`` + k) at (+-``half_length``, +-``half_goal``) [m]: k 0, 1 on the far
+    rim (x > 0), 2, 3 on the near one; even k at y < 0. Scalars only (compiled by the prediction)."""
+    k = contact - FIRST_POST
+    return (half_length if k < 2 else -half_length), (-half_goal if k % 2 == 0 else half_goal)
+
+
+def contact_rim(contact: int) -> int:
+    """The rim a contact belongs to: a rim's own id, a post's short rim (``WALL_FAR`` or ``WALL_NEAR``)."""
+    if contact < FIRST_POST:
+        return contact
+    return WALL_FAR if contact - FIRST_POST < 2 else WALL_NEAR
+
+
+def post_contact_time(x: float, y: float, vx: float, vy: float, px: float, py: float, radius: float) -> float:
+    """Time [s] until a puck of ``radius`` [m] whose centre flies straight from (x, y) with velocity (vx, vy)
+    [m/s] touches the post at (px, py) while moving toward it, with its centre not past the rim's face
+    (|x| <= |px|: behind it the goal's sides would act, which are not modelled); 0 for a puck already
+    overlapping and approaching it; inf for none. Scalars only: the compiled prediction compiles it."""
+    dx, dy = x - px, y - py
+    closing = dx * vx + dy * vy  # < 0 while the centre approaches the post
+    if closing >= 0.0:
+        return math.inf
+    gap = dx * dx + dy * dy - radius * radius
+    if gap <= 0.0:
+        t = 0.0
+    else:
+        speed2 = vx * vx + vy * vy
+        disc = closing * closing - speed2 * gap
+        if disc < 0.0:
+            return math.inf
+        t = gap / (math.sqrt(disc) - closing)  # the smaller root, in its cancellation-free form
+    if (x + t * vx - px) * px > 0.0:
+        return math.inf
+    return t

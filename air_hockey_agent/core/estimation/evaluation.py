@@ -124,15 +124,15 @@ class EvaluationTotals:
 
 REGIMES = ("rest", "flight", "impact")
 # What a prediction went through (eval-prediction's errors by path): it started at rest (a later motion is a
-# hit no model foresees), it ended in a goal (past a goal line inside the mouth: a puck the model lets in
-# may meet a post or the goal's sides instead), or it flew with no, one, or two and more rim impacts
+# hit no model foresees), it ended in a goal (behind a goal line: a puck the model lets past the posts may
+# meet the goal's sides, or a post's other side, instead), or it flew with no, one, or two and more rim impacts
 PATHS = ("rest", "no_impact", "one_impact", "impacts", "goal")
 
 
 def _path(start_state: np.ndarray, end_state: np.ndarray, impacts: int, rest_speed: float, x_limit: float) -> str:
     if np.hypot(start_state[2], start_state[3]) < rest_speed:
         return "rest"
-    if abs(end_state[0]) > x_limit:  # behind a short rim line: only a goal mouth lets the model's puck there
+    if abs(end_state[0]) > x_limit:  # behind a short rim line: only a goal opening lets the model's puck there
         return "goal"
     return PATHS[1 + min(impacts, 2)]
 

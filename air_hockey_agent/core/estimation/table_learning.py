@@ -33,7 +33,7 @@ from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings,
                                                              rim_frame)
 from air_hockey_agent.core.estimation.spin_adaptation import SpinAdaptation, describe_spin
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, flight_acceleration
-from air_hockey_agent.core.table import SHORT_WALLS, TableGeometry
+from air_hockey_agent.core.table import FIRST_POST, TableGeometry
 
 
 REPORT_KEYS = ("rim_law", "table_acceleration", "spin_damping")  # what TableLearning.report gives, in order
@@ -211,8 +211,8 @@ class TableLearning:
     def _new_watch(self, before: np.ndarray, p: np.ndarray, stamp: float, hit) -> _ImpactWatch | None:
         tau, wall = hit
         _, y, vx, vy, _, omega = before.tolist()
-        if wall in SHORT_WALLS and abs(y + tau * vy) < self.table.goal_width / 2:
-            return None  # a post, not the rim: its normal is not the rim's (core/table.py)
+        if wall >= FIRST_POST:
+            return None  # a post, met as a corner (core/table.py): the rim law is learned from the rims' faces
         vb, vn = rim_frame(wall, vx, vy)
         settings = self.rim.settings
         certain = p[2, 2] + p[3, 3] <= (settings.max_incoming_uncertainty ** 2) * (vx * vx + vy * vy)

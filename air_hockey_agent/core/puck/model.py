@@ -7,9 +7,10 @@ One step of length ``dt`` (thesis eq. 3.1, with the surface friction acting alon
 * flight: the puck moves with constant velocity for ``dt``; when its centre reaches a rim line within
   the step it moves to the contact point, the Routh impact (:mod:`.impact`) changes (vx, vy, omega),
   and it flies on with the new velocity for the rest of the step (several impacts per step allowed,
-  e.g. in a corner). Crossing a short rim inside the goal opening is no impact, unless the puck's edge
-  meets a post on its way in (:meth:`~air_hockey_agent.core.table.TableGeometry.enters_goal`): then it
-  bounces as off the rim (the post's own, tilted normal is not modelled).
+  e.g. in a corner). Crossing a short rim line inside the goal opening is no impact; a post (the rim's
+  end beside the opening) is, when the puck's edge reaches it before its centre is past the rim's face:
+  the same impact with the normal from the post to the centre (a corner contact,
+  :func:`~air_hockey_agent.core.table.post_contact_time`); a puck whose centre passes the face is in the goal.
 * decay: ``v <- v - dt (d v + mu_s v/|v|)``, i.e. speed ``|v| <- max(a |v| - dt mu_s, 0)`` with
   ``a = 1 - dt d``; the direction is kept. The spin decays as ``omega <- b omega`` with ``b = 1 - dt k``,
   ``k`` the spin damping (0: the thesis's eq. 3.1, whose spin is constant; a uniform viscous air film damps
@@ -20,7 +21,8 @@ One step of length ``dt`` (thesis eq. 3.1, with the surface friction acting alon
   surface friction then holds a resting puck when ``|g| <= mu_s``.
 
 The Jacobian ``F = ds'/ds`` is exact for the whole step, including how the impact time moves with
-the state; on an impact it contains the thesis's ``A_i^-1 S_j A_i`` (sec. 4.2) as its velocity block.
+the state (and, at a post, how the normal turns with the contact point); on a rim impact it contains the
+thesis's ``A_i^-1 S_j A_i`` (sec. 4.2) as its velocity block.
 It is built from 7x7 Jacobians over the augmented state (s, remaining time).
 """
 from __future__ import annotations
@@ -32,7 +34,8 @@ from typing import Any, Mapping, NamedTuple
 import numpy as np
 
 from air_hockey_agent.core.puck.impact import rim_impact
-from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
+from air_hockey_agent.core.table import (FIRST_POST, POST_COUNT, SHORT_WALLS, WALL_NORMALS, TableGeometry, contact_rim,
+                                         post_contact_time)
 
 TWO_PI = 2.0 * math.pi
 MAX_IMPACTS_PER_STEP = 4  # a corner gives two; more means a degenerate state
@@ -139,6 +142,46 @@ class StepResult(NamedTuple):
     impacts: tuple[Impact, ...]
 
 
+def event_jacobian(z: list[float], tau: float, normal: tuple, velocities: tuple, s_local: tuple) -> np.ndarray:
+    """7x7 Jacobian of one impact event over the augmented state z = (x, y, vx, vy, theta, omega, h).
+
+    ``normal`` = (nx, ny, curvature): the contact's inward normal and its curvature [1/m] (0 for a rim's
+    line; a post's circle turns the normal with the contact point c: dn = dc / r, so the impact frame turns
+    by d phi = -b . dc / r); ``velocities`` = (vb, vn, vb', vn') in the impact frame before and after;
+    ``s_local`` the impact's own 3x3 Jacobian (thesis sec. 4.2: the velocity block is A^T S A on a rim).
+    The impact time tau moves with the state as n . (p + tau v) stays fixed: d tau = -n . (dp + tau dv) / vn
+    (none when the contact is already made, tau = 0)."""
+    x, y, vx, vy, th, om, h = z
+    nx, ny, curvature = normal
+    vb, vn, vb_out, vn_out = velocities
+    gx = gy = gvx = gvy = 0.0  # gradient of the impact time tau
+    if tau > 0.0:
+        gx, gy = -nx / vn, -ny / vn
+        gvx, gvy = -tau * nx / vn, -tau * ny / vn
+    bx, by = ny, -nx  # impact frame rows (b, n): A = [[bx, by], [nx, ny]]; velocity block A^T S A
+    (s00, s01, s02), (s10, s11, s12), (s20, s21, s22) = s_local
+    cb, cn = s00 * bx + s01 * nx, s10 * bx + s11 * nx  # S A, first column
+    db, dn = s00 * by + s01 * ny, s10 * by + s11 * ny  # S A, second column
+    vel = ((bx * cb + nx * cn, bx * db + nx * dn), (by * cb + ny * cn, by * db + ny * dn))
+    vel_om = (bx * s02 + nx * s12, by * s02 + ny * s12)
+    om_vel = (s20 * bx + s21 * nx, s20 * by + s21 * ny)
+    jac = np.array([
+        [1.0 + vx * gx, vx * gy, tau + vx * gvx, vx * gvy, 0.0, 0.0, 0.0],
+        [vy * gx, 1.0 + vy * gy, vy * gvx, tau + vy * gvy, 0.0, 0.0, 0.0],
+        [0.0, 0.0, vel[0][0], vel[0][1], 0.0, vel_om[0], 0.0],
+        [0.0, 0.0, vel[1][0], vel[1][1], 0.0, vel_om[1], 0.0],
+        [om * gx, om * gy, om * gvx, om * gvy, 1.0, tau, 0.0],
+        [0.0, 0.0, om_vel[0], om_vel[1], 0.0, s22, 0.0],
+        [-gx, -gy, -gvx, -gvy, 0.0, 0.0, 1.0]])
+    if curvature != 0.0:  # the frame turns: du = A dv + d phi (vn, -vb), dv' = A^T du' + d phi (vb' n - vn' b)
+        turn = -curvature * (bx * jac[0] + by * jac[1])  # d phi over z, from the contact point's rows
+        wb, wn = s00 * vn - s01 * vb, s10 * vn - s11 * vb
+        jac[2] += (bx * wb + nx * wn + vb_out * nx - vn_out * bx) * turn
+        jac[3] += (by * wb + ny * wn + vb_out * ny - vn_out * by) * turn
+        jac[5] += (s20 * vn - s21 * vb) * turn
+    return jac
+
+
 class PuckModel:
     """The puck's motion model on one table with one set of physical parameters."""
 
@@ -147,70 +190,74 @@ class PuckModel:
         self.table = table
         self.params = params
         self._offsets = tuple(table.wall_offset(w) for w in range(4))
+        self._half_goal = table.goal_mouth + table.puck_radius  # as the compiled prediction computes it
+        self._posts = {w: tuple(c for c in range(FIRST_POST, FIRST_POST + POST_COUNT) if contact_rim(c) == w)
+                       for w in SHORT_WALLS}
 
     def with_params(self, params: PuckParams) -> "PuckModel":
         return PuckModel(self.table, params)
 
     # --- flight -------------------------------------------------------------------------------
     def first_impact(self, x: float, y: float, vx: float, vy: float, horizon: float) -> tuple[float, int] | None:
-        """Earliest rim contact of a puck flying straight for ``horizon`` seconds: (time, rim) or None."""
+        """Earliest contact of a puck flying straight for ``horizon`` seconds: (time, contact) or None; the
+        contact a rim's id or a post's (``FIRST_POST`` + k, :mod:`air_hockey_agent.core.table`)."""
         best = None
         for wall, (nx, ny) in enumerate(WALL_NORMALS):
             vn = nx * vx + ny * vy
-            if vn >= 0.0:
-                continue
             distance = nx * x + ny * y + self._offsets[wall]
-            if wall in SHORT_WALLS and distance < 0.0:
-                continue  # behind a short rim line: the puck is in a goal, no short-rim impact
-            tau = 0.0 if distance <= 0.0 else distance / -vn
-            if tau > horizon or (best is not None and tau >= best[0]):
-                continue
-            if wall in SHORT_WALLS and self.table.enters_goal(x + tau * vx, y + tau * vy, vx, vy):
-                continue
-            best = (tau, wall)
+            if wall in SHORT_WALLS:
+                hit = self._short_rim_contact(wall, x, y, vx, vy, vn, distance, horizon)
+            else:
+                hit = None if vn >= 0.0 else (0.0 if distance <= 0.0 else distance / -vn, wall)
+            if hit is not None and hit[0] <= horizon and (best is None or hit[0] < best[0]):
+                best = hit
         return best
 
-    def _impact_event(self, z: list[float], tau: float, wall: int, jac: np.ndarray | None):
+    def _short_rim_contact(self, wall: int, x: float, y: float, vx: float, vy: float, vn: float,
+                           distance: float, horizon: float) -> tuple[float, int] | None:
+        """First contact with short rim ``wall``: its face where the line is crossed beside the goal opening,
+        else one of its posts (before the puck's centre is past the face); None for none (or a goal)."""
+        if distance >= 0.0:
+            if vn >= 0.0:
+                return None
+            tau = 0.0 if distance == 0.0 else distance / -vn
+            if tau > horizon:
+                return None  # the posts stand behind the line
+            if abs(y + tau * vy) >= self._half_goal:
+                return tau, wall
+        best = None  # crossing inside the opening, or in its strip between the line and the face
+        for contact in self._posts[wall]:
+            px, py = self.table.post_position(contact)
+            tau = post_contact_time(x, y, vx, vy, px, py, self.table.puck_radius)
+            if tau != math.inf and (best is None or tau < best[0]):
+                best = (tau, contact)
+        return best
+
+    def contact_normal(self, contact: int, xc: float, yc: float) -> tuple[float, float, float]:
+        """Inward unit normal (nx, ny) of ``contact`` for a puck centre at (xc, yc) [m] touching it, and the
+        contact's curvature [1/m] (0 for a rim; one over the centre's distance from a post)."""
+        if contact < FIRST_POST:
+            nx, ny = WALL_NORMALS[contact]
+            return nx, ny, 0.0
+        px, py = self.table.post_position(contact)
+        gap = math.hypot(xc - px, yc - py)
+        return (xc - px) / gap, (yc - py) / gap, 1.0 / gap
+
+    def _impact_event(self, z: list[float], tau: float, contact: int, jac: np.ndarray | None):
         """Fly to the contact point and apply the impact to augmented state z = (s, remaining time)."""
         x, y, vx, vy, th, om, h = z
-        nx, ny = WALL_NORMALS[wall]
+        xc, yc = x + tau * vx, y + tau * vy
+        nx, ny, curvature = self.contact_normal(contact, xc, yc)
         bx, by = ny, -nx
         vb, vn = bx * vx + by * vy, nx * vx + ny * vy
         p = self.params
         res = rim_impact(vb, vn, om, self.table.puck_radius, p.restitution, p.friction_rim, p.restitution_slope,
                          p.restitution_min, p.tangential_restitution, p.restitution_knee)
-        xc, yc = x + tau * vx, y + tau * vy
         new_z = [xc, yc, bx * res.vb + nx * res.vn, by * res.vb + ny * res.vn, th + tau * om, res.omega, h - tau]
         if jac is not None:
-            event = self._event_jacobian(z, tau, wall, res.jacobian)
+            event = event_jacobian(z, tau, (nx, ny, curvature), (vb, vn, res.vb, res.vn), res.jacobian)
             jac = event if jac is _IDENTITY7 else event @ jac
-        return new_z, jac, Impact(0.0, wall, xc, yc, res.sliding)
-
-    def _event_jacobian(self, z: list[float], tau: float, wall: int, s_local: tuple) -> np.ndarray:
-        """7x7 Jacobian of one impact event over the augmented state (x, y, vx, vy, theta, omega, h)."""
-        x, y, vx, vy, th, om, h = z
-        nx, ny = WALL_NORMALS[wall]
-        gx = gy = gvx = gvy = 0.0  # gradient of the impact time tau
-        distance = nx * x + ny * y + self._offsets[wall]
-        if distance > 0.0:
-            vn = nx * vx + ny * vy
-            gx, gy = -nx / vn, -ny / vn
-            gvx, gvy = distance * nx / vn ** 2, distance * ny / vn ** 2
-        bx, by = ny, -nx  # impact frame rows (b, n): A = [[bx, by], [nx, ny]]; velocity block A^T S A
-        (s00, s01, s02), (s10, s11, s12), (s20, s21, s22) = s_local
-        cb, cn = s00 * bx + s01 * nx, s10 * bx + s11 * nx  # S A, first column
-        db, dn = s00 * by + s01 * ny, s10 * by + s11 * ny  # S A, second column
-        vel = ((bx * cb + nx * cn, bx * db + nx * dn), (by * cb + ny * cn, by * db + ny * dn))
-        vel_om = (bx * s02 + nx * s12, by * s02 + ny * s12)
-        om_vel = (s20 * bx + s21 * nx, s20 * by + s21 * ny)
-        return np.array([
-            [1.0 + vx * gx, vx * gy, tau + vx * gvx, vx * gvy, 0.0, 0.0, 0.0],
-            [vy * gx, 1.0 + vy * gy, vy * gvx, tau + vy * gvy, 0.0, 0.0, 0.0],
-            [0.0, 0.0, vel[0][0], vel[0][1], 0.0, vel_om[0], 0.0],
-            [0.0, 0.0, vel[1][0], vel[1][1], 0.0, vel_om[1], 0.0],
-            [om * gx, om * gy, om * gvx, om * gvy, 1.0, tau, 0.0],
-            [0.0, 0.0, om_vel[0], om_vel[1], 0.0, s22, 0.0],
-            [-gx, -gy, -gvx, -gvy, 0.0, 0.0, 1.0]])
+        return new_z, jac, Impact(0.0, contact_rim(contact), xc, yc, res.sliding)
 
     # --- decay --------------------------------------------------------------------------------
     def decay(self, vx: float, vy: float, dt: float) -> tuple[float, float, tuple]:
@@ -257,8 +304,8 @@ class PuckModel:
         for _ in range(MAX_IMPACTS_PER_STEP):
             if hit is None:
                 break
-            tau, wall = hit
-            z, jac, impact = self._impact_event(z, tau, wall, jac)
+            tau, contact = hit
+            z, jac, impact = self._impact_event(z, tau, contact, jac)
             impacts.append(impact._replace(time=dt - z[6]))
             hit = self.first_impact(z[0], z[1], z[2], z[3], z[6])
         x, y, vx, vy, th, om, h = z

@@ -1,10 +1,10 @@
 """The model's step-by-step prediction, compiled: mean and covariance, rim impacts, goal mouths, crossings, samples.
 
 :func:`.prediction.predict_fast` runs here. The model's own step (:meth:`.model.PuckModel.step`: fly to each rim
-contact, Routh's impact with the speed-dependent restitution and the tangential restitution
+or post contact, Routh's impact with the speed-dependent restitution and the tangential restitution
 (:func:`.impact.rim_impact`), fly on, then the decay of eq. 3.1 with the table acceleration, and the spin's
 decay) runs step after step in compiled code in the same order of arithmetic, with its exact Jacobian ``F``
-(the 7x7 event Jacobians over the state and the remaining time, as :meth:`.model.PuckModel._event_jacobian`)
+(the 7x7 event Jacobians over the state and the remaining time, as :func:`.model.event_jacobian`)
 and ``P <- F P F^T + Q`` (thesis sec. 4.2), the impact covariance (:func:`.prediction.impact_covariance`) after
 a step with a rim impact; the crossings and samples are taken as :class:`.prediction._Recorder` takes them. A
 step that cannot reach a rim on a flat table (its straight ray's first contact more than ``GLIDE_MARGIN``
@@ -27,7 +27,8 @@ import math
 import numpy as np
 from numba import njit
 
-from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, meets_post
+from air_hockey_agent.core.table import (FIRST_POST, POST_COUNT, SHORT_WALLS, WALL_NORMALS, contact_rim,
+                                         post_contact_time, post_position)
 
 # rows of the parameter vector (:func:`kernel_params`)
 (P_RESTITUTION, P_FRICTION_RIM, P_SLOPE, P_FLOOR, P_KNEE, P_TANGENTIAL, P_DAMPING, P_FRICTION_SURFACE, P_GX, P_GY,
@@ -42,7 +43,10 @@ TWO_PI = 2.0 * math.pi
 NORMAL_X = tuple(n[0] for n in WALL_NORMALS)  # the rims' inward normals, by rim id (core/table.py)
 NORMAL_Y = tuple(n[1] for n in WALL_NORMALS)
 SHORT_A, SHORT_B = SHORT_WALLS  # the goal-line rims
-_meets_post = njit(cache=True)(meets_post)  # the table's own post test (core/table.py), compiled
+# the table's own post geometry (core/table.py), compiled
+_post_contact_time = njit(cache=True)(post_contact_time)
+_post_position = njit(cache=True)(post_position)
+_contact_rim = njit(cache=True)(contact_rim)
 
 
 def kernel_params(model) -> np.ndarray:
@@ -68,27 +72,59 @@ def _wrap(angle: float) -> float:
 
 @njit(cache=True)
 def _first_impact(p: np.ndarray, x: float, y: float, vx: float, vy: float, horizon: float) -> tuple[float, int]:
-    """Earliest rim contact of straight flight within ``horizon`` [s]: (time, rim), rim -1 for none
-    (:meth:`.model.PuckModel.first_impact`)."""
+    """Earliest contact of straight flight within ``horizon`` [s]: (time, contact), contact -1 for none, a
+    rim's id or a post's (:meth:`.model.PuckModel.first_impact`)."""
     best_tau, best_wall = 0.0, -1
     for wall in range(4):
         nx, ny = NORMAL_X[wall], NORMAL_Y[wall]
         vn = nx * vx + ny * vy
-        if vn >= 0.0:
+        distance = nx * x + ny * y + (p[P_X_LIMIT] if wall == SHORT_A or wall == SHORT_B else p[P_Y_LIMIT])
+        if wall == SHORT_A or wall == SHORT_B:
+            tau, contact = _short_rim_contact(p, wall, x, y, vx, vy, vn, distance, horizon)
+        elif vn >= 0.0:
             continue
-        short = wall == SHORT_A or wall == SHORT_B
-        distance = nx * x + ny * y + (p[P_X_LIMIT] if short else p[P_Y_LIMIT])
-        if short and distance < 0.0:
-            continue  # in a goal
-        tau = 0.0 if distance <= 0.0 else distance / -vn
-        if tau > horizon or (best_wall >= 0 and tau >= best_tau):
-            continue
-        radius = p[P_RADIUS]  # the posts stand at the rim's face x_limit + r, y = +-(mouth + r)
-        if short and abs(y + tau * vy) < p[P_MOUTH] and not _meets_post(
-                x + tau * vx, y + tau * vy, vx, vy, p[P_X_LIMIT] + radius, p[P_MOUTH] + radius, radius):
-            continue
-        best_tau, best_wall = tau, wall
+        else:
+            tau, contact = (0.0 if distance <= 0.0 else distance / -vn), wall
+        if contact >= 0 and tau <= horizon and (best_wall < 0 or tau < best_tau):
+            best_tau, best_wall = tau, contact
     return best_tau, best_wall
+
+
+@njit(cache=True)
+def _short_rim_contact(p: np.ndarray, wall: int, x: float, y: float, vx: float, vy: float, vn: float,
+                       distance: float, horizon: float) -> tuple[float, int]:
+    """First contact with short rim ``wall``: (time, contact), contact -1 for none
+    (:meth:`.model.PuckModel._short_rim_contact`)."""
+    radius = p[P_RADIUS]
+    if distance >= 0.0:
+        if vn >= 0.0:
+            return 0.0, -1
+        tau = 0.0 if distance == 0.0 else distance / -vn
+        if tau > horizon:
+            return 0.0, -1
+        if abs(y + tau * vy) >= p[P_MOUTH] + radius:
+            return tau, wall
+    best_tau, best = 0.0, -1
+    for contact in range(FIRST_POST, FIRST_POST + POST_COUNT):
+        if _contact_rim(contact) != wall:
+            continue
+        px, py = _post_position(contact, p[P_X_LIMIT] + radius, p[P_MOUTH] + radius)
+        tau = _post_contact_time(x, y, vx, vy, px, py, radius)
+        if tau != math.inf and (best < 0 or tau < best_tau):
+            best_tau, best = tau, contact
+    return best_tau, best
+
+
+@njit(cache=True)
+def _contact_normal(p: np.ndarray, contact: int, xc: float, yc: float) -> tuple[float, float, float]:
+    """Inward normal and curvature [1/m] of ``contact`` at the centre (xc, yc)
+    (:meth:`.model.PuckModel.contact_normal`)."""
+    if contact < FIRST_POST:
+        return NORMAL_X[contact], NORMAL_Y[contact], 0.0
+    radius = p[P_RADIUS]
+    px, py = _post_position(contact, p[P_X_LIMIT] + radius, p[P_MOUTH] + radius)
+    gap = math.hypot(xc - px, yc - py)
+    return (xc - px) / gap, (yc - py) / gap, 1.0 / gap
 
 
 @njit(cache=True)
@@ -156,17 +192,16 @@ def _decay_jacobian(keep: float, mu_dt: float, speed: float, ux: float, uy: floa
 
 
 @njit(cache=True)
-def _event_jacobian(p: np.ndarray, x: float, y: float, vx: float, vy: float, om: float, tau: float, wall: int,
-                    s_local: tuple, out: np.ndarray) -> None:
+def _event_jacobian(x: float, y: float, vx: float, vy: float, om: float, tau: float, nx: float, ny: float,
+                    curvature: float, vb: float, vn: float, vb_out: float, vn_out: float, s_local: tuple,
+                    out: np.ndarray) -> None:
     """7x7 Jacobian of one impact event over (x, y, vx, vy, theta, omega, remaining time), written to ``out``,
-    from the impact's own 3x3 Jacobian ``s_local`` (:meth:`.model.PuckModel._event_jacobian`)."""
-    nx, ny = NORMAL_X[wall], NORMAL_Y[wall]
+    from the contact's normal and curvature, the impact-frame velocities before and after and the impact's
+    own 3x3 Jacobian ``s_local`` (:func:`.model.event_jacobian`)."""
     gx = gy = gvx = gvy = 0.0  # gradient of the impact time tau
-    distance = nx * x + ny * y + (p[P_X_LIMIT] if wall == SHORT_A or wall == SHORT_B else p[P_Y_LIMIT])
-    if distance > 0.0:
-        vn = nx * vx + ny * vy
+    if tau > 0.0:
         gx, gy = -nx / vn, -ny / vn
-        gvx, gvy = distance * nx / vn ** 2, distance * ny / vn ** 2
+        gvx, gvy = -tau * nx / vn, -tau * ny / vn
     bx, by = ny, -nx
     s00, s01, s02, s10, s11, s12, s20, s21, s22 = s_local
     cb, cn = s00 * bx + s01 * nx, s10 * bx + s11 * nx
@@ -179,6 +214,16 @@ def _event_jacobian(p: np.ndarray, x: float, y: float, vx: float, vy: float, om:
     out[4, 0], out[4, 1], out[4, 2], out[4, 3], out[4, 4], out[4, 5] = om * gx, om * gy, om * gvx, om * gvy, 1.0, tau
     out[5, 2], out[5, 3], out[5, 5] = s20 * bx + s21 * nx, s20 * by + s21 * ny, s22
     out[6, 0], out[6, 1], out[6, 2], out[6, 3], out[6, 6] = -gx, -gy, -gvx, -gvy, 1.0
+    if curvature != 0.0:  # a post: the impact frame turns with the contact point
+        wb, wn = s00 * vn - s01 * vb, s10 * vn - s11 * vb
+        kx = bx * wb + nx * wn + vb_out * nx - vn_out * bx
+        ky = by * wb + ny * wn + vb_out * ny - vn_out * by
+        kw = s20 * vn - s21 * vb
+        for j in range(4):
+            turn = -curvature * (bx * out[0, j] + by * out[1, j])
+            out[2, j] += kx * turn
+            out[3, j] += ky * turn
+            out[5, j] += kw * turn
 
 
 @njit(cache=True)
@@ -212,16 +257,17 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
             break
         if count == impacts.shape[0]:
             return x, y, vx, vy, th, om, -1
-        nx, ny = NORMAL_X[wall], NORMAL_Y[wall]
+        nx, ny, curvature = _contact_normal(p, wall, x + tau * vx, y + tau * vy)
         bx, by = ny, -nx
-        vb, vn, new_om, sliding, s_local = _rim_impact(p, bx * vx + by * vy, nx * vx + ny * vy, om)
+        vb_in, vn_in = bx * vx + by * vy, nx * vx + ny * vy
+        vb, vn, new_om, sliding, s_local = _rim_impact(p, vb_in, vn_in, om)
         if with_jac:
-            _event_jacobian(p, x, y, vx, vy, om, tau, wall, s_local, event)
+            _event_jacobian(x, y, vx, vy, om, tau, nx, ny, curvature, vb_in, vn_in, vb, vn, s_local, event)
             _matmul(event, jac, product)
             _copy_into(product, jac, 7, 7)
         x, y, th, h = x + tau * vx, y + tau * vy, th + tau * om, h - tau
         vx, vy, om = bx * vb + nx * vn, by * vb + ny * vn, new_om
-        impacts[count, 0], impacts[count, 1], impacts[count, 2] = t0 + (dt - h), wall, x
+        impacts[count, 0], impacts[count, 1], impacts[count, 2] = t0 + (dt - h), _contact_rim(wall), x
         impacts[count, 3], impacts[count, 4] = y, 1.0 if sliding else 0.0
         count += 1
         tau, wall = _first_impact(p, x, y, vx, vy, h)

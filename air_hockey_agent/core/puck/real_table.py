@@ -15,8 +15,8 @@ Integrated with a fixed fine step (semi-implicit Euler), the puck accelerates by
                                           correlation time, then drawn again
 
 and at a rim (the centre on the rim line where the rim's face is, not in a goal opening) or a post (a
-rim's end beside a goal opening, met at its corner: the normal from the post to the centre; the model
-bounces such a puck off the goal line instead) the normal velocity reverses with a
+rim's end beside a goal opening, met at its corner: the normal from the post to the centre, as the model
+meets it) the normal velocity reverses with a
 restitution that falls with the normal speed, from ``restitution_slow`` below the first of
 ``restitution_speeds`` linearly to ``restitution_fast`` above the second (rim rubber: faster impacts lose
 more), while the tangential impulse is the Routh/Coulomb one (thesis eq. 3.2-3.3) scaled by
@@ -156,8 +156,8 @@ class RealTablePuck:
     def _posts(self, s: np.ndarray) -> np.ndarray:
         """A puck whose edge overlaps a post (a rim's end beside a goal opening, at x = +-L/2, y =
         +-goal_width/2) while moving toward it: the impact of a rim whose normal points from the post to
-        the centre, and the centre put back at one radius (a corner contact: the model bounces such a puck
-        off the goal line instead)."""
+        the centre, and the centre put back at one radius (a corner contact, as the model meets it, with the
+        test bed's own impact law)."""
         r, table = self.table.puck_radius, self.table
         for px in (table.length / 2, -table.length / 2):
             for py in (table.goal_width / 2, -table.goal_width / 2):
