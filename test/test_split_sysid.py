@@ -241,6 +241,12 @@ def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     assert len(report["identified"]["table_acceleration"]) == 2
     text = out.read_text()
     assert "table_acceleration: [" in text and "ros__parameters" in text
+    priors = report["learning_priors"]  # the online learning starts with the identification's own weight
+    assert priors["rim_adaptation.prior_impacts"] == report["objective"]["impacts"]["impacts"]
+    assert priors["acceleration_adaptation.prior_std"] == max(report["std"]["table_acceleration"])
+    assert priors["acceleration_adaptation.damping_prior_std"] == report["std"]["damping"]
+    tracker = load_tracker_params([out])  # as puck_tracker --params-file and eval-prediction read it
+    assert all(tracker[name] == pytest.approx(value, rel=1e-8) for name, value in priors.items())
     check = cli("eval-prediction", bag, "--params-file", out, "--json")
     assert check.returncode == 0, check.stderr
     only = cli("sysid", bag, "--method", "split", "--identify", "damping", "restitution_min", "--json")
@@ -249,8 +255,12 @@ def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     text_run = cli("sysid", bag, "--method", "split", "--polish", 4)
     assert text_run.returncode == 0, text_run.stderr[-2000:]
     assert "flight fit:" in text_run.stdout and "impact fit:" in text_run.stdout and "polish: " in text_run.stdout
-    polished = json.loads(cli("sysid", bag, "--method", "split", "--polish", 4, "--json").stdout)["objective"]["polish"]
+    polished_run = json.loads(cli("sysid", bag, "--method", "split", "--polish", 4, "--json").stdout)
+    polished = polished_run["objective"]["polish"]
     assert polished["evaluations"] >= 4 and polished["final_m"] <= polished["initial_m"]
+    # a polished value is not the fit's: its error and the rim's impact count do not weigh it
+    assert set(polished_run["learning_priors"]) == {"acceleration_adaptation.prior_std",
+                                                    "acceleration_adaptation.spin_prior_std"}
     assert "table_acceleration" not in polished["values"] and "spin_damping" not in polished["values"]  # as fitted
 
 
@@ -291,3 +301,22 @@ def test_the_spin_decay_check_finds_a_known_rate_and_drops_outliers():
     decay = fit_spin_decay(windows, angle_variance, 3.0)
     assert decay.dropped >= 5 and abs(decay.rate - 0.3) < 3 * decay.std and decay.std < 0.01
     assert fit_spin_decay([(0.0, 0.1, gain)] * 10, angle_variance, 3.0) is None
+
+
+def test_the_learning_priors_carry_the_identifications_weight():
+    """learning_priors: the rim law worth its impacts, the flight's parameters their standard errors, only
+    for parameters kept as fitted, an error of 0 leaving the configured prior, each within its range."""
+    from types import SimpleNamespace
+    from air_hockey_agent.core.identification.split import SplitResult, learning_priors
+    ranges = {"rim_adaptation.prior_impacts": (0.0, 1e6), "acceleration_adaptation.prior_std": (1e-6, 10.0),
+              "acceleration_adaptation.damping_prior_std": (1e-6, 10.0),
+              "acceleration_adaptation.spin_prior_std": (0.0, 100.0)}
+    std = {"damping": 0.002, "table_acceleration": [0.0003, 0.0007], "spin_damping": 0.0, "friction_surface": 0.01}
+    result = SplitResult({"damping": 0.1, "restitution": 0.9}, std, None, SimpleNamespace(impacts=57))
+    kept = ["damping", "table_acceleration", "spin_damping", "restitution", "friction_surface"]
+    assert learning_priors(result, kept, std, ranges) == {
+        "rim_adaptation.prior_impacts": 57.0, "acceleration_adaptation.prior_std": 0.0007,
+        "acceleration_adaptation.damping_prior_std": 0.002}
+    assert learning_priors(result, ["damping"], std, ranges) == {"acceleration_adaptation.damping_prior_std": 0.002}
+    tiny = {**std, "damping": 1e-9}
+    assert learning_priors(result, ["damping"], tiny, ranges) == {"acceleration_adaptation.damping_prior_std": 1e-6}

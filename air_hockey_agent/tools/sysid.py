@@ -4,7 +4,10 @@ Bags (or directories holding bags) are preprocessed into trajectories (thesis se
 into training and validation sets by trajectory. Printed: the prediction loss at ``--horizon`` before
 and after on both sets (thesis table 5.2/5.3 columns: loss, min, median) and the objective that was
 minimised. ``--out`` writes the identified parameters as a parameter YAML that ``puck_tracker
---ros-args --params-file`` and ``air-hockey eval-prediction --params-file`` accept.
+--ros-args --params-file`` and ``air-hockey eval-prediction --params-file`` accept; the split
+identification's also sets the online learning's priors from its own weight (the rim law worth the
+impacts it was fitted to, the flight's parameters with their standard errors): the configured priors are
+a stranger's table's.
 
 ``--method split`` (the default, issue #13) fits each part of the model where it alone acts, without
 the filter and in about a second: damping, surface friction and the table acceleration by least
@@ -31,12 +34,12 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from air_hockey_agent.bags.trajectories import split_train_validation
-from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split
+from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split, learning_priors
 from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PHYSICAL, combine, identify,
                                                       loss_report, nis_median, on_bounds, partial_loss, polish)
 from air_hockey_agent.params import yaml_value
 from air_hockey_agent.sysid_params import bounds
-from air_hockey_agent.tracker_params import without_learning
+from air_hockey_agent.tracker_params import TRACKER_PARAMS, without_learning
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
@@ -74,7 +77,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--plot", type=Path, metavar="DIR",
                         help="--method split: write split_flight.png, split_impacts.png and split_tangential.png "
                              "(the fits) to DIR")
-    parser.add_argument("--out", type=Path, help="write the identified parameters to this parameter YAML")
+    parser.add_argument("--out", type=Path, help="write the identified parameters to this parameter YAML (split: "
+                        "with the online learning's priors from the identification's own weight)")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)
 
@@ -185,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
     result.update({"train_trajectories": len(train), "validation_trajectories": len(validation),
                    "bags": loaded.bags, "bad_bags": len(loaded.errors)})
     if args.out is not None:
-        write_params_yaml(args.out, result["identified"], result["summary_line"])
+        write_params_yaml(args.out, result["identified"], result["summary_line"], result.get("learning_priors", {}))
     result.pop("summary_line")
     for phrase in result["on_bounds"]:
         print(f"{PROG}: warning: {phrase}: the search ended on the edge of its box (config/sysid.yaml bounds): "
@@ -248,6 +252,8 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
               "identified": chosen, "std": std, "plots": plots, "seconds": round(time.monotonic() - start, 1),
               "objective": objective, "before": {}, "after": {},
               "on_bounds": on_bounds(_flat(chosen), _flat_bounds(bounds(settings, names)), settings["bound_margin"])}
+    kept = [n for n in chosen if polished is None or n not in polished["values"]]
+    result["learning_priors"] = learning_priors(split, kept, std, {s.name: (s.low, s.high) for s in TRACKER_PARAMS})
     result["before"], result["after"] = _before_after(tracker, chosen, train, validation, args.horizon)
     result["seconds_with_reports"] = round(time.monotonic() - start, 1)
     result["summary_line"] = (f"identified by `air-hockey sysid --method split` ({len(train)} training "
@@ -407,6 +413,8 @@ def _format_split(result: dict, out: Path | None) -> str:
         lines.append(f"polish: {p['evaluations']} evaluations of the position loss at {p['horizon']} s (training set, "
                      f"every {p['stride']}. frame): {p['initial_m'] * 1e3:.2f} -> {p['final_m'] * 1e3:.2f} mm")
     lines.extend(f"wrote {path}" for path in result["plots"])
+    if result["learning_priors"]:
+        lines.append(_priors_text(result["learning_priors"]))
     lines.append(f"prediction loss at {result['horizon']} s (every frame): loss / traj. min / traj. median [mm]")
     for key, label in (("before", "initial"), ("after", "identified")):
         for subset in ("train", "validation"):
@@ -443,13 +451,31 @@ def _spin_text(spin: dict, identified: bool) -> str:
             f"spin_damping): the angle's innovations grow with it")
 
 
+def _priors_text(priors: dict) -> str:
+    """One line on the online learning's priors written with the parameters (--out)."""
+    parts = {"rim_adaptation.prior_impacts": lambda v: f"the rim law worth {v:g} impacts",
+             "acceleration_adaptation.prior_std": lambda v: f"table acceleration +- {v:.2g} m/s^2",
+             "acceleration_adaptation.damping_prior_std": lambda v: f"damping +- {v:.2g} 1/s",
+             "acceleration_adaptation.spin_prior_std": lambda v: f"spin damping +- {v:.2g} 1/s"}
+    return "online learning's priors (with --out): " + ", ".join(parts[n](v) for n, v in priors.items())
+
+
 def _value_text(value) -> str:
     return ("[" + ", ".join(f"{v:.4g}" for v in value) + "]") if isinstance(value, list) else f"{value:.6g}"
 
 
-def write_params_yaml(path: Path, values: dict, comment: str) -> None:
-    """Parameter YAML for the puck_tracker, written atomically (temporary file, then rename)."""
+def write_params_yaml(path: Path, values: dict, comment: str, priors: dict | None = None) -> None:
+    """Parameter YAML for the puck_tracker, written atomically (temporary file, then rename); ``priors``: the
+    online learning's prior weights by dotted name (``rim_adaptation.prior_impacts``, ...), grouped."""
     body = "".join(f"    {name}: {yaml_value(value)}\n" for name, value in values.items())
+    groups: dict[str, list[str]] = {}
+    for name, value in (priors or {}).items():
+        group, key = name.split(".", 1)
+        groups.setdefault(group, []).append(f"      {key}: {yaml_value(value)}\n")
+    if groups:
+        body += ("    # the online learning starts from these values with the identification's own weight: the rim law\n"
+                 "    # worth the impacts it was fitted to, the flight's parameters with their standard errors\n")
+        body += "".join(f"    {group}:\n" + "".join(lines) for group, lines in groups.items())
     text = f"# Physical parameters of the puck model, {comment}.\n/**/puck_tracker:\n  ros__parameters:\n{body}"
     write_text_atomic(path, text)
 

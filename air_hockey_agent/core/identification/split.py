@@ -10,7 +10,7 @@ the tracker's values and enter the fits as known.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Collection, Mapping, Sequence
 
 import numpy as np
 
@@ -105,3 +105,25 @@ def _collect(values: Mapping[str, float], errors: Mapping[str, float], names: Se
             identified[name] = float(values[name])
             if name in errors:
                 std[name] = float(errors[name])
+
+
+def learning_priors(result: SplitResult, kept: Collection[str], std: Mapping[str, Any],
+                    ranges: Mapping[str, tuple[float, float]]) -> dict[str, float]:
+    """What the online learning (``rim_adaptation``, ``acceleration_adaptation`` in config/tracker.yaml) should
+    take as its priors' weights when it starts from this identification, by tracker parameter name: the rim
+    law is worth the impacts it was fitted to (``prior_impacts``), the table acceleration, damping and spin
+    damping their standard errors (``std``). Only for parameters in ``kept`` (identified and left as fitted:
+    a polished value has neither), each within its parameter's (low, high) in ``ranges``; an error of 0 (the
+    fit could not tell) leaves the configured prior. The configured priors are a stranger's table's, weak by
+    design; kept after an identification they let a session's windows replace a better estimate."""
+    priors = {}
+    if result.impacts is not None and result.impacts.impacts and any(n in kept for n in IMPACT):
+        priors["rim_adaptation.prior_impacts"] = float(result.impacts.impacts)
+    errors = {"table_acceleration": "acceleration_adaptation.prior_std",
+              "damping": "acceleration_adaptation.damping_prior_std",
+              "spin_damping": "acceleration_adaptation.spin_prior_std"}
+    for name, prior in errors.items():
+        value = float(np.max(std[name])) if name in kept and name in std else 0.0
+        if value > 0.0:
+            priors[prior] = value
+    return {name: min(max(value, ranges[name][0]), ranges[name][1]) for name, value in priors.items()}
