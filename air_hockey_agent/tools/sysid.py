@@ -473,8 +473,8 @@ def write_params_yaml(path: Path, values: dict, comment: str, priors: dict | Non
         group, key = name.split(".", 1)
         groups.setdefault(group, []).append(f"      {key}: {yaml_value(value)}\n")
     if groups:
-        body += ("    # the online learning starts from these values with the identification's own weight: the rim law\n"
-                 "    # worth the impacts it was fitted to, the flight's parameters with their standard errors\n")
+        body += ("    # the online learning starts from these values with the identification's own weight: the rim\n"
+                 "    # law worth the impacts it was fitted to, the flight's parameters with their standard errors\n")
         body += "".join(f"    {group}:\n" + "".join(lines) for group, lines in groups.items())
     text = f"# Physical parameters of the puck model, {comment}.\n/**/puck_tracker:\n  ros__parameters:\n{body}"
     write_text_atomic(path, text)
