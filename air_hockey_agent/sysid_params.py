@@ -19,6 +19,8 @@ SYSID_PARAMS = (
     ParamSpec("bounds.tangential_restitution", list, "[-] search bounds (--method split)", -1.0, 1.0, 2),
     ParamSpec("bounds.table_acceleration", list, "[m/s^2] bounds per axis (--method split)", -10.0, 10.0, 2),
     ParamSpec("bounds.spin_damping", list, "[1/s] bounds of the spin's decay rate (--method split)", 0.0, 100.0, 2),
+    ParamSpec("bounds.impact_delay", list, "[s] bounds of a compliant rim's impact delay (--method split)", 0.0, 0.05,
+              2),
     ParamSpec("split.window", float, "[s] free-flight window of the split identification", 0.05, 5.0),
     ParamSpec("split.min_coverage", float, "[-] share of a window's frames that must be measured", 0.1, 1.0),
     ParamSpec("split.min_speed", float, "[m/s] slower windows are left out", 0.0, 10.0),

@@ -43,6 +43,8 @@ TRACKER_PARAMS = (
     ParamSpec("table_acceleration", list, "[m/s^2] constant acceleration of a free puck (x, y), table frame: "
               "a tilted surface", -10.0, 10.0, 2),
     ParamSpec("spin_damping", float, "[1/s] decay rate k of the spin in flight (0: constant spin)", 0.0, 10.0),
+    ParamSpec("impact_delay", float, "[s] a rim impact comes this long after the puck's centre reaches the rim "
+              "(half a compliant contact; 0: a rigid rim)", 0.0, 0.05),
     ParamSpec("filter", str, "estimator: ekf (thesis), ukf (unscented prediction), mee_ukf (and a minimum-"
               "error-entropy update, seed 001), imm (free / rim / contact modes, seed 004)", choices=FILTER_KINDS),
     ParamSpec("ukf.alpha", float, "[-] sigma-point spread of the ukf and mee_ukf filters", 1e-3, 10.0),

@@ -94,6 +94,28 @@ def test_the_tracker_learns_the_mujoco_tables_flight(mujoco_session):
         assert abs(flight["value"][axis] - CONFIGURED.tilt_acceleration[axis]) < 3 * flight["std"][axis]
 
 
+def meeting_delay_on_mujoco(vn: float) -> tuple[float, float]:
+    """Where the straight paths before and after one head-on impact on the +y rim meet, beyond the rim line,
+    over the normal speed ``vn`` [m/s] (the model's impact_delay for this rim, from the engine's own noiseless
+    states at every step), and how long the contact lasted [s]."""
+    puck = MujocoPuck(TABLE, replace(FLAT, damping=0.0, angular_damping=0.0))
+    times, states = puck.simulate(np.array([0.0, TABLE.y_limit - 0.02, 0.4, vn, 0.0, 0.0]), 0.02 / vn + 0.03)
+    y, clear = states[:, 1], states[:, 1] < TABLE.y_limit - 0.001
+    (a1, b1), (a2, b2) = (np.polyfit(times[clear & (states[:, 3] * sign > 0)], y[clear & (states[:, 3] * sign > 0)], 1)
+                          for sign in (1.0, -1.0))
+    meet = a1 * (b2 - b1) / (a1 - a2) + b1
+    return (meet - TABLE.y_limit) / vn, float(np.sum(y > TABLE.y_limit) * (times[1] - times[0]))
+
+
+def test_a_soft_rims_paths_meet_beyond_it_by_half_the_contact():
+    """MuJoCo's rims are soft constraints: the puck goes on into the rim for a contact of 2.2-2.4 ms, so the
+    paths before and after meet beyond the rim line by about the normal speed times half the contact (a linear
+    spring's exactly half), at every speed: what the model's impact_delay is."""
+    for vn in (0.3, 1.0, 3.0):
+        delay, contact = meeting_delay_on_mujoco(vn)
+        assert 0.4 * contact < delay < 0.5 * contact and 0.002 <= contact <= 0.0025
+
+
 @pytest.fixture(scope="module")
 def mujoco_rims():
     """MuJoCo's own rims, measured: (median fraction of Routh's sticking impulse, median restitution) of
@@ -143,6 +165,23 @@ def test_split_sysid_finds_the_mujoco_tables_physics(tmp_path, mujoco_rims):
     for speed in (0.5, 1.0, 2.0):
         assert restitution_at(found, speed) == pytest.approx(mujoco_rims[1], rel=0.1)
     assert 1.0 + found["tangential_restitution"] == pytest.approx(mujoco_rims[0], rel=0.1)
+    assert found["impact_delay"] > 0.0005  # a soft rim's (the next test: its value)
+
+
+def test_split_sysid_finds_where_the_mujoco_rims_paths_meet(tmp_path):
+    """impact_delay from a 40-shot bag's noisy mocap poses (112 impacts) within 10 % of where MuJoCo's own
+    noiseless paths before and after an impact meet, and the rim lines where the model has them."""
+    exe = Path(sys.executable).parent / "air-hockey"
+    made = subprocess.run([exe, "synth-bag", tmp_path / "mj", "--source", "mujoco", "--shots", "40", "--seed", "2"],
+                          capture_output=True, text=True, timeout=300)
+    assert made.returncode == 0, made.stderr
+    run = subprocess.run([exe, "sysid", tmp_path / "mj", "--identify", "impact_delay", "--json"], capture_output=True,
+                         text=True, timeout=300)
+    assert run.returncode == 0, run.stderr[-2000:]
+    report = json.loads(run.stdout)
+    engine = np.mean([meeting_delay_on_mujoco(vn)[0] for vn in (0.5, 1.0, 2.0)])
+    assert report["identified"]["impact_delay"] == pytest.approx(engine, rel=0.1)
+    assert abs(report["objective"]["impacts"]["delay"]["offset_m"]) < 5e-4
 
 
 def test_predictions_on_the_mujoco_table(mujoco_session):

@@ -59,7 +59,9 @@ def test_fast_prediction_agrees_with_stepwise(friction, impact_noise, contact_ti
                                      {"restitution_slope": 0.2, "restitution_min": 0.6, "restitution_knee": 0.5,
                                       "tangential_restitution": -0.6, "friction_rim": 0.3},
                                      {"friction_surface": 0.01, "damping": 0.12, "table_acceleration": (0.02, -0.03)},
-                                     {"spin_damping": 0.4, "tangential_restitution": -0.5}])
+                                     {"spin_damping": 0.4, "tangential_restitution": -0.5},
+                                     {"impact_delay": 0.002, "friction_surface": 0.0},
+                                     {"impact_delay": 0.001, "table_acceleration": (0.01, 0.0)}])
 def test_the_compiled_mean_is_the_stepwise_mean(physics):
     """Without a covariance predict_fast takes the model's own steps in compiled code (prediction_kernel): the same
     states, rim impacts (rim, time, contact point, sliding or not), samples and line crossings as the Python
@@ -89,11 +91,12 @@ def test_the_compiled_mean_lets_a_puck_into_the_goal_and_bounces_it_off_the_rim_
 
 @pytest.mark.parametrize("y, degrees", [(0.047, 70.0), (-0.047, -70.0), (0.09, 11.0), (0.08, 30.0), (0.0, 60.0),
                                         (0.05, 6.0), (0.11, 0.0), (0.1, 10.0), (0.07, 45.0)])
-def test_the_compiled_prediction_meets_the_posts_as_the_model_does(y, degrees):
+@pytest.mark.parametrize("delay", [0.0, 0.002])
+def test_the_compiled_prediction_meets_the_posts_as_the_model_does(y, degrees, delay):
     """Pucks crossing the far goal line inside the opening, steep or grazing a post (a corner impact: some come
     back, some are turned into the goal) or clear of both posts (they score): the compiled prediction, mean
     and covariance, equals the Python steps."""
-    m = model()
+    m = model(impact_delay=delay)
     v = 2.0 * np.array([np.cos(np.radians(degrees)), np.sin(np.radians(degrees))])
     state = np.array([m.table.x_limit - 0.1 * v[0], y - 0.1 * v[1], *v, 0.0, 3.0])
     for cov in (P0, None):

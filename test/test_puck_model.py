@@ -119,22 +119,25 @@ def _toward_post(normal_degrees: float, degrees: float, speed: float) -> np.ndar
     return np.array([*(contact - 0.4 * DT * v), *v, 0.2, 7.0])
 
 
-@pytest.mark.parametrize("slope,accel,beta,knee,spin", [
-    (0.0, (0.0, 0.0), 0.0, 0.0, 0.0), (0.15, (0.0, 0.0), 0.0, 0.0, 0.0), (0.15, (0.0, 0.0), 0.0, 1.1, 0.0),
-    (0.0, (0.03, -0.02), 0.0, 0.0, 0.0), (0.0, (0.0, 0.0), -0.6, 0.0, 0.0), (0.0, (0.0, 0.0), 0.0, 0.0, 0.4)],
+@pytest.mark.parametrize("slope,accel,beta,knee,spin,delay", [
+    (0.0, (0.0, 0.0), 0.0, 0.0, 0.0, 0.0), (0.15, (0.0, 0.0), 0.0, 0.0, 0.0, 0.0),
+    (0.15, (0.0, 0.0), 0.0, 1.1, 0.0, 0.0),
+    (0.0, (0.03, -0.02), 0.0, 0.0, 0.0, 0.0), (0.0, (0.0, 0.0), -0.6, 0.0, 0.0, 0.0),
+    (0.0, (0.0, 0.0), 0.0, 0.0, 0.4, 0.0), (0.15, (0.0, 0.0), -0.6, 0.0, 0.0, 0.002)],
                          ids=["constant e", "e falls with speed", "e falls beyond a knee", "tilted table",
-                              "soft tangential impulse", "spin decays"])
+                              "soft tangential impulse", "spin decays", "a compliant rim"])
 @pytest.mark.parametrize("name", list(IMPACT_CASES) + ["free", "corner", "goal", "post", "steep at a post",
-                                                       "grazing a post"])
-def test_step_jacobian_matches_central_finite_differences(name, slope, accel, beta, knee, spin):
+                                                       "grazing a post", "past the line"])
+def test_step_jacobian_matches_central_finite_differences(name, slope, accel, beta, knee, spin, delay):
     states = {"free": np.array([0.1, 0.2, 1.0, 0.5, 0.3, 2.0]),
               "corner": np.array([X - 0.004, Y - 0.007, 1.0, 1.3, 0.1, 5.0]),
               "goal": np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0]),
               "post": _toward_post(200.0, 10.0, 1.5), "steep at a post": _toward_post(225.0, 60.0, 1.0),
-              "grazing a post": _toward_post(250.0, 30.0, 2.5)}
+              "grazing a post": _toward_post(250.0, 30.0, 2.5),
+              "past the line": np.array([X + 0.001, 0.3, 1.0, 0.2, 0.1, 3.0])}  # a compliant rim's contact
     state = states.get(name, IMPACT_CASES.get(name, (None,))[0])
     m = model(restitution_slope=slope, table_acceleration=accel, tangential_restitution=beta, restitution_knee=knee,
-              spin_damping=spin)
+              spin_damping=spin, impact_delay=delay)
     assert np.allclose(m.step(state, DT).jacobian, finite_difference_jacobian(m, state, DT), atol=2e-6)
 
 
@@ -203,11 +206,14 @@ def test_invalid_parameters_are_refused_with_the_name():
 
 def test_the_post_contact_time_against_its_geometry():
     """A post's first contact along a straight path: the time its centre is one radius from the post
-    (a closed form: a head-on puck 0.1 m away at 2 m/s touches after (0.1 - r) / 2 s), 0 when it already
-    overlaps while approaching, none when it moves away, passes wide, or would touch only behind the face."""
+    (a closed form: a head-on puck 0.1 m away at 2 m/s touches after (0.1 - r) / 2 s), the time since it
+    touched when it already overlaps while approaching, none when it moves away, passes wide, or would touch
+    only behind the face."""
     r, half, post = TABLE.puck_radius, TABLE.length / 2, TABLE.goal_width / 2
     assert post_contact_time(half - 0.1, post, 2.0, 0.0, half, post, r) == pytest.approx((0.1 - r) / 2.0, rel=1e-12)
-    assert post_contact_time(half - 0.5 * r, post - 0.5 * r, 1.0, 1.0, half, post, r) == 0.0
+    # overlapping and approaching: the time since its path touched, (sqrt 2 - 1) r / 2 at this speed and angle
+    assert post_contact_time(half - 0.5 * r, post - 0.5 * r, 1.0, 1.0, half, post, r) == pytest.approx(
+        -(math.sqrt(2.0) - 1.0) * r / 2.0, rel=1e-12)
     assert post_contact_time(half - 0.5 * r, post - 0.5 * r, -1.0, -1.0, half, post, r) == math.inf
     assert post_contact_time(half - 0.1, post - 2.0 * r, 2.0, 0.0, half, post, r) == math.inf  # passes below
     # in the goal, moving back out past the post's far side: its contact would be behind the face
@@ -215,3 +221,38 @@ def test_the_post_contact_time_against_its_geometry():
     positions = np.array([TABLE.post_position(c) for c in range(FIRST_POST, FIRST_POST + 4)])
     assert positions == pytest.approx(np.array([(half, -post), (half, post), (-half, -post), (-half, post)]))
     assert [contact_rim(c) for c in range(FIRST_POST, FIRST_POST + 4)] == [WALL_FAR, WALL_FAR, WALL_NEAR, WALL_NEAR]
+
+
+@pytest.mark.parametrize("speed, degrees", [(0.5, 0.0), (2.0, 0.0), (3.0, 35.0)])
+def test_a_compliant_rims_paths_before_and_after_meet_beyond_it(speed, degrees):
+    """impact_delay s: the impact comes s after the centre reaches the rim line, so the straight paths before
+    and after meet s |vn| beyond it, the outgoing path that much farther out than a rigid rim's (closed form:
+    no friction or damping, a frictionless rim, constant e)."""
+    e, s = 0.8, 0.002
+    m = model(friction_surface=0.0, damping=0.0, restitution=e, friction_rim=0.0, tangential_restitution=-1.0,
+              impact_delay=s)
+    v = speed * np.array([math.cos(math.radians(degrees)), math.sin(math.radians(degrees))])
+    state, t = np.array([X - 0.1, -0.3, *v, 0.0, 0.0]), 0.0  # the far rim beside the goal
+    for _ in range(30):
+        res = m.step(state, DT)
+        state, t = res.state, t + DT
+        if res.impacts:
+            assert res.impacts[0].time == pytest.approx(0.1 / v[0] + s - (t - DT), abs=1e-12)
+            assert res.impacts[0].x == pytest.approx(X + s * v[0], abs=1e-12)
+    touch = 0.1 / v[0]
+    assert state[0] == pytest.approx(X + s * v[0] - e * v[0] * (t - touch - s), abs=1e-12)  # meets beyond the line
+    assert state[1] == pytest.approx(-0.3 + v[1] * t, abs=1e-12) and state[2] == pytest.approx(-e * v[0])
+    rigid = model(friction_surface=0.0, damping=0.0, restitution=e, friction_rim=0.0, tangential_restitution=-1.0)
+    after = np.array([X - 0.1, -0.3, *v, 0.0, 0.0])
+    for _ in range(30):
+        after = rigid.step(after, DT).state
+    assert state[0] - after[0] == pytest.approx((1.0 + e) * s * v[0], abs=1e-12)  # (1 + e) s |vn| farther out
+
+
+def test_a_puck_past_the_goal_line_is_in_the_goal_even_with_a_compliant_rim():
+    """Behind a short rim line by more than the delay's travel, beside the opening, a puck is in the goal (no rim
+    impact pulls it back); within it, the rim's impact is still due."""
+    m = model(impact_delay=0.002)
+    inside = m.first_impact(X + 0.001, 0.3, 1.0, 0.0, DT)
+    assert inside is not None and inside[1] == WALL_FAR and inside[0] == pytest.approx(0.001, abs=1e-12)
+    assert m.first_impact(X + 0.003, 0.3, 1.0, 0.0, DT) is None

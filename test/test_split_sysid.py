@@ -239,6 +239,8 @@ def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     assert 0.0 <= report["identified"]["spin_damping"] == max(0.0, spin["rate_per_s"])  # its bounds: [0, 5]
     assert report["after"]["validation"]["loss_m"] < report["before"]["validation"]["loss_m"]
     assert len(report["identified"]["table_acceleration"]) == 2
+    delay = report["objective"]["impacts"]["delay"]  # the test bed's rims are rigid: its paths meet on the line
+    assert report["identified"]["impact_delay"] < 1e-4 and abs(delay["fitted_s"]) < 3 * delay["std_s"] + 2e-4
     text = out.read_text()
     assert "table_acceleration: [" in text and "ros__parameters" in text
     priors = report["learning_priors"]  # the online learning starts with the identification's own weight

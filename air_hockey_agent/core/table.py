@@ -95,21 +95,20 @@ def contact_rim(contact: int) -> int:
 def post_contact_time(x: float, y: float, vx: float, vy: float, px: float, py: float, radius: float) -> float:
     """Time [s] until a puck of ``radius`` [m] whose centre flies straight from (x, y) with velocity (vx, vy)
     [m/s] touches the post at (px, py) while moving toward it, with its centre not past the rim's face
-    (|x| <= |px|: behind it the goal's sides would act, which are not modelled); 0 for a puck already
-    overlapping and approaching it; inf for none. Scalars only: the compiled prediction compiles it."""
+    (|x| <= |px|: behind it the goal's sides would act, which are not modelled); for a puck already
+    overlapping and approaching it, the (negative) time since its straight path touched; inf for none.
+    Scalars only: the compiled prediction compiles it."""
     dx, dy = x - px, y - py
     closing = dx * vx + dy * vy  # < 0 while the centre approaches the post
     if closing >= 0.0:
         return math.inf
     gap = dx * dx + dy * dy - radius * radius
-    if gap <= 0.0:
-        t = 0.0
-    else:
-        speed2 = vx * vx + vy * vy
-        disc = closing * closing - speed2 * gap
-        if disc < 0.0:
-            return math.inf
-        t = gap / (math.sqrt(disc) - closing)  # the smaller root, in its cancellation-free form
+    speed2 = vx * vx + vy * vy
+    disc = closing * closing - speed2 * gap
+    if disc < 0.0:
+        return math.inf
+    root = math.sqrt(disc)
+    t = gap / (root - closing) if gap > 0.0 else -(closing + root) / speed2  # the smaller root, without cancellation
     if (x + t * vx - px) * px > 0.0:
         return math.inf
     return t

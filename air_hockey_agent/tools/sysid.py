@@ -67,8 +67,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
     parser.add_argument("--identify", nargs="+", choices=SPLIT_IDENTIFIABLE, metavar="NAME",
-                        help="parameters to identify (default: hebo the thesis's four, split all ten; "
-                             "table_acceleration and spin_damping only with --method split; also restitution_slope, "
+                        help="parameters to identify (default: hebo the thesis's four, split all eleven; "
+                             "table_acceleration, spin_damping and impact_delay only with --method split; also "
+                             "restitution_slope, "
                              "the rims' loss with impact speed); choices: " + ", ".join(IDENTIFIABLE))
     parser.add_argument("--polish", type=count(0), metavar="EVALUATIONS",
                         help="then a Nelder-Mead polish of the scalar parameters on the prediction loss at "
@@ -242,6 +243,10 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
         i = split.impacts
         objective["impacts"] = {"impacts": i.impacts, "dropped": i.dropped, "rms_normal_speed_m_s": i.rms_normal,
                                 "rms_tangential_m_s": i.rms_tangential}
+        if split.delay is not None:
+            d = split.delay
+            objective["impacts"]["delay"] = {"fitted_s": d.fitted, "std_s": d.std, "offset_m": d.offset,
+                                             "offset_std_m": d.offset_std, "impacts": d.impacts}
     std = dict(split.std)
     if polished is not None:
         objective["polish"] = polished
@@ -408,6 +413,8 @@ def _format_split(result: dict, out: Path | None) -> str:
         i = o["impacts"]
         lines.append(f"impact fit: {i['impacts']} impacts ({i['dropped']} dropped), residual RMS normal "
                      f"{i['rms_normal_speed_m_s']:.4f} m/s, tangential {i['rms_tangential_m_s']:.4f} m/s")
+        if "delay" in i:
+            lines.append(_delay_text(i["delay"]))
     if "polish" in o:
         p = o["polish"]
         lines.append(f"polish: {p['evaluations']} evaluations of the position loss at {p['horizon']} s (training set, "
@@ -449,6 +456,14 @@ def _spin_text(spin: dict, identified: bool) -> str:
         return f"spin decay: the spin decays in free flight at {seen}: spin_damping identified"
     return (f"note: the spin decays in free flight at {seen}; spin_damping was not identified (--identify "
             f"spin_damping): the angle's innovations grow with it")
+
+
+def _delay_text(delay: dict) -> str:
+    """One line on where the impacts' paths meet: a compliant rim's delay, and the rim lines' offset."""
+    return (f"rim contact: the paths before and after meet {delay['fitted_s'] * 1e3:.3f} +- {delay['std_s'] * 1e3:.3f} "
+            f"ms x the normal speed beyond the rim lines ({delay['impacts']} impacts; impact_delay), and "
+            f"{delay['offset_m'] * 1e3:+.2f} +- {delay['offset_std_m'] * 1e3:.2f} mm from them at no speed (> 0: "
+            f"inside; the table's geometry or pose)")
 
 
 def _priors_text(priors: dict) -> str:

@@ -67,6 +67,7 @@ class ImpactObservation:
     before: tuple          # (vb, vn, omega), vn < 0
     after: tuple           # (vb, vn, omega), vn > 0
     fit_quality: float     # [-] worse window's residual RMS over the expected noise
+    depth: float = 0.0     # [m] where the lines before and after meet, from the model's rim line (< 0: beyond it)
 
 
 @dataclass
@@ -140,7 +141,7 @@ def _observe(traj, table, wall, k, n_rows, acceleration, noise, settings, spin_d
     spins = [fit_angle_rate(rows * dt, z[rows, 2], t_ref + tau, spin_damping) for rows in (pre, post)]
     quality = max(noise.fit_quality(f) for f in fits)
     return ImpactObservation(wall, t_ref + tau, (float(b @ v_in), float(n @ v_in), spins[0]),
-                             (float(b @ v_out), float(n @ v_out), spins[1]), quality)
+                             (float(b @ v_out), float(n @ v_out), spins[1]), quality, contact)
 
 
 def _near_other_rims(table: TableGeometry, wall: int, xy: np.ndarray, margin: float) -> bool:
@@ -358,3 +359,44 @@ def fit_impacts(impacts: Sequence[ImpactObservation], radius: float, fixed: Mapp
     residuals = tangential_residuals(kept, radius, values, *(values[n] for n in TANGENTIAL_NAMES))
     rms_t = float(math.sqrt(np.mean(residuals ** 2)))
     return ImpactFit(values, len(kept), len(impacts) - len(kept), rms_normal, rms_t, radius, kept)
+
+
+@dataclass(frozen=True)
+class DelayFit:
+    """A compliant rim's delay from where the impacts' paths meet: ``depth = offset - delay |vn|``."""
+
+    value: float        # [s] the impact delay, within its bounds
+    std: float          # [s] its standard error
+    fitted: float       # [s] the least-squares value before the bounds
+    offset: float       # [m] where the paths of an impact at no speed would meet, from the model's rim lines
+    offset_std: float   # [m]
+    impacts: int        # impacts in the fit (outliers dropped)
+
+
+def fit_delay(impacts: Sequence[ImpactObservation], bounds: Sequence[float], outlier_factor: float) -> DelayFit:
+    """Least squares of each impact's meeting depth (:attr:`ImpactObservation.depth`) on its incoming normal
+    speed: a rigid rim's paths meet on its line at every speed, a compliant one's beyond it by the delay
+    times the speed (the model's ``impact_delay``: the impact comes that long after the centre reaches the
+    line); the offset at no speed says how far the table's rim lines are from the model's (its geometry or
+    the table's pose). Outliers beyond ``outlier_factor`` robust standard deviations are dropped once."""
+    speed = np.array([-o.before[1] for o in impacts])
+    depth = np.array([o.depth for o in impacts])
+    if len(speed) < 3 or np.ptp(speed) == 0.0:
+        raise ValueError(f"{len(speed)} rim impacts at {len(set(speed.tolist()))} normal speeds: too few to identify "
+                         f"impact_delay")
+    design = np.column_stack([np.ones_like(speed), -speed])
+    keep = np.ones(len(speed), bool)
+    for _ in range(2):
+        coef, *_ = np.linalg.lstsq(design[keep], depth[keep], rcond=None)
+        if not keep.all():
+            break
+        keep = _robust_keep(depth - design @ coef, outlier_factor)
+        if keep.sum() < 3:
+            keep[:] = True
+            break
+    n = int(keep.sum())
+    residual = depth[keep] - design[keep] @ coef
+    variance = float(residual @ residual) / max(n - 2, 1)
+    cov = variance * np.linalg.inv(design[keep].T @ design[keep])
+    return DelayFit(float(min(max(coef[1], bounds[0]), bounds[1])), float(math.sqrt(cov[1, 1])), float(coef[1]),
+                    float(coef[0]), float(math.sqrt(cov[0, 0])), n)

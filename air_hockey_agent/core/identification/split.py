@@ -16,7 +16,8 @@ import numpy as np
 
 from air_hockey_agent.core.identification.flight_fit import (FieldCheck, FlightFit, FlightSettings, NoiseModel,
                                                            field_check, flight_law, identify_flight)
-from air_hockey_agent.core.identification.impact_fit import ImpactFit, ImpactSettings, find_impacts, fit_impacts
+from air_hockey_agent.core.identification.impact_fit import (IMPACT_NAMES, DelayFit, ImpactFit, ImpactSettings,
+                                                            find_impacts, fit_delay, fit_impacts)
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.identification.spin_fit import SpinDecay, fit_spin_decay, spin_windows
 from air_hockey_agent.core.table import TableGeometry
@@ -24,7 +25,7 @@ from air_hockey_agent.core.table import TableGeometry
 FLIGHT = ("damping", "friction_surface", "table_acceleration")
 SPIN = ("spin_damping",)  # from the angles of the flight fit's windows (:mod:`.spin_fit`)
 IMPACT = ("restitution", "restitution_slope", "restitution_min", "restitution_knee", "friction_rim",
-          "tangential_restitution")
+          "tangential_restitution", "impact_delay")  # the last from where the paths before and after meet
 SPLIT_IDENTIFIABLE = FLIGHT + SPIN + IMPACT
 AXES = ("table_acceleration_x", "table_acceleration_y")
 
@@ -37,6 +38,7 @@ class SplitResult:
     impacts: ImpactFit | None
     field: FieldCheck | None = None  # whether the free flight's acceleration varies over the table
     spin: SpinDecay | None = None    # the spin's decay in free flight (spin_damping's fit)
+    delay: DelayFit | None = None    # where the impacts' paths meet (impact_delay's fit)
 
 
 def flight_settings(settings: Mapping[str, Any]) -> FlightSettings:
@@ -84,14 +86,18 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
         identified["spin_damping"], std["spin_damping"] = float(min(max(spin.rate, low), high)), spin.std
     impacts = None
     if any(n in IMPACT for n in names):
-        fixed = {n: tracker[n] for n in IMPACT if n not in names}
+        fixed = {n: tracker[n] for n in IMPACT_NAMES if n not in names}
         chosen = impact_settings(settings)
         law = flight_law(flight_values)
         spin_damping = identified.get("spin_damping", tracker["spin_damping"])
         found = [o for traj in trajectories for o in find_impacts(traj, table, law, noise, chosen, spin_damping)]
-        impacts = fit_impacts(found, table.puck_radius, fixed, bounds, chosen, {n: tracker[n] for n in IMPACT})
+        impacts = fit_impacts(found, table.puck_radius, fixed, bounds, chosen, {n: tracker[n] for n in IMPACT_NAMES})
         _collect(impacts.values, {}, names, identified, std)
-    return SplitResult(identified, std, flight, impacts, field, spin)
+    delay = None
+    if "impact_delay" in names:
+        delay = fit_delay(impacts.used, bounds["impact_delay"], settings["split.outlier_factor"])
+        identified["impact_delay"], std["impact_delay"] = delay.value, delay.std
+    return SplitResult(identified, std, flight, impacts, field, spin, delay)
 
 
 def _collect(values: Mapping[str, float], errors: Mapping[str, float], names: Sequence[str], identified: dict,
@@ -117,7 +123,7 @@ def learning_priors(result: SplitResult, kept: Collection[str], std: Mapping[str
     fit could not tell) leaves the configured prior. The configured priors are a stranger's table's, weak by
     design; kept after an identification they let a session's windows replace a better estimate."""
     priors = {}
-    if result.impacts is not None and result.impacts.impacts and any(n in kept for n in IMPACT):
+    if result.impacts is not None and result.impacts.impacts and any(n in kept for n in IMPACT_NAMES):
         priors["rim_adaptation.prior_impacts"] = float(result.impacts.impacts)
     errors = {"table_acceleration": "acceleration_adaptation.prior_std",
               "damping": "acceleration_adaptation.damping_prior_std",

@@ -78,13 +78,14 @@ class PuckParams:
     table_acceleration: tuple[float, float] = (0.0, 0.0)  # g [m/s^2], table frame: tilt / air film (issue #13)
     tangential_restitution: float = 0.0  # beta [-] in [-1, 1] of a sticking rim impact (0: Routh's, the thesis's)
     spin_damping: float = 0.0  # k [1/s]: the spin's decay rate in flight (0: constant spin, the thesis's)
+    impact_delay: float = 0.0  # s [s]: the impact comes this long after the centre reaches the rim (0: rigid)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "PuckParams":
         return cls(params["friction_surface"], params["damping"], params["restitution"], params["friction_rim"],
                    params["restitution_slope"], params["restitution_min"],
                    params["restitution_knee"], tuple(float(g) for g in params["table_acceleration"]),
-                   params["tangential_restitution"], params["spin_damping"])
+                   params["tangential_restitution"], params["spin_damping"], params["impact_delay"])
 
     @property
     def accelerated(self) -> bool:
@@ -101,7 +102,8 @@ class PuckParams:
                   ("restitution_min", 0.0 <= self.restitution_min <= 1.0, "in [0, 1]"),
                   ("restitution_knee", self.restitution_knee >= 0.0, ">= 0"),
                   ("tangential_restitution", -1.0 <= self.tangential_restitution <= 1.0, "in [-1, 1]"),
-                  ("spin_damping", self.spin_damping >= 0.0, ">= 0"))
+                  ("spin_damping", self.spin_damping >= 0.0, ">= 0"),
+                  ("impact_delay", self.impact_delay >= 0.0, ">= 0"))
         for name, ok, rule in checks:
             value = getattr(self, name)
             if not ok or not math.isfinite(value):
@@ -142,22 +144,24 @@ class StepResult(NamedTuple):
     impacts: tuple[Impact, ...]
 
 
-def event_jacobian(z: list[float], tau: float, normal: tuple, velocities: tuple, s_local: tuple) -> np.ndarray:
+def event_jacobian(z: list[float], tau: float, normal: tuple, velocities: tuple, s_local: tuple,
+                   delay: float = 0.0) -> np.ndarray:
     """7x7 Jacobian of one impact event over the augmented state z = (x, y, vx, vy, theta, omega, h).
 
     ``normal`` = (nx, ny, curvature): the contact's inward normal and its curvature [1/m] (0 for a rim's
     line; a post's circle turns the normal with the contact point c: dn = dc / r, so the impact frame turns
     by d phi = -b . dc / r); ``velocities`` = (vb, vn, vb', vn') in the impact frame before and after;
     ``s_local`` the impact's own 3x3 Jacobian (thesis sec. 4.2: the velocity block is A^T S A on a rim).
-    The impact time tau moves with the state as n . (p + tau v) stays fixed: d tau = -n . (dp + tau dv) / vn
-    (none when the contact is already made, tau = 0)."""
+    The impact comes ``delay`` [s] after the touch at t = tau - delay, whose point c_t = c - delay v fixes
+    the normal: d tau = -n . (dp + t dv) / vn (none when the impact is due at once, tau = 0), and a post's
+    frame turns by d phi = -b . dc_t / r."""
     x, y, vx, vy, th, om, h = z
     nx, ny, curvature = normal
     vb, vn, vb_out, vn_out = velocities
     gx = gy = gvx = gvy = 0.0  # gradient of the impact time tau
     if tau > 0.0:
         gx, gy = -nx / vn, -ny / vn
-        gvx, gvy = -tau * nx / vn, -tau * ny / vn
+        gvx, gvy = -(tau - delay) * nx / vn, -(tau - delay) * ny / vn
     bx, by = ny, -nx  # impact frame rows (b, n): A = [[bx, by], [nx, ny]]; velocity block A^T S A
     (s00, s01, s02), (s10, s11, s12), (s20, s21, s22) = s_local
     cb, cn = s00 * bx + s01 * nx, s10 * bx + s11 * nx  # S A, first column
@@ -174,7 +178,9 @@ def event_jacobian(z: list[float], tau: float, normal: tuple, velocities: tuple,
         [0.0, 0.0, om_vel[0], om_vel[1], 0.0, s22, 0.0],
         [-gx, -gy, -gvx, -gvy, 0.0, 0.0, 1.0]])
     if curvature != 0.0:  # the frame turns: du = A dv + d phi (vn, -vb), dv' = A^T du' + d phi (vb' n - vn' b)
-        turn = -curvature * (bx * jac[0] + by * jac[1])  # d phi over z, from the contact point's rows
+        turn = -curvature * (bx * jac[0] + by * jac[1])  # d phi over z, from the touch point's rows
+        turn[2] += curvature * delay * bx
+        turn[3] += curvature * delay * by
         wb, wn = s00 * vn - s01 * vb, s10 * vn - s11 * vb
         jac[2] += (bx * wb + nx * wn + vb_out * nx - vn_out * bx) * turn
         jac[3] += (by * wb + ny * wn + vb_out * ny - vn_out * by) * turn
@@ -199,42 +205,49 @@ class PuckModel:
 
     # --- flight -------------------------------------------------------------------------------
     def first_impact(self, x: float, y: float, vx: float, vy: float, horizon: float) -> tuple[float, int] | None:
-        """Earliest contact of a puck flying straight for ``horizon`` seconds: (time, contact) or None; the
-        contact a rim's id or a post's (``FIRST_POST`` + k, :mod:`air_hockey_agent.core.table`)."""
+        """Earliest impact of a puck flying straight for ``horizon`` seconds: (time, contact) or None; the
+        contact a rim's id or a post's (``FIRST_POST`` + k, :mod:`air_hockey_agent.core.table`). The impact
+        comes ``impact_delay`` after the centre reaches the rim line or touches the post (0 when that is
+        already past)."""
         best = None
+        delay = self.params.impact_delay
         for wall, (nx, ny) in enumerate(WALL_NORMALS):
             vn = nx * vx + ny * vy
+            if vn >= 0.0 and wall not in SHORT_WALLS:
+                continue
             distance = nx * x + ny * y + self._offsets[wall]
             if wall in SHORT_WALLS:
                 hit = self._short_rim_contact(wall, x, y, vx, vy, vn, distance, horizon)
             else:
-                hit = None if vn >= 0.0 else (0.0 if distance <= 0.0 else distance / -vn, wall)
+                hit = (max(0.0, distance / -vn + delay), wall)
             if hit is not None and hit[0] <= horizon and (best is None or hit[0] < best[0]):
                 best = hit
         return best
 
     def _short_rim_contact(self, wall: int, x: float, y: float, vx: float, vy: float, vn: float,
                            distance: float, horizon: float) -> tuple[float, int] | None:
-        """First contact with short rim ``wall``: its face where the line is crossed beside the goal opening,
-        else one of its posts (before the puck's centre is past the face); None for none (or a goal)."""
-        if distance >= 0.0:
-            if vn >= 0.0:
-                return None
-            tau = 0.0 if distance == 0.0 else distance / -vn
-            if tau > horizon:
+        """First impact on short rim ``wall``: its face where the line is crossed beside the goal opening,
+        else one of its posts (touched before the puck's centre is past the face); None for none (a goal).
+        A puck past the line by more than the delay's travel is in the goal."""
+        delay = self.params.impact_delay
+        if vn < 0.0:
+            touch = distance / -vn  # [s] until the centre is on the line (< 0: past it)
+            if touch > horizon:
                 return None  # the posts stand behind the line
-            if abs(y + tau * vy) >= self._half_goal:
-                return tau, wall
+            if touch + delay >= 0.0 and abs(y + touch * vy) >= self._half_goal:
+                return max(0.0, touch + delay), wall
+        elif distance >= 0.0:
+            return None
         best = None  # crossing inside the opening, or in its strip between the line and the face
         for contact in self._posts[wall]:
             px, py = self.table.post_position(contact)
-            tau = post_contact_time(x, y, vx, vy, px, py, self.table.puck_radius)
-            if tau != math.inf and (best is None or tau < best[0]):
-                best = (tau, contact)
-        return best
+            touch = post_contact_time(x, y, vx, vy, px, py, self.table.puck_radius)
+            if touch != math.inf and (best is None or touch < best[0]):
+                best = (touch, contact)
+        return None if best is None else (max(0.0, best[0] + delay), best[1])
 
     def contact_normal(self, contact: int, xc: float, yc: float) -> tuple[float, float, float]:
-        """Inward unit normal (nx, ny) of ``contact`` for a puck centre at (xc, yc) [m] touching it, and the
+        """Inward unit normal (nx, ny) of ``contact`` for a puck centre touching it at (xc, yc) [m], and the
         contact's curvature [1/m] (0 for a rim; one over the centre's distance from a post)."""
         if contact < FIRST_POST:
             nx, ny = WALL_NORMALS[contact]
@@ -244,10 +257,12 @@ class PuckModel:
         return (xc - px) / gap, (yc - py) / gap, 1.0 / gap
 
     def _impact_event(self, z: list[float], tau: float, contact: int, jac: np.ndarray | None):
-        """Fly to the contact point and apply the impact to augmented state z = (s, remaining time)."""
+        """Fly to the impact point and apply the impact to augmented state z = (s, remaining time); the
+        normal is the one where the centre touched (``impact_delay`` earlier on the same straight path)."""
         x, y, vx, vy, th, om, h = z
         xc, yc = x + tau * vx, y + tau * vy
-        nx, ny, curvature = self.contact_normal(contact, xc, yc)
+        delay = self.params.impact_delay
+        nx, ny, curvature = self.contact_normal(contact, xc - delay * vx, yc - delay * vy)
         bx, by = ny, -nx
         vb, vn = bx * vx + by * vy, nx * vx + ny * vy
         p = self.params
@@ -255,7 +270,7 @@ class PuckModel:
                          p.restitution_min, p.tangential_restitution, p.restitution_knee)
         new_z = [xc, yc, bx * res.vb + nx * res.vn, by * res.vb + ny * res.vn, th + tau * om, res.omega, h - tau]
         if jac is not None:
-            event = event_jacobian(z, tau, (nx, ny, curvature), (vb, vn, res.vb, res.vn), res.jacobian)
+            event = event_jacobian(z, tau, (nx, ny, curvature), (vb, vn, res.vb, res.vn), res.jacobian, delay)
             jac = event if jac is _IDENTITY7 else event @ jac
         return new_z, jac, Impact(0.0, contact_rim(contact), xc, yc, res.sliding)
 

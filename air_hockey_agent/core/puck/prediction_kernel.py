@@ -32,7 +32,7 @@ from air_hockey_agent.core.table import (FIRST_POST, POST_COUNT, SHORT_WALLS, WA
 
 # rows of the parameter vector (:func:`kernel_params`)
 (P_RESTITUTION, P_FRICTION_RIM, P_SLOPE, P_FLOOR, P_KNEE, P_TANGENTIAL, P_DAMPING, P_FRICTION_SURFACE, P_GX, P_GY,
- P_X_LIMIT, P_Y_LIMIT, P_MOUTH, P_RADIUS, P_SPIN_DAMPING) = range(15)
+ P_X_LIMIT, P_Y_LIMIT, P_MOUTH, P_RADIUS, P_SPIN_DAMPING, P_IMPACT_DELAY) = range(16)
 IMPACT_COLUMNS = 5    # time [s], rim, x, y [m], sliding (0/1)
 CROSSING_COLUMNS = 5  # crossed (0/1), time [s], y [m], vx, vy [m/s]
 SAMPLE_COLUMNS = 7    # time [s], state (6)
@@ -55,7 +55,7 @@ def kernel_params(model) -> np.ndarray:
     return np.array([p.restitution, p.friction_rim, p.restitution_slope, p.restitution_min, p.restitution_knee,
                      p.tangential_restitution, p.damping, p.friction_surface, float(p.table_acceleration[0]),
                      float(p.table_acceleration[1]), table.x_limit, table.y_limit, table.goal_mouth,
-                     table.puck_radius, p.spin_damping])
+                     table.puck_radius, p.spin_damping, p.impact_delay])
 
 
 @njit(cache=True)
@@ -71,20 +71,22 @@ def _wrap(angle: float) -> float:
 
 
 @njit(cache=True)
-def _first_impact(p: np.ndarray, x: float, y: float, vx: float, vy: float, horizon: float) -> tuple[float, int]:
-    """Earliest contact of straight flight within ``horizon`` [s]: (time, contact), contact -1 for none, a
-    rim's id or a post's (:meth:`.model.PuckModel.first_impact`)."""
+def _first_impact(p: np.ndarray, x: float, y: float, vx: float, vy: float, horizon: float,
+                  delay: float) -> tuple[float, int]:
+    """Earliest impact of straight flight within ``horizon`` [s], ``delay`` [s] after the touch: (time,
+    contact), contact -1 for none, a rim's id or a post's (:meth:`.model.PuckModel.first_impact`)."""
     best_tau, best_wall = 0.0, -1
     for wall in range(4):
         nx, ny = NORMAL_X[wall], NORMAL_Y[wall]
         vn = nx * vx + ny * vy
-        distance = nx * x + ny * y + (p[P_X_LIMIT] if wall == SHORT_A or wall == SHORT_B else p[P_Y_LIMIT])
-        if wall == SHORT_A or wall == SHORT_B:
-            tau, contact = _short_rim_contact(p, wall, x, y, vx, vy, vn, distance, horizon)
-        elif vn >= 0.0:
+        short = wall == SHORT_A or wall == SHORT_B
+        if vn >= 0.0 and not short:
             continue
+        distance = nx * x + ny * y + (p[P_X_LIMIT] if short else p[P_Y_LIMIT])
+        if short:
+            tau, contact = _short_rim_contact(p, wall, x, y, vx, vy, vn, distance, horizon, delay)
         else:
-            tau, contact = (0.0 if distance <= 0.0 else distance / -vn), wall
+            tau, contact = max(0.0, distance / -vn + delay), wall
         if contact >= 0 and tau <= horizon and (best_wall < 0 or tau < best_tau):
             best_tau, best_wall = tau, contact
     return best_tau, best_wall
@@ -92,18 +94,18 @@ def _first_impact(p: np.ndarray, x: float, y: float, vx: float, vy: float, horiz
 
 @njit(cache=True)
 def _short_rim_contact(p: np.ndarray, wall: int, x: float, y: float, vx: float, vy: float, vn: float,
-                       distance: float, horizon: float) -> tuple[float, int]:
-    """First contact with short rim ``wall``: (time, contact), contact -1 for none
+                       distance: float, horizon: float, delay: float) -> tuple[float, int]:
+    """First impact on short rim ``wall``: (time, contact), contact -1 for none
     (:meth:`.model.PuckModel._short_rim_contact`)."""
     radius = p[P_RADIUS]
-    if distance >= 0.0:
-        if vn >= 0.0:
+    if vn < 0.0:
+        touch = distance / -vn
+        if touch > horizon:
             return 0.0, -1
-        tau = 0.0 if distance == 0.0 else distance / -vn
-        if tau > horizon:
-            return 0.0, -1
-        if abs(y + tau * vy) >= p[P_MOUTH] + radius:
-            return tau, wall
+        if touch + delay >= 0.0 and abs(y + touch * vy) >= p[P_MOUTH] + radius:
+            return max(0.0, touch + delay), wall
+    elif distance >= 0.0:
+        return 0.0, -1
     best_tau, best = 0.0, -1
     for contact in range(FIRST_POST, FIRST_POST + POST_COUNT):
         if _contact_rim(contact) != wall:
@@ -112,12 +114,12 @@ def _short_rim_contact(p: np.ndarray, wall: int, x: float, y: float, vx: float, 
         tau = _post_contact_time(x, y, vx, vy, px, py, radius)
         if tau != math.inf and (best < 0 or tau < best_tau):
             best_tau, best = tau, contact
-    return best_tau, best
+    return (max(0.0, best_tau + delay), best) if best >= 0 else (0.0, -1)
 
 
 @njit(cache=True)
 def _contact_normal(p: np.ndarray, contact: int, xc: float, yc: float) -> tuple[float, float, float]:
-    """Inward normal and curvature [1/m] of ``contact`` at the centre (xc, yc)
+    """Inward normal and curvature [1/m] of ``contact`` for a centre touching it at (xc, yc)
     (:meth:`.model.PuckModel.contact_normal`)."""
     if contact < FIRST_POST:
         return NORMAL_X[contact], NORMAL_Y[contact], 0.0
@@ -194,14 +196,14 @@ def _decay_jacobian(keep: float, mu_dt: float, speed: float, ux: float, uy: floa
 @njit(cache=True)
 def _event_jacobian(x: float, y: float, vx: float, vy: float, om: float, tau: float, nx: float, ny: float,
                     curvature: float, vb: float, vn: float, vb_out: float, vn_out: float, s_local: tuple,
-                    out: np.ndarray) -> None:
+                    delay: float, out: np.ndarray) -> None:
     """7x7 Jacobian of one impact event over (x, y, vx, vy, theta, omega, remaining time), written to ``out``,
     from the contact's normal and curvature, the impact-frame velocities before and after and the impact's
     own 3x3 Jacobian ``s_local`` (:func:`.model.event_jacobian`)."""
     gx = gy = gvx = gvy = 0.0  # gradient of the impact time tau
     if tau > 0.0:
         gx, gy = -nx / vn, -ny / vn
-        gvx, gvy = -tau * nx / vn, -tau * ny / vn
+        gvx, gvy = -(tau - delay) * nx / vn, -(tau - delay) * ny / vn
     bx, by = ny, -nx
     s00, s01, s02, s10, s11, s12, s20, s21, s22 = s_local
     cb, cn = s00 * bx + s01 * nx, s10 * bx + s11 * nx
@@ -214,13 +216,17 @@ def _event_jacobian(x: float, y: float, vx: float, vy: float, om: float, tau: fl
     out[4, 0], out[4, 1], out[4, 2], out[4, 3], out[4, 4], out[4, 5] = om * gx, om * gy, om * gvx, om * gvy, 1.0, tau
     out[5, 2], out[5, 3], out[5, 5] = s20 * bx + s21 * nx, s20 * by + s21 * ny, s22
     out[6, 0], out[6, 1], out[6, 2], out[6, 3], out[6, 6] = -gx, -gy, -gvx, -gvy, 1.0
-    if curvature != 0.0:  # a post: the impact frame turns with the contact point
+    if curvature != 0.0:  # a post: the impact frame turns with the touch point (the event's, delay earlier)
         wb, wn = s00 * vn - s01 * vb, s10 * vn - s11 * vb
         kx = bx * wb + nx * wn + vb_out * nx - vn_out * bx
         ky = by * wb + ny * wn + vb_out * ny - vn_out * by
         kw = s20 * vn - s21 * vb
         for j in range(4):
             turn = -curvature * (bx * out[0, j] + by * out[1, j])
+            if j == 2:
+                turn += curvature * delay * bx
+            elif j == 3:
+                turn += curvature * delay * by
             out[2, j] += kx * turn
             out[3, j] += ky * turn
             out[5, j] += kw * turn
@@ -246,7 +252,8 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
     ``impacts`` is full (the caller grows it and retakes the step)."""
     with_jac, start = f.shape[0] > 0, count
     h = dt
-    tau, wall = _first_impact(p, x, y, vx, vy, dt)
+    delay = p[P_IMPACT_DELAY]
+    tau, wall = _first_impact(p, x, y, vx, vy, dt, delay)
     if with_jac and wall >= 0:
         jac, event, product = work[0], work[1], work[2]
         _zero(jac)
@@ -257,12 +264,13 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
             break
         if count == impacts.shape[0]:
             return x, y, vx, vy, th, om, -1
-        nx, ny, curvature = _contact_normal(p, wall, x + tau * vx, y + tau * vy)
+        xc, yc = x + tau * vx, y + tau * vy
+        nx, ny, curvature = _contact_normal(p, wall, xc - delay * vx, yc - delay * vy)
         bx, by = ny, -nx
         vb_in, vn_in = bx * vx + by * vy, nx * vx + ny * vy
         vb, vn, new_om, sliding, s_local = _rim_impact(p, vb_in, vn_in, om)
         if with_jac:
-            _event_jacobian(x, y, vx, vy, om, tau, nx, ny, curvature, vb_in, vn_in, vb, vn, s_local, event)
+            _event_jacobian(x, y, vx, vy, om, tau, nx, ny, curvature, vb_in, vn_in, vb, vn, s_local, delay, event)
             _matmul(event, jac, product)
             _copy_into(product, jac, 7, 7)
         x, y, th, h = x + tau * vx, y + tau * vy, th + tau * om, h - tau
@@ -270,7 +278,7 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
         impacts[count, 0], impacts[count, 1], impacts[count, 2] = t0 + (dt - h), _contact_rim(wall), x
         impacts[count, 3], impacts[count, 4] = y, 1.0 if sliding else 0.0
         count += 1
-        tau, wall = _first_impact(p, x, y, vx, vy, h)
+        tau, wall = _first_impact(p, x, y, vx, vy, h, delay)
     nvx, nvy, j00, j01, j10, j11 = _decay(p, vx, vy, dt)
     spin_keep = 1.0 - dt * p[P_SPIN_DAMPING]
     if with_jac:
@@ -288,12 +296,15 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
 @njit(cache=True)
 def _room(p: np.ndarray, x: float, y: float, vx: float, vy: float) -> tuple[float, float, float, float]:
     """Direction (ux, uy), speed [m/s] and the distance [m] along the straight ray to its first rim contact
-    (inf: none; the goal mouths as :func:`_first_impact`)."""
+    (inf: none; the goal mouths as :func:`_first_impact`): where the centre touches, before any delay; 0 for a
+    puck past a rim line (within a compliant rim's contact, or in a goal: the steps decide)."""
     speed = math.hypot(vx, vy)
     if speed == 0.0:
         return 0.0, 0.0, 0.0, math.inf
     ux, uy = vx / speed, vy / speed
-    distance, wall = _first_impact(p, x, y, ux, uy, math.inf)
+    if abs(x) > p[P_X_LIMIT] or abs(y) > p[P_Y_LIMIT]:
+        return ux, uy, speed, 0.0
+    distance, wall = _first_impact(p, x, y, ux, uy, math.inf, 0.0)
     return ux, uy, speed, (math.inf if wall < 0 else distance)
 
 
@@ -458,7 +469,7 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
 def warm_up() -> None:
     """Compile (or load from the cache) :func:`predict` now, with and without a covariance, not in the first
     prediction."""
-    p = np.array([0.9, 0.1, 0.1, 0.5, 0.5, 0.0, 0.1, 0.01, 0.0, 0.01, 0.9, 0.5, 0.1, 0.03, 0.1])
+    p = np.array([0.9, 0.1, 0.1, 0.5, 0.5, 0.0, 0.1, 0.01, 0.0, 0.01, 0.9, 0.5, 0.1, 0.03, 0.1, 0.001])
     state, q = np.array([0.0, 0.0, 3.0, 2.0, 0.0, 1.0]), np.eye(6)
     for cov in (np.empty((0, 0)), np.eye(6)):
         predict(p, state, cov, q, 0.1, 0.001, 2, 0.005, 0.01, np.array([0.0]), 1)
