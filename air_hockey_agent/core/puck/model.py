@@ -11,6 +11,8 @@ One step of length ``dt`` (thesis eq. 3.1, with the surface friction acting alon
   end beside the opening) is, when the puck's edge reaches it before its centre is past the rim's face:
   the same impact with the normal from the post to the centre (a corner contact,
   :func:`~air_hockey_agent.core.table.post_contact_time`); a puck whose centre passes the face is in the goal.
+  A compliant rim (``impact_delay`` s > 0) takes the impact s after the touch, the puck flying on into the rim
+  meanwhile, so the paths before and after meet s |vn| beyond its line (0: the thesis's rigid rim).
 * decay: ``v <- v - dt (d v + mu_s v/|v|)``, i.e. speed ``|v| <- max(a |v| - dt mu_s, 0)`` with
   ``a = 1 - dt d``; the direction is kept. The spin decays as ``omega <- b omega`` with ``b = 1 - dt k``,
   ``k`` the spin damping (0: the thesis's eq. 3.1, whose spin is constant; a uniform viscous air film damps
