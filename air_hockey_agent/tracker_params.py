@@ -83,6 +83,8 @@ TRACKER_PARAMS = (
     ParamSpec("rim_adaptation.knee_max", float, "[m/s] the fastest restitution knee tried", 0.0, 20.0),
     ParamSpec("rim_adaptation.stick_friction_rim", float, "[-] mu_rim of a learned rim law whose tangential impulse "
               "is a fraction of Routh's sticking one", 0.0, 100.0),
+    ParamSpec("rim_adaptation.max_delay", float, "[s] an impact whose paths meet farther from the rim line than "
+              "this times its normal speed is not learned from (impact_delay)", 0.0, 0.1),
     ParamSpec("acceleration_adaptation.enabled", bool, "learn this table's acceleration (tilt, air film's mean) "
               "online from free flight"),
     ParamSpec("acceleration_adaptation.prior_std", float, "[m/s^2] std of the configured table_acceleration",

@@ -31,7 +31,7 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     report = json.loads(out.stdout)  # the whole of stdout is one JSON document
     assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "rejected_fraction",
                            "reinit_per_s", "nis", "nis_by_regime", "by_path", "rim_law", "table_acceleration",
-                           "spin_damping", "thesis_style"}
+                           "spin_damping", "impact_delay", "thesis_style"}
     law = report["rim_law"]  # the bags' shots are flown with the configured physics: learning it keeps it
     assert set(law) == {"impacts", "restitution_scale", "fall_scale", "knee", "tangential_scale", "stick_fraction",
                         "tangential_form", "params"}
@@ -44,6 +44,8 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert max(map(abs, flight["value"])) < 0.01 and abs(flight["damping"] - 0.125) < 0.02
     spin = report["spin_damping"]  # the shots' spin is constant, as the configured model's
     assert set(spin) == {"windows", "value", "std"} and spin["windows"] >= 10 and spin["value"] < 3 * spin["std"]
+    delay = report["impact_delay"]  # the model's rims are rigid: their paths meet on the line
+    assert set(delay) == {"impacts", "value"} and 0 < delay["impacts"] <= law["impacts"] and delay["value"] < 2e-4
     assert set(report["nis"]) == {"median", "mean"}
     assert set(report["by_path"]) == set(report["horizons"])
     for key, paths in report["by_path"].items():

@@ -204,15 +204,17 @@ def test_hits_slow_impacts_and_a_fresh_law_are_handled(params):
 
 def test_the_outgoing_fit_is_exact_on_motion_under_the_flight_law():
     """Poses of a puck decelerating under a known constant acceleration and spinning: the fit returns the
-    velocity at the impact time, not the window's mean, and the spin across angle wraps."""
+    velocity and the path's position at the impact time, not the window's mean, and the spin across angle
+    wraps."""
     a = np.array([-0.3, 0.1])
     v0, omega, t0 = np.array([1.2, -0.8]), 25.0, 3.0
     times = t0 + 0.004 + np.arange(12) / 120.0
     tau = times - t0
     poses = [(*(np.array([0.1, 0.2]) + v0 * s + 0.5 * a * s * s), math.remainder(3.0 + omega * s, 2 * math.pi))
              for s in tau]
-    vx, vy, w = outgoing_fit(times, poses, t0, lambda v: a)
-    assert (vx, vy, w) == pytest.approx((1.2, -0.8, 25.0), abs=1e-9)
+    fit = outgoing_fit(times, poses, t0, lambda v: a)
+    assert (fit.vx, fit.vy, fit.omega) == pytest.approx((1.2, -0.8, 25.0), abs=1e-9)
+    assert fit.position == pytest.approx([0.1, 0.2], abs=1e-9)  # the path at the impact time
 
 
 def test_the_filter_learns_the_test_beds_rims_and_predicts_better(params):
@@ -230,10 +232,11 @@ def test_the_filter_learns_the_test_beds_rims_and_predicts_better(params):
         evaluate_stream(ekf, frames, totals)
         medians[name] = totals.summary()["horizons"]["1.0"]["median_m"]
         if name == "learned":
-            law = ekf.learning.rim
+            law, delay = ekf.learning.rim, ekf.learning.delay
     assert law.impacts >= 30
     assert law.tangential_scale == pytest.approx(0.3, abs=0.1) and law.restitution_scale == pytest.approx(1.0, abs=0.03)
     assert medians["learned"] < 0.7 * medians["configured"]
+    assert delay.impacts >= 30 and delay.value < 1e-4  # its rims are rigid: the paths meet on the line
 
 
 def test_on_the_models_own_rims_the_law_stays_and_predictions_use_the_law_of_their_frame(params):

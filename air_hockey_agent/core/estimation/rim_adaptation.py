@@ -38,7 +38,7 @@ estimate), not the filter's post-impact state, which the law being learned has b
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any, Mapping, NamedTuple, Sequence
 
 import numpy as np
 
@@ -66,13 +66,15 @@ class AdaptationSettings:
     knee_count: int = 0       # knees tried, evenly from 0 to knee_max (0: the configured knee only)
     knee_max: float = 0.0     # [m/s] the fastest knee tried
     stick_friction_rim: float = 1.0  # [-] mu_rim of a learned law in the stick-fraction form
+    max_delay: float = 0.01   # [s] paths meeting farther from the rim than this times the speed: no rim's
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AdaptationSettings":
         p = "rim_adaptation."
         return cls(*(params[p + name] for name in ("enabled", "prior_impacts", "window", "min_frames",
                                                     "min_normal_speed", "max_scale", "max_incoming_uncertainty",
-                                                    "knee_count", "knee_max", "stick_friction_rim")))
+                                                    "knee_count", "knee_max", "stick_friction_rim",
+                                                    "max_delay")))
 
     def knees(self, configured: float) -> np.ndarray:
         """The knees tried [m/s]: the configured one first, then ``knee_count`` from 0 to ``knee_max``."""
@@ -313,16 +315,25 @@ def describe(report: dict) -> str:
             f"{tangential}")
 
 
+class Outgoing(NamedTuple):
+    """The outgoing path of an impact, at the impact's time."""
+
+    vx: float             # [m/s]
+    vy: float
+    omega: float          # [rad/s]
+    position: np.ndarray  # (x, y) [m] of the fitted line (beyond the rim line for a compliant rim)
+
+
 def outgoing_fit(times: Sequence[float], poses: Sequence[Sequence[float]], t_impact: float,
-                 acceleration, spin_damping: float = 0.0) -> tuple[float, float, float] | None:
-    """Velocity (vx, vy) [m/s] and spin [rad/s] just after an impact at ``t_impact`` [s] from the measured
-    poses (x, y, theta) at ``times`` after it: line fits (:mod:`~air_hockey_agent.core.identification.
-    local_fit`, as split sysid's impact fits), the flight law's acceleration ``acceleration(v) -> a``
-    [m/s^2] removed from the positions, the spin's decay ``spin_damping`` [1/s] from the angles'; None with
-    fewer than three poses."""
+                 acceleration, spin_damping: float = 0.0) -> Outgoing | None:
+    """Velocity (vx, vy) [m/s], spin [rad/s] and the path's position just after an impact at ``t_impact``
+    [s] from the measured poses (x, y, theta) at ``times`` after it: line fits (:mod:`~air_hockey_agent.core.
+    identification.local_fit`, as split sysid's impact fits), the flight law's acceleration
+    ``acceleration(v) -> a`` [m/s^2] removed from the positions, the spin's decay ``spin_damping`` [1/s]
+    from the angles'; None with fewer than three poses."""
     times, z = np.asarray(times, float), np.asarray(poses, float)
     fit = line_fit(times, z[:, :2], t_impact, acceleration)
     omega = fit_angle_rate(times, z[:, 2], t_impact, spin_damping)
     if fit is None or omega is None:
         return None
-    return float(fit.v[0]), float(fit.v[1]), omega
+    return Outgoing(float(fit.v[0]), float(fit.v[1]), omega, np.asarray(fit.p, float))

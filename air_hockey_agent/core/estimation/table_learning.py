@@ -31,12 +31,13 @@ import numpy as np
 from air_hockey_agent.core.identification.local_fit import fit_positions
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe, outgoing_fit,
                                                              rim_frame)
+from air_hockey_agent.core.estimation.delay_adaptation import DelayAdaptation, paths_meet
 from air_hockey_agent.core.estimation.spin_adaptation import SpinAdaptation, describe_spin
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, flight_acceleration
-from air_hockey_agent.core.table import FIRST_POST, TableGeometry
+from air_hockey_agent.core.table import FIRST_POST, WALL_NORMALS, TableGeometry
 
 
-REPORT_KEYS = ("rim_law", "table_acceleration", "spin_damping")  # what TableLearning.report gives, in order
+REPORT_KEYS = ("rim_law", "table_acceleration", "spin_damping", "impact_delay")  # TableLearning.report's, in order
 
 
 @dataclass(frozen=True)
@@ -133,6 +134,7 @@ class _ImpactWatch:
     t: float              # [s] impact time
     wall: int
     before: tuple         # incoming (vb, vn, omega) in the rim's frame
+    path: tuple = ()      # the incoming straight path at the impact time: position, velocity (x, y) [m, m/s]
     times: list = field(default_factory=list)
     poses: list = field(default_factory=list)
 
@@ -149,6 +151,7 @@ class TableLearning:
         self.spin = (SpinAdaptation(base.spin_damping, acceleration.spin_prior_std, acceleration.spin_gate,
                                     angle_variance)
                      if acceleration is not None and acceleration.spin_prior_std > 0.0 else None)
+        self.delay = None if rim is None else DelayAdaptation(base.impact_delay, rim.prior_impacts, rim.max_delay)
         self.windows = 0  # free-flight windows learned from (the acceleration's, the spin's or both)
         self.limits = (table.x_limit, table.y_limit)  # [m] largest |x|, |y| of the centre off the rims
         self._watch: _ImpactWatch | None = None
@@ -176,6 +179,8 @@ class TableLearning:
             p = p.with_values(table_acceleration=self.acceleration.value, damping=self.acceleration.damping)
         if self.spin is not None and self.spin.windows:
             p = p.with_values(spin_damping=self.spin.value)
+        if self.delay is not None and self.delay.impacts:
+            p = p.with_values(impact_delay=self.delay.value)
         return p
 
     def forget(self) -> None:
@@ -210,14 +215,15 @@ class TableLearning:
 
     def _new_watch(self, before: np.ndarray, p: np.ndarray, stamp: float, hit) -> _ImpactWatch | None:
         tau, wall = hit
-        _, y, vx, vy, _, omega = before.tolist()
+        x, y, vx, vy, _, omega = before.tolist()
         if wall >= FIRST_POST:
             return None  # a post, met as a corner (core/table.py): the rim law is learned from the rims' faces
         vb, vn = rim_frame(wall, vx, vy)
         settings = self.rim.settings
         certain = p[2, 2] + p[3, 3] <= (settings.max_incoming_uncertainty ** 2) * (vx * vx + vy * vy)
         fast = -vn >= settings.min_normal_speed
-        return _ImpactWatch(stamp + tau, wall, (vb, vn, omega)) if certain and fast else None
+        path = (np.array([x + tau * vx, y + tau * vy]), np.array([vx, vy]))
+        return _ImpactWatch(stamp + tau, wall, (vb, vn, omega), path) if certain and fast else None
 
     def _watch_rim(self, model: PuckModel, t: float, z) -> bool:
         watch, settings = self._watch, self.rim.settings
@@ -231,10 +237,12 @@ class TableLearning:
         p = model.params
         fit = outgoing_fit(watch.times, watch.poses, watch.t,
                            flight_acceleration(p.damping, p.friction_surface, p.table_acceleration), p.spin_damping)
-        if fit is None:
+        if fit is None or not self.rim.observe(watch.before, (*rim_frame(watch.wall, fit.vx, fit.vy), fit.omega)):
             return False
-        vx, vy, omega = fit
-        return self.rim.observe(watch.before, (*rim_frame(watch.wall, vx, vy), omega))
+        met = paths_meet(WALL_NORMALS[watch.wall], *watch.path, fit.position, np.array([fit.vx, fit.vy]))
+        if met is not None:  # how far beyond the rim line the paths meet: a compliant rim's delay
+            self.delay.observe(met[1] + self.table.wall_offset(watch.wall), -watch.before[1])
+        return True
 
     def _fly(self, t: float, z, speed: float) -> bool:
         settings = self.acceleration.settings
@@ -270,7 +278,7 @@ class TableLearning:
         """What was learned: ``rim_law`` (:meth:`RimAdaptation.report`), ``table_acceleration``
         (windows, value and std [m/s^2]) and ``spin_damping`` (windows, value and std [1/s]), each None
         when not learned."""
-        parts = (self.rim, self.acceleration, self.spin)
+        parts = (self.rim, self.acceleration, self.spin, self.delay)
         return {key: None if part is None else part.report() for key, part in zip(REPORT_KEYS, parts)}
 
 
@@ -292,4 +300,8 @@ def describe_learning(report: dict) -> str:
                      f"free-flight window{'' if flight['windows'] == 1 else 's'}")
     if report.get("spin_damping") is not None:
         parts.append(describe_spin(report["spin_damping"]))
+    delay = report.get("impact_delay")
+    if delay is not None and delay["impacts"]:
+        parts.append(f"impact delay {delay['value'] * 1e3:.3f} ms from {delay['impacts']} "
+                     f"impact{'' if delay['impacts'] == 1 else 's'}")
     return "; ".join(parts)
