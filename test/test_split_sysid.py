@@ -322,3 +322,20 @@ def test_the_learning_priors_carry_the_identifications_weight():
     assert learning_priors(result, ["damping"], std, ranges) == {"acceleration_adaptation.damping_prior_std": 0.002}
     tiny = {**std, "damping": 1e-9}
     assert learning_priors(result, ["damping"], tiny, ranges) == {"acceleration_adaptation.damping_prior_std": 1e-6}
+
+
+def test_the_rim_lines_offsets_show_a_table_pose_off_by_millimetres(tmp_path):
+    """Each rim's offset at no speed (where an impact's paths would meet, from the model's rim line) shows a
+    table pose 3 mm off sideways: the left rim's impacts meet 3 mm beyond its line, the right's 3 mm inside,
+    the short rims' as before; with the true pose every rim sits within 3 standard errors (and 0.5 mm)."""
+    bag = tmp_path / "tb"
+    assert cli("synth-bag", bag, "--source", "testbed", "--shots", 16, "--seed", 4).returncode == 0
+    shifted = tmp_path / "shifted.yaml"
+    shifted.write_text("/**/puck_tracker:\n  ros__parameters:\n    mocap_table_pose: [1.504, 0.003, 0.0, 0.0]\n")
+    for extra, expected in (([], {}), (["--params-file", shifted], {"left": -0.003, "right": 0.003})):
+        run = cli("sysid", bag, "--identify", "impact_delay", "--json", *extra)
+        assert run.returncode == 0, run.stderr[-2000:]
+        delay = json.loads(run.stdout)["objective"]["impacts"]["delay"]
+        for rim, offset in delay["offsets_m"].items():
+            error = abs(offset - expected.get(rim, 0.0))
+            assert error < 3 * delay["offset_std_m"][rim] + 1e-4 and error < 5e-4, (rim, offset)

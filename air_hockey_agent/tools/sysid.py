@@ -37,6 +37,7 @@ from air_hockey_agent.bags.trajectories import split_train_validation
 from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split, learning_priors
 from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PHYSICAL, combine, identify,
                                                       loss_report, nis_median, on_bounds, partial_loss, polish)
+from air_hockey_agent.core.table import WALL_NAMES
 from air_hockey_agent.params import yaml_value
 from air_hockey_agent.sysid_params import bounds
 from air_hockey_agent.tracker_params import TRACKER_PARAMS, without_learning
@@ -245,8 +246,9 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
                                 "rms_tangential_m_s": i.rms_tangential}
         if split.delay is not None:
             d = split.delay
-            objective["impacts"]["delay"] = {"fitted_s": d.fitted, "std_s": d.std, "offset_m": d.offset,
-                                             "offset_std_m": d.offset_std, "impacts": d.impacts}
+            objective["impacts"]["delay"] = {"fitted_s": d.fitted, "std_s": d.std, "impacts": d.impacts,
+                                             "offsets_m": {WALL_NAMES[w]: o for w, (o, _) in d.offsets.items()},
+                                             "offset_std_m": {WALL_NAMES[w]: s for w, (_, s) in d.offsets.items()}}
     std = dict(split.std)
     if polished is not None:
         objective["polish"] = polished
@@ -459,11 +461,12 @@ def _spin_text(spin: dict, identified: bool) -> str:
 
 
 def _delay_text(delay: dict) -> str:
-    """One line on where the impacts' paths meet: a compliant rim's delay, and the rim lines' offset."""
+    """One line on where the impacts' paths meet: a compliant rim's delay, and each rim line's offset."""
+    offsets = ", ".join(f"{name} {value * 1e3:+.2f} +- {delay['offset_std_m'][name] * 1e3:.2f}"
+                        for name, value in delay["offsets_m"].items())
     return (f"rim contact: the paths before and after meet {delay['fitted_s'] * 1e3:.3f} +- {delay['std_s'] * 1e3:.3f} "
-            f"ms x the normal speed beyond the rim lines ({delay['impacts']} impacts; impact_delay), and "
-            f"{delay['offset_m'] * 1e3:+.2f} +- {delay['offset_std_m'] * 1e3:.2f} mm from them at no speed (> 0: "
-            f"inside; the table's geometry or pose)")
+            f"ms x the normal speed beyond the rim lines ({delay['impacts']} impacts; impact_delay); at no speed "
+            f"{offsets} mm from them (> 0: inside; the table's geometry or pose)")
 
 
 def _priors_text(priors: dict) -> str:

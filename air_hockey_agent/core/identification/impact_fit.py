@@ -363,13 +363,12 @@ def fit_impacts(impacts: Sequence[ImpactObservation], radius: float, fixed: Mapp
 
 @dataclass(frozen=True)
 class DelayFit:
-    """A compliant rim's delay from where the impacts' paths meet: ``depth = offset - delay |vn|``."""
+    """A compliant rim's delay from where the impacts' paths meet: ``depth = offset(rim) - delay |vn|``."""
 
     value: float        # [s] the impact delay, within its bounds
     std: float          # [s] its standard error
     fitted: float       # [s] the least-squares value before the bounds
-    offset: float       # [m] where the paths of an impact at no speed would meet, from the model's rim lines
-    offset_std: float   # [m]
+    offsets: dict       # rim id -> (offset, std) [m]: where an impact's paths at no speed meet, from the model's line
     impacts: int        # impacts in the fit (outliers dropped)
 
 
@@ -377,26 +376,38 @@ def fit_delay(impacts: Sequence[ImpactObservation], bounds: Sequence[float], out
     """Least squares of each impact's meeting depth (:attr:`ImpactObservation.depth`) on its incoming normal
     speed: a rigid rim's paths meet on its line at every speed, a compliant one's beyond it by the delay
     times the speed (the model's ``impact_delay``: the impact comes that long after the centre reaches the
-    line); the offset at no speed says how far the table's rim lines are from the model's (its geometry or
-    the table's pose). Outliers beyond ``outlier_factor`` robust standard deviations are dropped once."""
+    line). Each rim has its own offset at no speed: how far the table's rim lines are from the model's (a
+    table longer or wider than configured moves opposite rims' alike, a table pose shifted moves them
+    apart). Outliers beyond ``outlier_factor`` robust standard deviations are dropped once."""
     speed = np.array([-o.before[1] for o in impacts])
     depth = np.array([o.depth for o in impacts])
+    walls = np.array([o.wall for o in impacts])
     if len(speed) < 3 or np.ptp(speed) == 0.0:
         raise ValueError(f"{len(speed)} rim impacts at {len(set(speed.tolist()))} normal speeds: too few to identify "
                          f"impact_delay")
-    design = np.column_stack([np.ones_like(speed), -speed])
     keep = np.ones(len(speed), bool)
-    for _ in range(2):
-        coef, *_ = np.linalg.lstsq(design[keep], depth[keep], rcond=None)
-        if not keep.all():
-            break
-        keep = _robust_keep(depth - design @ coef, outlier_factor)
-        if keep.sum() < 3:
-            keep[:] = True
-            break
+    coef, rims = _delay_lstsq(speed, depth, walls)
+    residual = depth - _delay_design(speed, walls, rims) @ coef
+    dropped = ~_robust_keep(residual, outlier_factor)
+    if dropped.any() and (~dropped).sum() >= 3 and np.ptp(speed[~dropped]) > 0.0:
+        keep = ~dropped
+        coef, rims = _delay_lstsq(speed[keep], depth[keep], walls[keep])
+    design = _delay_design(speed[keep], walls[keep], rims)
+    residual = depth[keep] - design @ coef
     n = int(keep.sum())
-    residual = depth[keep] - design[keep] @ coef
-    variance = float(residual @ residual) / max(n - 2, 1)
-    cov = variance * np.linalg.inv(design[keep].T @ design[keep])
-    return DelayFit(float(min(max(coef[1], bounds[0]), bounds[1])), float(math.sqrt(cov[1, 1])), float(coef[1]),
-                    float(coef[0]), float(math.sqrt(cov[0, 0])), n)
+    variance = float(residual @ residual) / max(n - design.shape[1], 1)
+    cov = variance * np.linalg.pinv(design.T @ design)
+    offsets = {int(w): (float(coef[k]), float(math.sqrt(cov[k, k]))) for k, w in enumerate(rims)}
+    return DelayFit(float(min(max(coef[-1], bounds[0]), bounds[1])), float(math.sqrt(cov[-1, -1])), float(coef[-1]),
+                    offsets, n)
+
+
+def _delay_design(speed: np.ndarray, walls: np.ndarray, rims: Sequence[int]) -> np.ndarray:
+    """Columns: one offset per rim in ``rims`` (1 on its impacts), then minus the normal speed."""
+    return np.column_stack([(walls == w).astype(float) for w in rims] + [-speed])
+
+
+def _delay_lstsq(speed: np.ndarray, depth: np.ndarray, walls: np.ndarray) -> tuple[np.ndarray, list[int]]:
+    rims = sorted(set(walls.tolist()))
+    coef, *_ = np.linalg.lstsq(_delay_design(speed, walls, rims), depth, rcond=None)
+    return coef, rims
