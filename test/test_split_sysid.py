@@ -339,3 +339,7 @@ def test_the_rim_lines_offsets_show_a_table_pose_off_by_millimetres(tmp_path):
         for rim, offset in delay["offsets_m"].items():
             error = abs(offset - expected.get(rim, 0.0))
             assert error < 3 * delay["offset_std_m"][rim] + 1e-4 and error < 5e-4, (rim, offset)
+        warned = [line for line in run.stderr.splitlines() if "from the model's rim line" in line]
+        assert sorted(rim for rim in ("left", "right", "far", "near") if any(f"the {rim} rim" in w for w in warned)) \
+            == sorted(expected), run.stderr  # one line per rim that is off, naming it and what to check
+        assert all("mocap_table_pose" in w and w.startswith("air-hockey sysid: warning: ") for w in warned)

@@ -196,8 +196,23 @@ def run(args: argparse.Namespace) -> int:
     for phrase in result["on_bounds"]:
         print(f"{PROG}: warning: {phrase}: the search ended on the edge of its box (config/sysid.yaml bounds): "
               f"the effect may be absent, or the model or the box may not fit these recordings", file=sys.stderr)
+    for phrase in _rims_off(result, settings["split.rim_offset_warning"]):
+        print(f"{PROG}: warning: {phrase}: check table.length / table.width (config/table.yaml) and "
+              f"mocap_table_pose", file=sys.stderr)
     print(json.dumps(result) if args.json else format_report(result, args.out))
     return 2 if loaded.errors else 0
+
+
+def _rims_off(result: dict, limit: float) -> list[str]:
+    """The rims whose impacts' paths meet farther than ``limit`` [m] (and 3 standard errors) from the model's
+    rim line at no speed (split's delay fit), in words."""
+    delay = result.get("objective", {}).get("impacts", {}).get("delay")
+    if delay is None:
+        return []
+    return [f"the {rim} rim's impacts meet {offset * 1e3:+.2f} +- {delay['offset_std_m'][rim] * 1e3:.2f} mm from "
+            f"the model's rim line ({'inside' if offset > 0 else 'beyond'} it)"
+            for rim, offset in delay["offsets_m"].items()
+            if abs(offset) > max(limit, 3.0 * delay["offset_std_m"][rim])]
 
 
 def _calibration_warning(loss: str, tracker: dict, settings: dict, train: list) -> str:
