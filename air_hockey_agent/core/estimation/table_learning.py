@@ -28,10 +28,10 @@ from typing import Any, Mapping
 
 import numpy as np
 
-from air_hockey_agent.core.identification.local_fit import fit_positions
+from air_hockey_agent.core.identification.local_fit import fit_positions, paths_meet
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe, outgoing_fit,
                                                              rim_frame)
-from air_hockey_agent.core.estimation.delay_adaptation import DelayAdaptation, paths_meet
+from air_hockey_agent.core.estimation.delay_adaptation import DelayAdaptation
 from air_hockey_agent.core.estimation.spin_adaptation import SpinAdaptation, describe_spin
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, flight_acceleration
 from air_hockey_agent.core.table import FIRST_POST, WALL_NORMALS, TableGeometry

@@ -31,7 +31,8 @@ from typing import Mapping, Sequence
 import numpy as np
 
 from air_hockey_agent.core.identification.flight_fit import NoiseModel
-from air_hockey_agent.core.identification.local_fit import fit_angle_rate, line_fit, rows_in, smooth_fits
+from air_hockey_agent.core.identification.local_fit import (fit_angle_rate, line_fit, paths_meet, rows_in,
+                                                            smooth_fits)
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
@@ -125,13 +126,10 @@ def _observe(traj, table, wall, k, n_rows, acceleration, noise, settings, spin_d
         return None
     (before, after) = fits
     n = np.array(WALL_NORMALS[wall])
-    closing = float(n @ (before.v - after.v))
-    if closing >= 0.0:
+    met = paths_meet(n, before.p, before.v, after.p, after.v)  # where the two lines' distances from the rim meet
+    if met is None or abs(met[0]) > 1.5 * dt:
         return None
-    tau = -float(n @ (before.p - after.p)) / closing  # the two lines' distances from the rim meet here
-    if abs(tau) > 1.5 * dt:
-        return None
-    contact = float(n @ (before.p + tau * before.v)) + table.wall_offset(wall)
+    tau, contact = met[0], met[1] + table.wall_offset(wall)
     if abs(contact) > settings.contact_tolerance:
         return None
     b = np.array([n[1], -n[0]])

@@ -109,3 +109,16 @@ def smooth_fits(quality, factor: float) -> np.ndarray:
     if not quality.size:
         return np.zeros(0, bool)
     return quality <= factor * max(float(np.median(quality)), 1e-12)
+
+
+def paths_meet(normal: tuple[float, float], p_before: np.ndarray, v_before: np.ndarray, p_after: np.ndarray,
+               v_after: np.ndarray) -> tuple[float, float] | None:
+    """Where two straight paths, positions ``p_*`` [m] at a common time and velocities ``v_*`` [m/s], are
+    equally far along ``normal``: (time [s] from that common time, ``normal . p`` [m] there); None when the
+    second does not leave along the normal faster than the first arrives (no impact between them)."""
+    n = np.asarray(normal, float)
+    closing = float(n @ (np.asarray(v_before) - np.asarray(v_after)))
+    if closing >= 0.0:
+        return None
+    tau = -float(n @ (np.asarray(p_before) - np.asarray(p_after))) / closing
+    return tau, float(n @ (np.asarray(p_before) + tau * np.asarray(v_before)))

@@ -273,7 +273,7 @@ def _step(p: np.ndarray, x: float, y: float, vx: float, vy: float, th: float, om
             _event_jacobian(x, y, vx, vy, om, tau, nx, ny, curvature, vb_in, vn_in, vb, vn, s_local, delay, event)
             _matmul(event, jac, product)
             _copy_into(product, jac, 7, 7)
-        x, y, th, h = x + tau * vx, y + tau * vy, th + tau * om, h - tau
+        x, y, th, h = xc, yc, th + tau * om, h - tau
         vx, vy, om = bx * vb + nx * vn, by * vb + ny * vn, new_om
         impacts[count, 0], impacts[count, 1], impacts[count, 2] = t0 + (dt - h), _contact_rim(wall), x
         impacts[count, 3], impacts[count, 4] = y, 1.0 if sliding else 0.0
