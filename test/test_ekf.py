@@ -4,8 +4,9 @@ from dataclasses import replace
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.estimation.ekf import (FLAG_MEASUREMENT_USED, FLAG_OUTLIER_REJECTED, FLAG_PREDICTED,
-                                       FLAG_REINITIALISED, FilterSettings, PuckEKF, check_covariance)
+from air_hockey_agent.core.estimation.ekf import (ACQUISITION_FRAMES, FLAG_MEASUREMENT_USED, FLAG_OUTLIER_REJECTED,
+                                                  FLAG_PREDICTED, FLAG_REINITIALISED, FilterSettings, PuckEKF,
+                                                  check_covariance)
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections, mocap_stream, simulate_truth, true_state_at
 from model_fixtures import DT, Q, model
 
@@ -65,14 +66,55 @@ def test_unmodelled_hit_reinitialises_after_a_run_of_rejections():
     assert ekf.x[3] == pytest.approx(-2.0, abs=0.05) and abs(ekf.x[2]) < 0.05
 
 
+def _start_track(ekf, frames):
+    """Feed (t, z) frames until the track starts; the index of the frame that started it (None: never)."""
+    for k, (t, z) in enumerate(frames):
+        if ekf.process(t, z) & FLAG_REINITIALISED:
+            return k
+    return None
+
+
+@pytest.mark.parametrize("glitch", [0, 1, 2])
+def test_a_track_does_not_start_from_a_glitch(glitch):
+    """A glitch among a new track's first frames (here 5 cm off) would set its velocity to metres per second
+    in a two-point start; the track starts from the first window of frames that fit one velocity."""
+    rng = np.random.default_rng(glitch)
+    frames = [(k * DT, np.array([-0.5 + 0.8 * k * DT, 0.1 - 0.3 * k * DT, 0.0]) + [*rng.normal(0, 1e-4, 2), 0.0])
+              for k in range(12)]
+    frames[glitch][1][:2] += [0.03, -0.04]
+    ekf = PuckEKF(model(), SETTINGS)
+    started = _start_track(ekf, frames)
+    assert started == glitch + ACQUISITION_FRAMES
+    assert ekf.x[2:4] == pytest.approx([0.8, -0.3], abs=0.05)
+    assert ekf.stats.reinitialisations == 1
+
+
+def test_a_clean_track_starts_at_its_third_frame_with_a_fitted_velocity():
+    ekf = PuckEKF(model(), SETTINGS)
+    frames = [(k * DT, np.array([0.2 * k * DT, 0.0, 0.0])) for k in range(5)]
+    assert _start_track(ekf, frames) == ACQUISITION_FRAMES - 1
+    assert ekf.x[2] == pytest.approx(0.2, abs=1e-9) and ekf.stamp == pytest.approx(2 * DT)
+
+
+def test_a_track_starts_even_when_the_noise_is_far_larger_than_configured():
+    """Frames a hundred times noisier than R never fit one velocity by R's measure: after more failed windows
+    than one glitch can spoil, the track starts anyway instead of never."""
+    rng = np.random.default_rng(3)
+    frames = [(k * DT, np.array([0.1, 0.0, 0.0]) + [*rng.normal(0, 1e-2, 2), 0.0]) for k in range(20)]
+    ekf = PuckEKF(model(), SETTINGS)
+    started = _start_track(ekf, frames)
+    assert started is not None and started <= 2 * ACQUISITION_FRAMES
+    assert ekf.initialised
+
+
 def test_covariance_grows_in_prediction_and_shrinks_on_update():
     ekf = PuckEKF(model(), SETTINGS)
-    ekf.process(0.0, [0.0, 0.0, 0.0])
-    ekf.process(DT, [0.01, 0.0, 0.0])
+    for k in range(3):
+        ekf.process(k * DT, [0.01 * k, 0.0, 0.0])
     before = np.trace(ekf.P[:2, :2])
-    ekf.predict_to(2 * DT)
+    ekf.predict_to(3 * DT)
     predicted = np.trace(ekf.P[:2, :2])
-    ekf.update(np.array([0.02, 0.0, 0.0]))
+    ekf.update(np.array([0.03, 0.0, 0.0]))
     assert before < predicted and np.trace(ekf.P[:2, :2]) < predicted
 
 
@@ -85,19 +127,20 @@ def test_angle_innovation_is_wrapped():
 
 def test_repeated_and_out_of_order_frames_are_ignored():
     ekf = PuckEKF(model(), SETTINGS)
-    ekf.process(0.0, [0.0, 0.0, 0.0])
-    ekf.process(DT, [0.01, 0.0, 0.0])
+    for k in range(3):
+        ekf.process(k * DT, [0.01 * k, 0.0, 0.0])
     state = ekf.x.copy()
-    assert ekf.process(DT, [0.5, 0.0, 0.0]) == 0
-    assert ekf.process(0.5 * DT, [0.5, 0.0, 0.0]) == 0
+    assert ekf.process(2 * DT, [0.5, 0.0, 0.0]) == 0
+    assert ekf.process(1.5 * DT, [0.5, 0.0, 0.0]) == 0
     assert np.array_equal(ekf.x, state) and ekf.stats.repeated_frames == 2
 
 
 def test_measurement_far_outside_the_table_is_dropped():
     ekf = PuckEKF(model(), SETTINGS)
-    ekf.process(0.0, [0.0, 0.0, 0.0])
-    ekf.process(DT, [0.01, 0.0, 0.0])
-    assert ekf.process(2 * DT, [5.0, 0.0, 0.0]) & FLAG_OUTLIER_REJECTED
+    for k in range(3):
+        ekf.process(k * DT, [0.01 * k, 0.0, 0.0])
+    assert ekf.initialised
+    assert ekf.process(3 * DT, [5.0, 0.0, 0.0]) & FLAG_OUTLIER_REJECTED
     assert ekf.x[0] < 0.1
 
 
@@ -126,9 +169,10 @@ def test_time_jumping_back_restarts_the_filter():
     for k in range(10):
         ekf.process(100.0 + k * DT, [0.01 * k, 0.0, 0.0])
     ekf.process(50.0, [0.3, 0.2, 0.0])
-    flags = ekf.process(50.0 + DT, [0.301, 0.2, 0.0])
-    assert flags & FLAG_REINITIALISED and ekf.stamp == pytest.approx(50.0 + DT)
-    assert ekf.x[0] == pytest.approx(0.301)
+    ekf.process(50.0 + DT, [0.301, 0.2, 0.0])
+    flags = ekf.process(50.0 + 2 * DT, [0.302, 0.2, 0.0])
+    assert flags & FLAG_REINITIALISED and ekf.stamp == pytest.approx(50.0 + 2 * DT)
+    assert ekf.x[0] == pytest.approx(0.302)
 
 
 def test_speed_dependent_noise_matches_marker_noise_that_grows_with_speed():
