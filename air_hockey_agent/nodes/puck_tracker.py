@@ -19,7 +19,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
-from air_hockey_agent.core.estimation.ekf import PuckEKF, check_covariance
+from air_hockey_agent.core.estimation.ekf import ACQUISITION_FRAMES, PuckEKF, check_covariance
 from air_hockey_agent.core.estimation.table_learning import describe_learning
 from air_hockey_agent.core.puck.prediction import prepare_prediction
 from air_hockey_agent.nodes.messages import physics_msg, pose_measurement, state_msg, to_seconds, to_stamp
@@ -140,7 +140,8 @@ class PuckTrackerNode(AirHockeyNode):
         z = (request.x, request.y, request.theta) if request.has_measurement else None
         flags = self.ekf.process(to_seconds(request.stamp), z)
         if not self.ekf.initialised:
-            response.success, response.message = False, "filter not initialised yet (needs two measurements)"
+            response.success, response.message = False, (f"filter not initialised yet (a track starts from "
+                                                         f"{ACQUISITION_FRAMES} measurements that fit one velocity)")
             return response
         horizon = request.prediction_horizon if request.prediction_horizon > 0.0 else self.ekf.settings.dt
         pred = self.ekf.predict(horizon)
