@@ -21,6 +21,8 @@ SYSID_PARAMS = (
     ParamSpec("bounds.spin_damping", list, "[1/s] bounds of the spin's decay rate (--method split)", 0.0, 100.0, 2),
     ParamSpec("bounds.impact_delay", list, "[s] bounds of a compliant rim's impact delay (--method split)", 0.0, 0.05,
               2),
+    ParamSpec("bounds.table_geometry", list, "[m] how far the rims' centre and distances may move (--identify "
+              "table_geometry)", -0.5, 0.5, 2),
     ParamSpec("split.window", float, "[s] free-flight window of the split identification", 0.05, 5.0),
     ParamSpec("split.min_coverage", float, "[-] share of a window's frames that must be measured", 0.1, 1.0),
     ParamSpec("split.min_speed", float, "[m/s] slower windows are left out", 0.0, 10.0),
@@ -38,6 +40,7 @@ SYSID_PARAMS = (
     ParamSpec("split.field_significance", float, "p-value below which the free flight shows a field", 0.0, 1.0),
     ParamSpec("split.rim_offset_warning", float, "[m] a rim line farther than this from the model's (and 3 "
               "standard errors) is warned about", 0.0, 0.1),
+    ParamSpec("split.rim_significance", float, "[-] standard errors beyond which a rim offset counts", 0.0, 100.0),
     ParamSpec("random_samples", int, "HEBO's initial random suggestions", 1, 1000),
     ParamSpec("polish_evaluations", int, "Nelder-Mead evaluations after HEBO (0 = off)", 0, 100000),
     ParamSpec("stride", int, "predict from every stride-th frame with a state while optimising", 1, 1000),

@@ -23,6 +23,7 @@ class LoadedTrajectories:
     warnings: list = field(default_factory=list)  # one-line notes on data repaired while loading
     at_rest: int = 0            # pieces dropped because the puck never moved in them
     too_short: int = 0          # pieces dropped because their motion was shorter than min_duration
+    unposed_bags: int = 0       # bags whose poses did not go through mocap_table_pose (--table-frame, table-frame poses)
 
     def why_none(self, prep: Mapping[str, Any]) -> str:
         """Why pieces were dropped, as a clause for an error message ('' when none were)."""
@@ -63,6 +64,7 @@ def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, A
             result.errors.append(str(exc))
             continue
         result.bags += 1
+        result.unposed_bags += bool(table_frame) or any(r.frame_id == TABLE_FRAME for r in records)
         for note in (_stream_problems([r.stamp for r in records], measurements), off_table):
             if note:
                 result.warnings.append(f"{bag}: {note}")

@@ -13,7 +13,9 @@ a stranger's table's.
 the filter and in about a second: damping, surface friction and the table acceleration by least
 squares on local fits of the free flight, then the restitution law and the rim's tangential law on the
 velocities before and after each rim impact (core/identification/split.py); its objectives are the
-fits' own.
+fits' own. Where the paths before and after the impacts meet gives a compliant rim's delay and where
+the rims are (``table_geometry``): rims found millimetres from the model's move ``mocap_table_pose`` and
+``table.length`` / ``table.width`` (written with ``--out``), and the fits run again on the moved rims.
 
 ``--method hebo`` is the thesis's identification (sec. 3.3, 4.3): HEBO minimises the prediction loss
 at ``--horizon`` on the training set over the table 4.1 bounds (``config/sysid.yaml``), starting from
@@ -34,6 +36,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from air_hockey_agent.bags.trajectories import split_train_validation
+from air_hockey_agent.core.identification.rim_lines import recentred
 from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split, learning_priors
 from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PHYSICAL, combine, identify,
                                                       loss_report, nis_median, on_bounds, partial_loss, polish)
@@ -68,10 +71,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
     parser.add_argument("--identify", nargs="+", choices=SPLIT_IDENTIFIABLE, metavar="NAME",
-                        help="parameters to identify (default: hebo the thesis's four, split all eleven; "
-                             "table_acceleration, spin_damping and impact_delay only with --method split; also "
-                             "restitution_slope, "
-                             "the rims' loss with impact speed); choices: " + ", ".join(IDENTIFIABLE))
+                        help="parameters to identify (default: hebo the thesis's four, split all twelve; "
+                             "table_acceleration, spin_damping, impact_delay and table_geometry (where the rims "
+                             "are: mocap_table_pose's x, y, table.length, table.width) only with --method split; "
+                             "also restitution_slope, the rims' loss with impact speed); choices: "
+                             + ", ".join(SPLIT_IDENTIFIABLE))
     parser.add_argument("--polish", type=count(0), metavar="EVALUATIONS",
                         help="then a Nelder-Mead polish of the scalar parameters on the prediction loss at "
                              "--horizon, this many evaluations (default: split 0, none; hebo "
@@ -180,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
             print("starting HEBO (loading torch takes several seconds) ...", flush=True)
     if args.method == "split":
         try:
-            result = _identify_split(args, tracker, settings, train, validation)
+            result = _identify_split(args, tracker, settings, train, validation, loaded.unposed_bags == 0)
         except ValueError as exc:
             return report_error(PROG, f"--method split: {exc} (in {len(train)} training trajectories)")
     else:
@@ -191,28 +195,53 @@ def run(args: argparse.Namespace) -> int:
     result.update({"train_trajectories": len(train), "validation_trajectories": len(validation),
                    "bags": loaded.bags, "bad_bags": len(loaded.errors)})
     if args.out is not None:
-        write_params_yaml(args.out, result["identified"], result["summary_line"], result.get("learning_priors", {}))
+        write_params_yaml(args.out, {**result["identified"], **result.get("table_geometry", {}).get("parameters", {})},
+                          result["summary_line"], result.get("learning_priors", {}))
     result.pop("summary_line")
     for phrase in result["on_bounds"]:
         print(f"{PROG}: warning: {phrase}: the search ended on the edge of its box (config/sysid.yaml bounds): "
               f"the effect may be absent, or the model or the box may not fit these recordings", file=sys.stderr)
-    for phrase in _rims_off(result, settings["split.rim_offset_warning"]):
+    identify = "" if "table_geometry" in result else ", or identify them (--identify table_geometry)"
+    for phrase in _rims_off(result, settings["split.rim_offset_warning"], settings["split.rim_significance"]):
         print(f"{PROG}: warning: {phrase}: check table.length / table.width (config/table.yaml) and "
-              f"mocap_table_pose", file=sys.stderr)
+              f"mocap_table_pose{identify}", file=sys.stderr)
+    for phrase in _geometry_warnings(result.get("table_geometry"), settings):
+        print(f"{PROG}: warning: {phrase}", file=sys.stderr)
     print(json.dumps(result) if args.json else format_report(result, args.out))
     return 2 if loaded.errors else 0
 
 
-def _rims_off(result: dict, limit: float) -> list[str]:
-    """The rims whose impacts' paths meet farther than ``limit`` [m] (and 3 standard errors) from the model's
-    rim line at no speed (split's delay fit), in words."""
+def _rims_off(result: dict, limit: float, significance: float) -> list[str]:
+    """The rims whose impacts' paths meet farther than ``limit`` [m] (and ``significance`` standard errors)
+    from the model's rim line at no speed (split's delay fit, on the moved rims after table_geometry), in
+    words."""
     delay = result.get("objective", {}).get("impacts", {}).get("delay")
     if delay is None:
         return []
     return [f"the {rim} rim's impacts meet {offset * 1e3:+.2f} +- {delay['offset_std_m'][rim] * 1e3:.2f} mm from "
             f"the model's rim line ({'inside' if offset > 0 else 'beyond'} it)"
             for rim, offset in delay["offsets_m"].items()
-            if abs(offset) > max(limit, 3.0 * delay["offset_std_m"][rim])]
+            if abs(offset) > max(limit, significance * delay["offset_std_m"][rim])]
+
+
+def _geometry_warnings(geometry: dict | None, settings: dict) -> list[str]:
+    """What of the table's geometry was found but not moved: beyond its bounds, or a centre the poses' own
+    transform fixes (--table-frame, table-frame poses)."""
+    if not geometry:
+        return []
+    out = [f"the rims' {part} is {geometry['values_m'][part] * 1e3:+.1f} mm from the configured table's, beyond "
+           f"bounds.table_geometry {settings['bounds.table_geometry']} (config/sysid.yaml): not moved; the table's "
+           f"configuration (config/table.yaml, mocap_table_pose) looks wrong, not its calibration"
+           for part, beyond in geometry["beyond"].items() if beyond]
+    if not geometry["centre_movable"]:
+        centre = [geometry["values_m"][n] for n in ("centre_x", "centre_y")]
+        significant = [part for part in ("centre_x", "centre_y") if abs(geometry["values_m"][part]) >
+                       settings["split.rim_significance"] * geometry["std_m"][part]]
+        if significant:
+            out.append(f"the rims' centre is ({centre[0] * 1e3:+.2f}, {centre[1] * 1e3:+.2f}) mm from the table frame's "
+                       f"origin, but the poses did not come through mocap_table_pose (--table-frame or poses in "
+                       f"the table frame): move the table's transform by that; only the size was moved")
+    return out
 
 
 def _calibration_warning(loss: str, tracker: dict, settings: dict, train: list) -> str:
@@ -230,17 +259,24 @@ def _calibration_warning(loss: str, tracker: dict, settings: dict, train: list) 
             f"does not depend on it")
 
 
-def _identify_split(args, tracker: dict, settings: dict, train: list, validation: list) -> dict:
-    """--method split: the fits, then the same before/after reports as HEBO's."""
+def _identify_split(args, tracker: dict, settings: dict, train: list, validation: list, posed: bool) -> dict:
+    """--method split: the fits, then the same before/after reports as HEBO's (after a move of the rims,
+    table_geometry, on the trajectories measured from the moved table frame). ``posed``: every bag's poses
+    came through mocap_table_pose, so the table's centre can move."""
     names = args.identify
     start = time.monotonic()
-    split = identify_split(train, tracker, settings, names, bounds(settings, names))
+    box = bounds(settings, names)
+    split = identify_split(train, tracker, settings, names, box, move_centre=posed)
     chosen = dict(split.identified)
+    geometry = split.geometry or {}
+    moved = {**tracker, **geometry}
+    centre = split.rim_lines.centre() if split.rim_lines is not None else (0.0, 0.0)
+    train_after, validation_after = ([recentred(t, centre) for t in trajs] for trajs in (train, validation))
     plots = []
     if args.plot is not None:
         from air_hockey_agent.tools.split_plots import write_split_plots
         plots = [str(p) for p in write_split_plots(args.plot, split)]
-    polished = _polish_split(args, tracker, settings, train, chosen) if args.polish else None
+    polished = _polish_split(args, moved, settings, train_after, chosen) if args.polish else None
     objective = {"set": "train"}
     if split.flight is not None:
         f = split.flight
@@ -262,6 +298,7 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
         if split.delay is not None:
             d = split.delay
             objective["impacts"]["delay"] = {"fitted_s": d.fitted, "std_s": d.std, "impacts": d.impacts,
+                                             "value_s": d.value, "identified": "impact_delay" in names,
                                              "offsets_m": {WALL_NAMES[w]: o for w, (o, _) in d.offsets.items()},
                                              "offset_std_m": {WALL_NAMES[w]: s for w, (_, s) in d.offsets.items()}}
     std = dict(split.std)
@@ -270,13 +307,17 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
         chosen.update(polished["values"])
         for name in polished["values"]:  # the fits' errors are not the polished values'
             std.pop(name, None)
-    result = {"method": "split", "horizon": args.horizon, "initial": {n: tracker[n] for n in names},
+    result = {"method": "split", "horizon": args.horizon, "initial": {n: tracker[n] for n in names if n in tracker},
               "identified": chosen, "std": std, "plots": plots, "seconds": round(time.monotonic() - start, 1),
               "objective": objective, "before": {}, "after": {},
-              "on_bounds": on_bounds(_flat(chosen), _flat_bounds(bounds(settings, names)), settings["bound_margin"])}
+              "on_bounds": on_bounds(_flat(chosen), _flat_bounds({n: b for n, b in box.items() if n in chosen}),
+                                     settings["bound_margin"])}
+    if split.rim_lines is not None:
+        result["table_geometry"] = _geometry_report(split, tracker, posed)
     kept = [n for n in chosen if polished is None or n not in polished["values"]]
     result["learning_priors"] = learning_priors(split, kept, std, {s.name: (s.low, s.high) for s in TRACKER_PARAMS})
-    result["before"], result["after"] = _before_after(tracker, chosen, train, validation, args.horizon)
+    result["before"] = _loss_reports(tracker, train, validation, args.horizon)
+    result["after"] = _loss_reports({**moved, **chosen}, train_after, validation_after, args.horizon)
     result["seconds_with_reports"] = round(time.monotonic() - start, 1)
     result["summary_line"] = (f"identified by `air-hockey sysid --method split` ({len(train)} training "
                               f"trajectories) on {datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}")
@@ -302,12 +343,28 @@ def _polish_split(args, tracker: dict, settings: dict, train: list, split_values
             "initial_m": first, "final_m": value, "values": best}
 
 
+def _loss_reports(tracker: dict, train: list, validation: list, horizon: float) -> dict:
+    """The loss reports (thesis table 5.2/5.3 columns) of ``tracker``'s parameters on both sets, every frame."""
+    return {name: loss_report(tracker, trajs, horizon).as_dict() for name, trajs in (("train", train),
+                                                                                     ("validation", validation))}
+
+
 def _before_after(tracker: dict, identified: dict, train: list, validation: list, horizon: float) -> tuple:
-    """The loss reports (thesis table 5.2/5.3 columns) of the tracker's and the identified parameters on
-    both sets, every frame."""
-    sets = (("train", train), ("validation", validation))
-    return ({name: loss_report(tracker, trajs, horizon).as_dict() for name, trajs in sets},
-            {name: loss_report({**tracker, **identified}, trajs, horizon).as_dict() for name, trajs in sets})
+    """The loss reports of the tracker's and the identified parameters on the same trajectories."""
+    return (_loss_reports(tracker, train, validation, horizon),
+            _loss_reports({**tracker, **identified}, train, validation, horizon))
+
+
+def _geometry_report(split, tracker: dict, posed: bool) -> dict:
+    """table_geometry's part of the result: the rims' centre and size changes found (first pass, against the
+    configured rims), which were moved, and the tracker parameters that move them."""
+    lines = split.rim_lines
+    first = split.first_delay
+    return {"values_m": lines.values, "std_m": lines.std, "taken": lines.taken, "beyond": lines.beyond,
+            "centre_movable": posed, "parameters": dict(split.geometry or {}),
+            "initial": {n: tracker[n] for n in ("mocap_table_pose", "table.length", "table.width")},
+            "first_offsets_m": {WALL_NAMES[w]: o for w, (o, _) in first.offsets.items()},
+            "first_offset_std_m": {WALL_NAMES[w]: e for w, (_, e) in first.offsets.items()}}
 
 
 def _flat(values: dict) -> dict:
@@ -432,6 +489,8 @@ def _format_split(result: dict, out: Path | None) -> str:
                      f"{i['rms_normal_speed_m_s']:.4f} m/s, tangential {i['rms_tangential_m_s']:.4f} m/s")
         if "delay" in i:
             lines.append(_delay_text(i["delay"]))
+    if "table_geometry" in result:
+        lines.append(_geometry_text(result["table_geometry"]))
     if "polish" in o:
         p = o["polish"]
         lines.append(f"polish: {p['evaluations']} evaluations of the position loss at {p['horizon']} s (training set, "
@@ -479,9 +538,28 @@ def _delay_text(delay: dict) -> str:
     """One line on where the impacts' paths meet: a compliant rim's delay, and each rim line's offset."""
     offsets = ", ".join(f"{name} {value * 1e3:+.2f} +- {delay['offset_std_m'][name] * 1e3:.2f}"
                         for name, value in delay["offsets_m"].items())
+    where = f"{offsets} mm from them (> 0: inside; the table's geometry or pose)"
+    if not delay["identified"]:
+        return (f"rim contact ({delay['impacts']} impacts): with the configured impact_delay "
+                f"{delay['value_s'] * 1e3:.3f} ms the paths before and after meet, at no speed, {where}; their own "
+                f"slope: {delay['fitted_s'] * 1e3:.3f} ms x the normal speed beyond the rim lines")
     return (f"rim contact: the paths before and after meet {delay['fitted_s'] * 1e3:.3f} +- {delay['std_s'] * 1e3:.3f} "
             f"ms x the normal speed beyond the rim lines ({delay['impacts']} impacts; impact_delay); at no speed "
-            f"{offsets} mm from them (> 0: inside; the table's geometry or pose)")
+            f"{where}")
+
+
+def _geometry_text(geometry: dict) -> str:
+    """One line on where the rims were found (table_geometry) and what was moved."""
+    v, e = geometry["values_m"], geometry["std_m"]
+    found = (f"centre ({v['centre_x'] * 1e3:+.2f}, {v['centre_y'] * 1e3:+.2f}) +- ({e['centre_x'] * 1e3:.2f}, "
+             f"{e['centre_y'] * 1e3:.2f}) mm from the table frame's origin, length {v['length'] * 1e3:+.2f} +- "
+             f"{e['length'] * 1e3:.2f} mm, width {v['width'] * 1e3:+.2f} +- {e['width'] * 1e3:.2f} mm")
+    moved = geometry["parameters"]
+    if not moved:
+        return f"table geometry: the rims' {found}: none moved (none significant, or beyond its bounds)"
+    changes = ", ".join(f"{name} {_value_text(value)} (was {_value_text(geometry['initial'][name])})"
+                        for name, value in moved.items())
+    return f"table geometry: the rims' {found}: moved {changes}; the fits above are on the moved rims"
 
 
 def _priors_text(priors: dict) -> str:

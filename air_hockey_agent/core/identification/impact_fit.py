@@ -363,26 +363,32 @@ def fit_impacts(impacts: Sequence[ImpactObservation], radius: float, fixed: Mapp
 class DelayFit:
     """A compliant rim's delay from where the impacts' paths meet: ``depth = offset(rim) - delay |vn|``."""
 
-    value: float        # [s] the impact delay, within its bounds
-    std: float          # [s] its standard error
+    value: float        # [s] the impact delay the model takes: the fit within its bounds, or the one known
+    std: float          # [s] its standard error (0 when known)
     fitted: float       # [s] the least-squares value before the bounds
-    offsets: dict       # rim id -> (offset, std) [m]: where an impact's paths at no speed meet, from the model's line
+    offsets: dict       # rim id -> (offset, std) [m]: where an impact's paths at no speed meet, from the model's
+    #                     line, at the delay ``value`` (> 0: inside the table)
     impacts: int        # impacts in the fit (outliers dropped)
+    covariance: dict = field(default_factory=dict)  # (rim id, rim id) -> covariance of the two offsets [m^2]
 
 
-def fit_delay(impacts: Sequence[ImpactObservation], bounds: Sequence[float], outlier_factor: float) -> DelayFit:
+def fit_delay(impacts: Sequence[ImpactObservation], bounds: Sequence[float], outlier_factor: float,
+              known: float | None = None) -> DelayFit:
     """Least squares of each impact's meeting depth (:attr:`ImpactObservation.depth`) on its incoming normal
     speed: a rigid rim's paths meet on its line at every speed, a compliant one's beyond it by the delay
     times the speed (the model's ``impact_delay``: the impact comes that long after the centre reaches the
     line). Each rim has its own offset at no speed: how far the table's rim lines are from the model's (a
     table longer or wider than configured moves opposite rims' alike, a table pose shifted moves them
-    apart). Outliers beyond ``outlier_factor`` robust standard deviations are dropped once."""
+    apart). Outliers beyond ``outlier_factor`` robust standard deviations are dropped once. The offsets are
+    where the rims are for the delay the model will take: the fit's, or at its bound when it falls outside
+    ``bounds``, or ``known`` [s] (a delay not identified); their covariance is the joint fit's when the
+    delay is its own, else the offsets' alone."""
     speed = np.array([-o.before[1] for o in impacts])
     depth = np.array([o.depth for o in impacts])
     walls = np.array([o.wall for o in impacts])
     if len(speed) < 3 or np.ptp(speed) == 0.0:
-        raise ValueError(f"{len(speed)} rim impacts at {len(set(speed.tolist()))} normal speeds: too few to identify "
-                         f"impact_delay")
+        raise ValueError(f"{len(speed)} rim impacts at {len(set(speed.tolist()))} normal speeds: too few to find where "
+                         f"the paths before and after meet (impact_delay, table_geometry)")
     keep = np.ones(len(speed), bool)
     coef, rims = _delay_lstsq(speed, depth, walls)
     residual = depth - _delay_design(speed, walls, rims) @ coef
@@ -395,9 +401,17 @@ def fit_delay(impacts: Sequence[ImpactObservation], bounds: Sequence[float], out
     n = int(keep.sum())
     variance = float(residual @ residual) / max(n - design.shape[1], 1)
     cov = variance * np.linalg.pinv(design.T @ design)
-    offsets = {int(w): (float(coef[k]), float(math.sqrt(cov[k, k]))) for k, w in enumerate(rims)}
-    return DelayFit(float(min(max(coef[-1], bounds[0]), bounds[1])), float(math.sqrt(cov[-1, -1])), float(coef[-1]),
-                    offsets, n)
+    fitted, std = float(coef[-1]), float(math.sqrt(cov[-1, -1]))
+    value = float(min(max(fitted, bounds[0]), bounds[1])) if known is None else float(known)
+    offsets, offset_cov = coef[:-1], cov[:-1, :-1]
+    if value != fitted:  # the offsets where the model's delay puts the rims, that delay taken as exact
+        rim_design, target = design[:, :-1], depth[keep] + value * speed[keep]
+        offsets, *_ = np.linalg.lstsq(rim_design, target, rcond=None)
+        residual = target - rim_design @ offsets
+        offset_cov = float(residual @ residual) / max(n - len(rims), 1) * np.linalg.pinv(rim_design.T @ rim_design)
+    return DelayFit(value, std if known is None else 0.0, fitted,
+                    {int(w): (float(offsets[k]), float(math.sqrt(offset_cov[k, k]))) for k, w in enumerate(rims)}, n,
+                    {(int(a), int(b)): float(offset_cov[i, j]) for i, a in enumerate(rims) for j, b in enumerate(rims)})
 
 
 def _delay_design(speed: np.ndarray, walls: np.ndarray, rims: Sequence[int]) -> np.ndarray:

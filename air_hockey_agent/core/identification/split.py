@@ -9,7 +9,7 @@ the tracker's values and enter the fits as known.
 """
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any, Collection, Mapping, Sequence
 
 import numpy as np
@@ -19,6 +19,7 @@ from air_hockey_agent.core.identification.flight_fit import (FieldCheck, FlightF
 from air_hockey_agent.core.identification.impact_fit import (IMPACT_NAMES, DelayFit, ImpactFit, ImpactSettings,
                                                             find_impacts, fit_delay, fit_impacts)
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
+from air_hockey_agent.core.identification.rim_lines import RimLines, corrected_geometry, recentred, rim_lines
 from air_hockey_agent.core.identification.spin_fit import SpinDecay, fit_spin_decay, spin_windows
 from air_hockey_agent.core.table import TableGeometry
 
@@ -26,7 +27,10 @@ FLIGHT = ("damping", "friction_surface", "table_acceleration")
 SPIN = ("spin_damping",)  # from the angles of the flight fit's windows (:mod:`.spin_fit`)
 IMPACT = ("restitution", "restitution_slope", "restitution_min", "restitution_knee", "friction_rim",
           "tangential_restitution", "impact_delay")  # the last from where the paths before and after meet
-SPLIT_IDENTIFIABLE = FLIGHT + SPIN + IMPACT
+# where the rims are (:mod:`.rim_lines`: mocap_table_pose's x, y, table.length, table.width), from the same
+# meeting points as impact_delay
+GEOMETRY = ("table_geometry",)
+SPLIT_IDENTIFIABLE = FLIGHT + SPIN + IMPACT + GEOMETRY
 AXES = ("table_acceleration_x", "table_acceleration_y")
 
 
@@ -38,7 +42,11 @@ class SplitResult:
     impacts: ImpactFit | None
     field: FieldCheck | None = None  # whether the free flight's acceleration varies over the table
     spin: SpinDecay | None = None    # the spin's decay in free flight (spin_damping's fit)
-    delay: DelayFit | None = None    # where the impacts' paths meet (impact_delay's fit)
+    delay: DelayFit | None = None    # where the impacts' paths meet (impact_delay's fit; after a move of the rims,
+    #                                  where they meet the moved rims)
+    rim_lines: RimLines | None = None  # where the rims were found (table_geometry), from the first pass's delay fit
+    geometry: dict | None = None     # tracker parameters that move the model's rims there (only what changed)
+    first_delay: DelayFit | None = None  # the first pass's delay fit, against the configured rims
 
 
 def flight_settings(settings: Mapping[str, Any]) -> FlightSettings:
@@ -59,9 +67,28 @@ def noise_model(tracker: Mapping[str, Any]) -> NoiseModel:
 
 
 def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str, Any], settings: Mapping[str, Any],
-                   names: Sequence[str], bounds: Mapping[str, Sequence[float]]) -> SplitResult:
+                   names: Sequence[str], bounds: Mapping[str, Sequence[float]], move_centre: bool = True) -> SplitResult:
     """Identify ``names`` (of SPLIT_IDENTIFIABLE) within ``bounds`` (per name; the table acceleration's
-    per axis); raises ValueError when the recordings hold too little free flight or too few impacts."""
+    per axis); raises ValueError when the recordings hold too little free flight or too few impacts. With
+    ``table_geometry``, rims found elsewhere than the model has them (:func:`.rim_lines.rim_lines`) are moved
+    there and everything is identified again on the trajectories measured from the moved table frame
+    (:func:`.rim_lines.recentred`): the flight and impact fits then see the rims where they are. Without
+    ``move_centre`` (poses not read through ``mocap_table_pose``) only the table's size moves."""
+    first = _identify_once(trajectories, tracker, settings, names, bounds)
+    if "table_geometry" not in names:
+        return first
+    lines = rim_lines(first.delay, settings["split.rim_significance"], bounds["table_geometry"], move_centre)
+    if not lines.any_taken:
+        return replace(first, rim_lines=lines, geometry={}, first_delay=first.delay)
+    geometry = corrected_geometry(tracker, lines)
+    moved = [recentred(t, lines.centre()) for t in trajectories]
+    again = _identify_once(moved, {**tracker, **geometry}, settings, names, bounds)
+    return replace(again, rim_lines=lines, geometry=geometry, first_delay=first.delay)
+
+
+def _identify_once(trajectories: Sequence[GridTrajectory], tracker: Mapping[str, Any], settings: Mapping[str, Any],
+                   names: Sequence[str], bounds: Mapping[str, Sequence[float]]) -> SplitResult:
+    """One pass of the fits on the model's table as ``tracker`` has it."""
     table = TableGeometry.from_params(tracker)
     noise = noise_model(tracker)
     flight_values = {"damping": tracker["damping"], "friction_surface": tracker["friction_surface"],
@@ -84,8 +111,8 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
     if "spin_damping" in names and spin is not None:  # without spinning windows it stays as configured
         low, high = bounds["spin_damping"]
         identified["spin_damping"], std["spin_damping"] = float(min(max(spin.rate, low), high)), spin.std
-    impacts = None
-    if any(n in IMPACT for n in names):
+    impacts = delay = None
+    if any(n in IMPACT + GEOMETRY for n in names):
         fixed = {n: tracker[n] for n in IMPACT_NAMES if n not in names}
         chosen = impact_settings(settings)
         law = flight_law(flight_values)
@@ -93,10 +120,11 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
         found = [o for traj in trajectories for o in find_impacts(traj, table, law, noise, chosen, spin_damping)]
         impacts = fit_impacts(found, table.puck_radius, fixed, bounds, chosen, {n: tracker[n] for n in IMPACT_NAMES})
         _collect(impacts.values, {}, names, identified, std)
-    delay = None
-    if "impact_delay" in names:
-        delay = fit_delay(impacts.used, bounds["impact_delay"], settings["split.outlier_factor"])
-        identified["impact_delay"], std["impact_delay"] = delay.value, delay.std
+    if "impact_delay" in names or "table_geometry" in names:
+        known = None if "impact_delay" in names else tracker["impact_delay"]
+        delay = fit_delay(impacts.used, bounds.get("impact_delay", (0.0, 0.0)), settings["split.outlier_factor"], known)
+        if known is None:
+            identified["impact_delay"], std["impact_delay"] = delay.value, delay.std
     return SplitResult(identified, std, flight, impacts, field, spin, delay)
 
 

@@ -1,0 +1,113 @@
+"""Where the rims are (core/identification/rim_lines.py): the table's centre and size from the offsets of
+its rims' impacts, their errors from the offsets' covariance, and the tracker parameters that move the
+model's rims there."""
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.identification.impact_fit import DelayFit, fit_delay
+from air_hockey_agent.core.identification.preprocess import GridTrajectory
+from air_hockey_agent.core.identification.rim_lines import corrected_geometry, recentred, rim_lines
+from air_hockey_agent.core.table import WALL_FAR, WALL_LEFT, WALL_NEAR, WALL_RIGHT
+
+BOUNDS = (-0.02, 0.02)
+
+
+def delay_fit(offsets: dict, variance: float = 1e-8) -> DelayFit:
+    """Independent offsets (rim -> m, > 0 inside), each with ``variance`` [m^2]."""
+    cov = {(a, b): (variance if a == b else 0.0) for a in offsets for b in offsets}
+    return DelayFit(0.0, 0.0, 0.0, {w: (o, math.sqrt(variance)) for w, o in offsets.items()}, 100, cov)
+
+
+def test_a_table_frame_off_sideways_and_a_table_longer_than_configured():
+    """The table frame 3 mm off toward +y: the left rim (y = -W/2) is met 3 mm beyond its line, the right one
+    3 mm inside; a table 4 mm longer: both short rims 2 mm beyond."""
+    lines = rim_lines(delay_fit({WALL_LEFT: -0.003, WALL_RIGHT: 0.003, WALL_FAR: -0.002, WALL_NEAR: -0.002}), 3.0,
+                      BOUNDS)
+    assert lines.values["centre_y"] == pytest.approx(-0.003) and lines.values["centre_x"] == pytest.approx(0.0)
+    assert lines.values["length"] == pytest.approx(0.004) and lines.values["width"] == pytest.approx(0.0)
+    assert lines.taken == {"centre_x": False, "centre_y": True, "length": True, "width": False}
+    # a part's error from the two offsets' (independent here): half their root sum of squares, or the whole
+    assert lines.std["centre_y"] == pytest.approx(math.sqrt(2e-8) / 2)
+    assert lines.std["length"] == pytest.approx(math.sqrt(2e-8))
+    assert lines.centre() == pytest.approx((0.0, -0.003))
+
+
+def test_the_parts_errors_come_from_the_offsets_covariance():
+    """Offsets moving together (a shared delay's error) leave the centre certain and the size not."""
+    offsets = {WALL_LEFT: 0.001, WALL_RIGHT: 0.001}
+    fit = DelayFit(0.0, 0.0, 0.0, {w: (o, 1e-4) for w, o in offsets.items()}, 50,
+                   {(a, b): (1e-8 if a == b else 0.9e-8) for a in offsets for b in offsets})
+    lines = rim_lines(fit, 3.0, BOUNDS)
+    assert lines.std["centre_y"] == pytest.approx(math.sqrt((1e-8 + 1e-8 - 2 * 0.9e-8) / 4))
+    assert lines.std["width"] == pytest.approx(math.sqrt(1e-8 + 1e-8 + 2 * 0.9e-8))
+
+
+def test_what_is_not_taken():
+    """Within the noise, beyond the bounds, a rim pair not met, a centre the poses' transform fixes."""
+    noisy = rim_lines(delay_fit({WALL_LEFT: 0.0002, WALL_RIGHT: -0.0002}, variance=1e-8), 3.0, BOUNDS)
+    assert not noisy.any_taken and not any(noisy.beyond.values())
+    far = rim_lines(delay_fit({WALL_LEFT: -0.03, WALL_RIGHT: 0.03}), 3.0, BOUNDS)
+    assert far.beyond["centre_y"] and not far.taken["centre_y"] and far.centre() == (0.0, 0.0)
+    one_short = rim_lines(delay_fit({WALL_LEFT: 0.001, WALL_RIGHT: 0.001, WALL_FAR: 0.003}), 3.0, BOUNDS)
+    assert math.isnan(one_short.values["length"]) and not one_short.taken["length"] and one_short.taken["width"]
+    fixed = rim_lines(delay_fit({WALL_LEFT: -0.003, WALL_RIGHT: 0.001}), 3.0, BOUNDS, centre=False)
+    assert not fixed.taken["centre_y"] and fixed.taken["width"] and fixed.centre() == (0.0, 0.0)
+
+
+@pytest.mark.parametrize("yaw", [0.0, math.pi / 2, -0.3])
+def test_the_corrected_pose_puts_the_table_origin_at_the_rims_centre(yaw):
+    """The moved pose's origin is the rims' centre: a mocap point there reads (0, 0) in the new table frame
+    and the old frame's reading minus the centre anywhere else; the size changes by the parts found."""
+    from air_hockey_agent.core.frames import mocap_to_table, table_to_mocap
+    tracker = {"mocap_table_pose": [1.5, 0.2, 0.01, yaw], "table.length": 1.956, "table.width": 1.042}
+    lines = rim_lines(delay_fit({WALL_LEFT: -0.003, WALL_RIGHT: 0.004, WALL_FAR: -0.002, WALL_NEAR: 0.004}), 3.0,
+                      BOUNDS)
+    new = corrected_geometry(tracker, lines)
+    assert new["table.length"] == pytest.approx(1.956 - 0.002) and new["table.width"] == pytest.approx(1.042 - 0.001)
+    assert new["mocap_table_pose"][2:] == [0.01, yaw]
+    cx, cy = lines.centre()
+    assert (cx, cy) == pytest.approx((0.003, -0.0035))
+    for x, y in ((0.3, -0.2), (-0.9, 0.45)):
+        mx, my, _ = table_to_mocap(x, y, 0.0, tracker["mocap_table_pose"])
+        nx, ny, _ = mocap_to_table(mx, my, 0.0, new["mocap_table_pose"])
+        assert (nx, ny) == pytest.approx((x - cx, y - cy), abs=1e-12)
+    assert "mocap_table_pose" not in corrected_geometry(tracker, lines, pose=False)
+    assert corrected_geometry(tracker, rim_lines(delay_fit({WALL_LEFT: 0.0}), 3.0, BOUNDS)) == {}
+
+
+def test_recentring_copies_and_leaves_the_input_alone():
+    z = np.array([[0.1, 0.2, 0.3], [np.nan, np.nan, np.nan], [0.2, 0.25, 0.31]])
+    traj = GridTrajectory(5.0, 1 / 120, z.copy())
+    moved = recentred(traj, (0.001, -0.002))
+    assert np.array_equal(traj.z, z, equal_nan=True)
+    assert moved.t0 == 5.0 and moved.dt == traj.dt
+    assert moved.z[0] == pytest.approx([0.099, 0.202, 0.3]) and np.isnan(moved.z[1]).all()
+
+
+def test_the_offsets_are_where_the_model_delay_puts_the_rims():
+    """Paths meeting 1 ms x speed inside a rigid model's lines (a stiff simulator's overshoot): the free fit
+    says -1 ms; at the model's delay (the bound 0, or 0 as known) each rim's offset is its mean depth, and a
+    known delay gives the offsets at it."""
+    speeds = np.linspace(0.3, 2.5, 12)
+    rng = np.random.default_rng(1)
+    impacts = []
+    for wall, offset in ((WALL_LEFT, 0.002), (WALL_RIGHT, -0.001)):
+        impacts += [_impact(wall, v, offset + 0.001 * v + rng.normal(0, 1e-5)) for v in speeds]
+    free = fit_delay(impacts, (-1.0, 1.0), 10.0)
+    assert free.value == pytest.approx(-0.001, abs=2e-5) and free.offsets[WALL_LEFT][0] == pytest.approx(0.002, abs=2e-5)
+    clamped = fit_delay(impacts, (0.0, 0.01), 10.0)
+    assert clamped.value == 0.0 and clamped.fitted == pytest.approx(-0.001, abs=2e-5)
+    for wall, offset in ((WALL_LEFT, 0.002), (WALL_RIGHT, -0.001)):
+        assert clamped.offsets[wall][0] == pytest.approx(offset + 0.001 * speeds.mean(), abs=2e-5)
+    known = fit_delay(impacts, (0.0, 0.01), 10.0, known=0.0005)
+    assert known.value == 0.0005 and known.std == 0.0
+    assert known.offsets[WALL_LEFT][0] == pytest.approx(0.002 + 0.0015 * speeds.mean(), abs=2e-5)
+    assert known.covariance[(WALL_LEFT, WALL_RIGHT)] == pytest.approx(0.0, abs=1e-15)  # apart when the delay is fixed
+
+
+def _impact(wall: int, speed: float, depth: float) -> SimpleNamespace:
+    """What fit_delay reads of an impact: its rim, incoming (tangential, normal < 0, spin), meeting depth."""
+    return SimpleNamespace(wall=wall, before=(0.0, -speed, 0.0), depth=depth)
