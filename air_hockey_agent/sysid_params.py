@@ -23,6 +23,7 @@ SYSID_PARAMS = (
               2),
     ParamSpec("bounds.table_geometry", list, "[m] how far the rims' centre and distances may move (--identify "
               "table_geometry)", -0.5, 0.5, 2),
+    ParamSpec("bounds.table_yaw", list, "[rad] how far the rims may turn (--identify table_geometry)", -0.5, 0.5, 2),
     ParamSpec("split.window", float, "[s] free-flight window of the split identification", 0.05, 5.0),
     ParamSpec("split.min_coverage", float, "[-] share of a window's frames that must be measured", 0.1, 1.0),
     ParamSpec("split.min_speed", float, "[m/s] slower windows are left out", 0.0, 10.0),

@@ -347,23 +347,25 @@ def test_the_rim_lines_offsets_show_a_table_pose_off_by_millimetres(tmp_path):
 
 
 def test_sysid_moves_the_model_rims_where_the_impacts_put_them(tmp_path):
-    """A table pose 3 mm off sideways and a table configured 3 mm wider than it is: `sysid` (its default
-    identification includes table_geometry) finds the rims' centre and width, writes the pose and width
-    that put the model's rims there (within 0.3 / 0.5 mm of the truth), warns about no rim, and the YAML
-    predicts as well as the true geometry does, where the wrong one's error at 1.0 s is far larger."""
+    """A table pose 3 mm off sideways and turned by 3 mrad, and a table configured 3 mm wider than it is:
+    `sysid` (its default identification includes table_geometry) finds the rims' centre, turn and width,
+    writes the pose and width that put the model's rims there (within 0.3 mm, 0.5 mrad and 0.5 mm of the
+    truth), warns about no rim, and the YAML predicts as well as the true geometry does, where the wrong
+    one's error at 1.0 s is far larger."""
     bag = tmp_path / "tb"
     assert cli("synth-bag", bag, "--source", "testbed", "--shots", 16, "--seed", 4).returncode == 0
     wrong = tmp_path / "wrong.yaml"
-    wrong.write_text("/**/puck_tracker:\n  ros__parameters:\n    mocap_table_pose: [1.504, 0.003, 0.0, 0.0]\n"
+    wrong.write_text("/**/puck_tracker:\n  ros__parameters:\n    mocap_table_pose: [1.504, 0.003, 0.0, 0.003]\n"
                      "    table.width: 1.045\n")
     out = tmp_path / "identified.yaml"
     run = cli("sysid", bag, "--params-file", wrong, "--json", "--out", out)
     assert run.returncode == 0, run.stderr[-2000:]
     assert "from the model's rim line" not in run.stderr
     geometry = json.loads(run.stdout)["table_geometry"]
-    assert geometry["taken"]["centre_y"] and geometry["taken"]["width"]
+    assert geometry["taken"]["centre_y"] and geometry["taken"]["width"] and geometry["taken"]["yaw"]
     moved = geometry["parameters"]
     assert abs(moved["mocap_table_pose"][1]) < 3e-4 and moved["mocap_table_pose"][0] == pytest.approx(1.504, abs=3e-4)
+    assert abs(moved["mocap_table_pose"][3]) < 5e-4
     assert moved["table.width"] == pytest.approx(1.042, abs=5e-4)
     text = out.read_text()
     assert "mocap_table_pose:" in text and "table.width:" in text

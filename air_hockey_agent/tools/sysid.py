@@ -229,19 +229,24 @@ def _geometry_warnings(geometry: dict | None, settings: dict) -> list[str]:
     transform fixes (--table-frame, table-frame poses)."""
     if not geometry:
         return []
-    out = [f"the rims' {part} is {geometry['values_m'][part] * 1e3:+.1f} mm from the configured table's, beyond "
-           f"bounds.table_geometry {settings['bounds.table_geometry']} (config/sysid.yaml): not moved; the table's "
-           f"configuration (config/table.yaml, mocap_table_pose) looks wrong, not its calibration"
+    values = {**geometry["values_m"], "yaw": geometry["yaw_rad"]}
+    errors = {**geometry["std_m"], "yaw": geometry["yaw_std_rad"]}
+    out = [f"the rims' {part} is {_part_text(part, values[part])} from the configured table's, beyond "
+           f"bounds.{'table_yaw' if part == 'yaw' else 'table_geometry'} (config/sysid.yaml): not moved; the "
+           f"table's configuration (config/table.yaml, mocap_table_pose) looks wrong, not its calibration"
            for part, beyond in geometry["beyond"].items() if beyond]
-    if not geometry["centre_movable"]:
-        centre = [geometry["values_m"][n] for n in ("centre_x", "centre_y")]
-        significant = [part for part in ("centre_x", "centre_y") if abs(geometry["values_m"][part]) >
-                       settings["split.rim_significance"] * geometry["std_m"][part]]
-        if significant:
-            out.append(f"the rims' centre is ({centre[0] * 1e3:+.2f}, {centre[1] * 1e3:+.2f}) mm from the table frame's "
-                       f"origin, but the poses did not come through mocap_table_pose (--table-frame or poses in "
-                       f"the table frame): move the table's transform by that; only the size was moved")
+    pose_parts = ("centre_x", "centre_y", "yaw")
+    if not geometry["centre_movable"] and any(abs(values[part]) > settings["split.rim_significance"] * errors[part]
+                                              for part in pose_parts):
+        out.append(f"the rims' centre is ({values['centre_x'] * 1e3:+.2f}, {values['centre_y'] * 1e3:+.2f}) mm from "
+                   f"the table frame's origin and turned {values['yaw'] * 1e3:+.2f} mrad, but the poses did not come "
+                   f"through mocap_table_pose (--table-frame or poses in the table frame): move the table's "
+                   f"transform by that; only the size was moved")
     return out
+
+
+def _part_text(part: str, value: float) -> str:
+    return f"{value * 1e3:+.2f} mrad" if part == "yaw" else f"{value * 1e3:+.1f} mm"
 
 
 def _calibration_warning(loss: str, tracker: dict, settings: dict, train: list) -> str:
@@ -270,8 +275,9 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
     chosen = dict(split.identified)
     geometry = split.geometry or {}
     moved = {**tracker, **geometry}
-    centre = split.rim_lines.centre() if split.rim_lines is not None else (0.0, 0.0)
-    train_after, validation_after = ([recentred(t, centre) for t in trajs] for trajs in (train, validation))
+    lines = split.rim_lines
+    centre, yaw = (lines.centre(), lines.yaw()) if lines is not None else ((0.0, 0.0), 0.0)
+    train_after, validation_after = ([recentred(t, centre, yaw) for t in trajs] for trajs in (train, validation))
     plots = []
     if args.plot is not None:
         from air_hockey_agent.tools.split_plots import write_split_plots
@@ -360,7 +366,10 @@ def _geometry_report(split, tracker: dict, posed: bool) -> dict:
     configured rims), which were moved, and the tracker parameters that move them."""
     lines = split.rim_lines
     first = split.first_delay
-    return {"values_m": lines.values, "std_m": lines.std, "taken": lines.taken, "beyond": lines.beyond,
+    metres = [n for n in lines.values if n != "yaw"]
+    return {"values_m": {n: lines.values[n] for n in metres}, "std_m": {n: lines.std[n] for n in metres},
+            "yaw_rad": lines.values["yaw"], "yaw_std_rad": lines.std["yaw"], "taken": lines.taken,
+            "beyond": lines.beyond,
             "centre_movable": posed, "parameters": dict(split.geometry or {}),
             "initial": {n: tracker[n] for n in ("mocap_table_pose", "table.length", "table.width")},
             "first_offsets_m": {WALL_NAMES[w]: o for w, (o, _) in first.offsets.items()},
@@ -552,8 +561,9 @@ def _geometry_text(geometry: dict) -> str:
     """One line on where the rims were found (table_geometry) and what was moved."""
     v, e = geometry["values_m"], geometry["std_m"]
     found = (f"centre ({v['centre_x'] * 1e3:+.2f}, {v['centre_y'] * 1e3:+.2f}) +- ({e['centre_x'] * 1e3:.2f}, "
-             f"{e['centre_y'] * 1e3:.2f}) mm from the table frame's origin, length {v['length'] * 1e3:+.2f} +- "
-             f"{e['length'] * 1e3:.2f} mm, width {v['width'] * 1e3:+.2f} +- {e['width'] * 1e3:.2f} mm")
+             f"{e['centre_y'] * 1e3:.2f}) mm from the table frame's origin, yaw {geometry['yaw_rad'] * 1e3:+.2f} +- "
+             f"{geometry['yaw_std_rad'] * 1e3:.2f} mrad, length {v['length'] * 1e3:+.2f} +- {e['length'] * 1e3:.2f} "
+             f"mm, width {v['width'] * 1e3:+.2f} +- {e['width'] * 1e3:.2f} mm")
     moved = geometry["parameters"]
     if not moved:
         return f"table geometry: the rims' {found}: none moved (none significant, or beyond its bounds)"

@@ -69,6 +69,7 @@ class ImpactObservation:
     after: tuple           # (vb, vn, omega), vn > 0
     fit_quality: float     # [-] worse window's residual RMS over the expected noise
     depth: float = 0.0     # [m] where the lines before and after meet, from the model's rim line (< 0: beyond it)
+    along: float = 0.0     # [m] where along the rim, b . p with b = (n_y, -n_x) (0: the rim's middle)
 
 
 @dataclass
@@ -139,7 +140,8 @@ def _observe(traj, table, wall, k, n_rows, acceleration, noise, settings, spin_d
     spins = [fit_angle_rate(rows * dt, z[rows, 2], t_ref + tau, spin_damping) for rows in (pre, post)]
     quality = max(noise.fit_quality(f) for f in fits)
     return ImpactObservation(wall, t_ref + tau, (float(b @ v_in), float(n @ v_in), spins[0]),
-                             (float(b @ v_out), float(n @ v_out), spins[1]), quality, contact)
+                             (float(b @ v_out), float(n @ v_out), spins[1]), quality, contact,
+                             float(b @ (before.p + tau * before.v)))
 
 
 def _near_other_rims(table: TableGeometry, wall: int, xy: np.ndarray, margin: float) -> bool:
@@ -361,15 +363,16 @@ def fit_impacts(impacts: Sequence[ImpactObservation], radius: float, fixed: Mapp
 
 @dataclass(frozen=True)
 class DelayFit:
-    """A compliant rim's delay from where the impacts' paths meet: ``depth = offset(rim) - delay |vn|``."""
+    """A compliant rim's delay from where the impacts' paths meet: ``depth = offset(rim) + yaw along - delay |vn|``."""
 
     value: float        # [s] the impact delay the model takes: the fit within its bounds, or the one known
     std: float          # [s] its standard error (0 when known)
     fitted: float       # [s] the least-squares value before the bounds
     offsets: dict       # rim id -> (offset, std) [m]: where an impact's paths at no speed meet, from the model's
-    #                     line, at the delay ``value`` (> 0: inside the table)
+    #                     line at the rim's middle, at the delay ``value`` (> 0: inside the table)
     impacts: int        # impacts in the fit (outliers dropped)
     covariance: dict = field(default_factory=dict)  # (rim id, rim id) -> covariance of the two offsets [m^2]
+    yaw: tuple = (0.0, 0.0)  # [rad] (value, std): the rims turned by this from the model's (offsets growing along them)
 
 
 def fit_delay(impacts: Sequence[ImpactObservation], bounds: Sequence[float], outlier_factor: float,
@@ -379,47 +382,52 @@ def fit_delay(impacts: Sequence[ImpactObservation], bounds: Sequence[float], out
     times the speed (the model's ``impact_delay``: the impact comes that long after the centre reaches the
     line). Each rim has its own offset at no speed: how far the table's rim lines are from the model's (a
     table longer or wider than configured moves opposite rims' alike, a table pose shifted moves them
-    apart). Outliers beyond ``outlier_factor`` robust standard deviations are dropped once. The offsets are
-    where the rims are for the delay the model will take: the fit's, or at its bound when it falls outside
-    ``bounds``, or ``known`` [s] (a delay not identified); their covariance is the joint fit's when the
-    delay is its own, else the offsets' alone."""
+    apart); a table turned by a small yaw from the model's makes every rim's offset grow along it
+    (:attr:`ImpactObservation.along`) at that rate. Outliers beyond ``outlier_factor`` robust standard
+    deviations are dropped once. The offsets are where the rims are for the delay the model will take: the
+    fit's, or at its bound when it falls outside ``bounds``, or ``known`` [s] (a delay not identified);
+    their covariance is the joint fit's when the delay is its own, else without the delay's."""
     speed = np.array([-o.before[1] for o in impacts])
     depth = np.array([o.depth for o in impacts])
     walls = np.array([o.wall for o in impacts])
-    if len(speed) < 3 or np.ptp(speed) == 0.0:
+    along = np.array([o.along for o in impacts])
+    if len(speed) < 4 or np.ptp(speed) == 0.0:
         raise ValueError(f"{len(speed)} rim impacts at {len(set(speed.tolist()))} normal speeds: too few to find where "
                          f"the paths before and after meet (impact_delay, table_geometry)")
     keep = np.ones(len(speed), bool)
-    coef, rims = _delay_lstsq(speed, depth, walls)
-    residual = depth - _delay_design(speed, walls, rims) @ coef
+    coef, rims = _delay_lstsq(speed, depth, walls, along)
+    residual = depth - _delay_design(speed, walls, rims, along) @ coef
     dropped = ~_robust_keep(residual, outlier_factor)
-    if dropped.any() and (~dropped).sum() >= 3 and np.ptp(speed[~dropped]) > 0.0:
+    if dropped.any() and (~dropped).sum() >= 4 and np.ptp(speed[~dropped]) > 0.0:
         keep = ~dropped
-        coef, rims = _delay_lstsq(speed[keep], depth[keep], walls[keep])
-    design = _delay_design(speed[keep], walls[keep], rims)
+        coef, rims = _delay_lstsq(speed[keep], depth[keep], walls[keep], along[keep])
+    design = _delay_design(speed[keep], walls[keep], rims, along[keep])
     residual = depth[keep] - design @ coef
     n = int(keep.sum())
     variance = float(residual @ residual) / max(n - design.shape[1], 1)
     cov = variance * np.linalg.pinv(design.T @ design)
     fitted, std = float(coef[-1]), float(math.sqrt(cov[-1, -1]))
     value = float(min(max(fitted, bounds[0]), bounds[1])) if known is None else float(known)
-    offsets, offset_cov = coef[:-1], cov[:-1, :-1]
     if value != fitted:  # the offsets where the model's delay puts the rims, that delay taken as exact
         rim_design, target = design[:, :-1], depth[keep] + value * speed[keep]
-        offsets, *_ = np.linalg.lstsq(rim_design, target, rcond=None)
-        residual = target - rim_design @ offsets
-        offset_cov = float(residual @ residual) / max(n - len(rims), 1) * np.linalg.pinv(rim_design.T @ rim_design)
+        coef, *_ = np.linalg.lstsq(rim_design, target, rcond=None)
+        residual = target - rim_design @ coef
+        cov = float(residual @ residual) / max(n - rim_design.shape[1], 1) * np.linalg.pinv(rim_design.T @ rim_design)
+    m = len(rims)
     return DelayFit(value, std if known is None else 0.0, fitted,
-                    {int(w): (float(offsets[k]), float(math.sqrt(offset_cov[k, k]))) for k, w in enumerate(rims)}, n,
-                    {(int(a), int(b)): float(offset_cov[i, j]) for i, a in enumerate(rims) for j, b in enumerate(rims)})
+                    {int(w): (float(coef[k]), float(math.sqrt(cov[k, k]))) for k, w in enumerate(rims)}, n,
+                    {(int(a), int(b)): float(cov[i, j]) for i, a in enumerate(rims) for j, b in enumerate(rims)},
+                    (float(coef[m]), float(math.sqrt(cov[m, m]))))
 
 
-def _delay_design(speed: np.ndarray, walls: np.ndarray, rims: Sequence[int]) -> np.ndarray:
-    """Columns: one offset per rim in ``rims`` (1 on its impacts), then minus the normal speed."""
-    return np.column_stack([(walls == w).astype(float) for w in rims] + [-speed])
+def _delay_design(speed: np.ndarray, walls: np.ndarray, rims: Sequence[int], along: np.ndarray) -> np.ndarray:
+    """Columns: one offset per rim in ``rims`` (1 on its impacts), the position along the rim (a turn's
+    rate), then minus the normal speed."""
+    return np.column_stack([(walls == w).astype(float) for w in rims] + [along, -speed])
 
 
-def _delay_lstsq(speed: np.ndarray, depth: np.ndarray, walls: np.ndarray) -> tuple[np.ndarray, list[int]]:
+def _delay_lstsq(speed: np.ndarray, depth: np.ndarray, walls: np.ndarray,
+                 along: np.ndarray) -> tuple[np.ndarray, list[int]]:
     rims = sorted(set(walls.tolist()))
-    coef, *_ = np.linalg.lstsq(_delay_design(speed, walls, rims), depth, rcond=None)
+    coef, *_ = np.linalg.lstsq(_delay_design(speed, walls, rims, along), depth, rcond=None)
     return coef, rims

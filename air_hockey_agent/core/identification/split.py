@@ -27,8 +27,8 @@ FLIGHT = ("damping", "friction_surface", "table_acceleration")
 SPIN = ("spin_damping",)  # from the angles of the flight fit's windows (:mod:`.spin_fit`)
 IMPACT = ("restitution", "restitution_slope", "restitution_min", "restitution_knee", "friction_rim",
           "tangential_restitution", "impact_delay")  # the last from where the paths before and after meet
-# where the rims are (:mod:`.rim_lines`: mocap_table_pose's x, y, table.length, table.width), from the same
-# meeting points as impact_delay
+# where the rims are (:mod:`.rim_lines`: mocap_table_pose's x, y and yaw, table.length, table.width), from the
+# same meeting points as impact_delay
 GEOMETRY = ("table_geometry",)
 SPLIT_IDENTIFIABLE = FLIGHT + SPIN + IMPACT + GEOMETRY
 AXES = ("table_acceleration_x", "table_acceleration_y")
@@ -73,15 +73,17 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
     ``table_geometry``, rims found elsewhere than the model has them (:func:`.rim_lines.rim_lines`) are moved
     there and everything is identified again on the trajectories measured from the moved table frame
     (:func:`.rim_lines.recentred`): the flight and impact fits then see the rims where they are. Without
-    ``move_centre`` (poses not read through ``mocap_table_pose``) only the table's size moves."""
+    ``move_centre`` (poses not read through ``mocap_table_pose``) only the table's size moves, not its centre
+    or yaw."""
     first = _identify_once(trajectories, tracker, settings, names, bounds)
     if "table_geometry" not in names:
         return first
-    lines = rim_lines(first.delay, settings["split.rim_significance"], bounds["table_geometry"], move_centre)
+    lines = rim_lines(first.delay, settings["split.rim_significance"], bounds["table_geometry"],
+                      settings["bounds.table_yaw"], move_centre)
     if not lines.any_taken:
         return replace(first, rim_lines=lines, geometry={}, first_delay=first.delay)
     geometry = corrected_geometry(tracker, lines)
-    moved = [recentred(t, lines.centre()) for t in trajectories]
+    moved = [recentred(t, lines.centre(), lines.yaw()) for t in trajectories]
     again = _identify_once(moved, {**tracker, **geometry}, settings, names, bounds)
     return replace(again, rim_lines=lines, geometry=geometry, first_delay=first.delay)
 
