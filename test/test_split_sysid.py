@@ -361,6 +361,9 @@ def test_sysid_moves_the_model_rims_where_the_impacts_put_them(tmp_path):
     run = cli("sysid", bag, "--params-file", wrong, "--json", "--out", out)
     assert run.returncode == 0, run.stderr[-2000:]
     assert "from the model's rim line" not in run.stderr
+    # the test bed's spin does not decay and its rims are rigid: fits within 3 std of 0 are no search ending on
+    # its bound (their own report lines say "none"), so no warning names them
+    assert "spin_damping" not in run.stderr and "impact_delay" not in run.stderr, run.stderr
     geometry = json.loads(run.stdout)["table_geometry"]
     assert geometry["taken"]["centre_y"] and geometry["taken"]["width"] and geometry["taken"]["yaw"]
     moved = geometry["parameters"]

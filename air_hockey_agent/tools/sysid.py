@@ -316,8 +316,10 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
     result = {"method": "split", "horizon": args.horizon, "initial": {n: tracker[n] for n in names if n in tracker},
               "identified": chosen, "std": std, "plots": plots, "seconds": round(time.monotonic() - start, 1),
               "objective": objective, "before": {}, "after": {},
-              "on_bounds": on_bounds(_flat(chosen), _flat_bounds({n: b for n, b in box.items() if n in chosen}),
-                                     settings["bound_margin"])}
+              "on_bounds": [phrase for phrase in on_bounds(_flat(chosen), _flat_bounds({n: b for n, b in box.items()
+                                                                                     if n in chosen}),
+                                                           settings["bound_margin"])
+                            if phrase.split()[0] not in _absent(split, chosen, box, settings["split.rim_significance"])]}
     if split.rim_lines is not None:
         result["table_geometry"] = _geometry_report(split, tracker, posed)
     kept = [n for n in chosen if polished is None or n not in polished["values"]]
@@ -328,6 +330,16 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
     result["summary_line"] = (f"identified by `air-hockey sysid --method split` ({len(train)} training "
                               f"trajectories) on {datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}")
     return result
+
+
+def _absent(split, chosen: dict, box: dict, significance: float) -> set[str]:
+    """Rates whose lower bound is 0 and whose fit lies within ``significance`` standard errors of it: an
+    effect that is not there (the spin's decay, a compliant rim's delay; their own report lines say so),
+    not a search that ended on the edge of its box."""
+    fits = {"spin_damping": (split.spin.rate, split.spin.std) if split.spin is not None else None,
+            "impact_delay": (split.delay.fitted, split.delay.std) if split.delay is not None else None}
+    return {name for name, fit in fits.items()
+            if fit is not None and name in chosen and box[name][0] == 0.0 and abs(fit[0]) <= significance * fit[1]}
 
 
 def _polish_split(args, tracker: dict, settings: dict, train: list, split_values: dict) -> dict:
