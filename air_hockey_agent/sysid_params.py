@@ -41,7 +41,8 @@ SYSID_PARAMS = (
     ParamSpec("split.field_significance", float, "p-value below which the free flight shows a field", 0.0, 1.0),
     ParamSpec("split.rim_offset_warning", float, "[m] a rim line farther than this from the model's (and 3 "
               "standard errors) is warned about", 0.0, 0.1),
-    ParamSpec("split.rim_significance", float, "[-] standard errors beyond which a rim offset counts", 0.0, 100.0),
+    ParamSpec("split.significance", float, "[-] standard errors beyond which an effect counts (rim offsets, "
+              "table geometry, rates at 0)", 0.0, 100.0),
     ParamSpec("random_samples", int, "HEBO's initial random suggestions", 1, 1000),
     ParamSpec("polish_evaluations", int, "Nelder-Mead evaluations after HEBO (0 = off)", 0, 100000),
     ParamSpec("stride", int, "predict from every stride-th frame with a state while optimising", 1, 1000),

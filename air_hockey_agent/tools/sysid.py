@@ -202,7 +202,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: warning: {phrase}: the search ended on the edge of its box (config/sysid.yaml bounds): "
               f"the effect may be absent, or the model or the box may not fit these recordings", file=sys.stderr)
     identify = "" if "table_geometry" in result else ", or identify them (--identify table_geometry)"
-    for phrase in _rims_off(result, settings["split.rim_offset_warning"], settings["split.rim_significance"]):
+    for phrase in _rims_off(result, settings["split.rim_offset_warning"], settings["split.significance"]):
         print(f"{PROG}: warning: {phrase}: check table.length / table.width (config/table.yaml) and "
               f"mocap_table_pose{identify}", file=sys.stderr)
     for phrase in _geometry_warnings(result.get("table_geometry"), settings):
@@ -236,7 +236,7 @@ def _geometry_warnings(geometry: dict | None, settings: dict) -> list[str]:
            f"table's configuration (config/table.yaml, mocap_table_pose) looks wrong, not its calibration"
            for part, beyond in geometry["beyond"].items() if beyond]
     pose_parts = ("centre_x", "centre_y", "yaw")
-    if not geometry["centre_movable"] and any(abs(values[part]) > settings["split.rim_significance"] * errors[part]
+    if not geometry["centre_movable"] and any(abs(values[part]) > settings["split.significance"] * errors[part]
                                               for part in pose_parts):
         out.append(f"the rims' centre is ({values['centre_x'] * 1e3:+.2f}, {values['centre_y'] * 1e3:+.2f}) mm from "
                    f"the table frame's origin and turned {values['yaw'] * 1e3:+.2f} mrad, but the poses did not come "
@@ -313,13 +313,14 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
         chosen.update(polished["values"])
         for name in polished["values"]:  # the fits' errors are not the polished values'
             std.pop(name, None)
-    result = {"method": "split", "horizon": args.horizon, "initial": {n: tracker[n] for n in names if n in tracker},
+    result = {"method": "split", "horizon": args.horizon, "significance": settings["split.significance"],
+              "initial": {n: tracker[n] for n in names if n in tracker},
               "identified": chosen, "std": std, "plots": plots, "seconds": round(time.monotonic() - start, 1),
               "objective": objective, "before": {}, "after": {},
               "on_bounds": [phrase for phrase in on_bounds(_flat(chosen), _flat_bounds({n: b for n, b in box.items()
                                                                                      if n in chosen}),
                                                            settings["bound_margin"])
-                            if phrase.split()[0] not in _absent(split, chosen, box, settings["split.rim_significance"])]}
+                            if phrase.split()[0] not in _absent(split, chosen, box, settings["split.significance"])]}
     if split.rim_lines is not None:
         result["table_geometry"] = _geometry_report(split, tracker, posed)
     kept = [n for n in chosen if polished is None or n not in polished["values"]]
@@ -503,7 +504,7 @@ def _format_split(result: dict, out: Path | None) -> str:
         if "field" in f:
             lines.append(_field_text(f["field"]))
         if "spin_decay" in f:
-            lines.append(_spin_text(f["spin_decay"], "spin_damping" in result["identified"]))
+            lines.append(_spin_text(f["spin_decay"], "spin_damping" in result["identified"], result["significance"]))
     if "impacts" in o:
         i = o["impacts"]
         lines.append(f"impact fit: {i['impacts']} impacts ({i['dropped']} dropped), residual RMS normal "
@@ -542,12 +543,12 @@ def _field_text(field: dict) -> str:
     return f"table acceleration field: none shown ({where}): the constant table_acceleration suffices"
 
 
-def _spin_text(spin: dict, identified: bool) -> str:
+def _spin_text(spin: dict, identified: bool, significance: float) -> str:
     """One line on the spin's decay in free flight (spin_damping's fit), and whether it was identified."""
     rate, std = spin["rate_per_s"], spin["std_per_s"]
     seen = (f"{rate:.3f} +- {std:.3f} 1/s over {spin['windows']} windows ({spin['dropped']} dropped, RMS spin "
             f"{spin['rms_spin_rad_s']:.2f} rad/s)")
-    if abs(rate) <= 3.0 * std:
+    if abs(rate) <= significance * std:
         return f"spin decay: none shown ({seen}): a constant spin holds"
     if identified:
         return f"spin decay: the spin decays in free flight at {seen}: spin_damping identified"

@@ -78,7 +78,7 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
     first = _identify_once(trajectories, tracker, settings, names, bounds)
     if "table_geometry" not in names:
         return first
-    lines = rim_lines(first.delay, settings["split.rim_significance"], bounds["table_geometry"],
+    lines = rim_lines(first.delay, settings["split.significance"], bounds["table_geometry"],
                       settings["bounds.table_yaw"], move_centre)
     if not lines.any_taken:
         return replace(first, rim_lines=lines, geometry={}, first_delay=first.delay)
