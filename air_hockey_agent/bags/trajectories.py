@@ -23,7 +23,14 @@ class LoadedTrajectories:
     warnings: list = field(default_factory=list)  # one-line notes on data repaired while loading
     at_rest: int = 0            # pieces dropped because the puck never moved in them
     too_short: int = 0          # pieces dropped because their motion was shorter than min_duration
-    unposed_bags: int = 0       # bags whose poses did not go through mocap_table_pose (--table-frame, table-frame poses)
+    table_poses: list = field(default_factory=list)  # per bag read: the table pose (x, y, z, yaw) its poses were
+    #                                                   read through, None for poses in the table frame
+
+    def common_table_pose(self) -> tuple | None:
+        """The one table pose every bag's poses were read through (mocap_table_pose, or each bag's transform
+        to --table-frame when they all agree), or None (they differ, or poses came in the table frame)."""
+        poses = {None if p is None else tuple(float(v) for v in p) for p in self.table_poses}
+        return next(iter(poses)) if len(poses) == 1 else None
 
     def why_none(self, prep: Mapping[str, Any]) -> str:
         """Why pieces were dropped, as a clause for an error message ('' when none were)."""
@@ -59,12 +66,12 @@ def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, A
     dt = 1.0 / tracker["frequency"]
     for bag in bags:
         try:
-            records, measurements, off_table = bag_measurements(bag, topic, frame, table_frame, tracker)
+            records, measurements, off_table, table_pose = bag_measurements(bag, topic, frame, table_frame, tracker)
         except BagError as exc:
             result.errors.append(str(exc))
             continue
         result.bags += 1
-        result.unposed_bags += bool(table_frame) or any(r.frame_id == TABLE_FRAME for r in records)
+        result.table_poses.append(None if any(r.frame_id == TABLE_FRAME for r in records) else table_pose)
         for note in (_stream_problems([r.stamp for r in records], measurements), off_table):
             if note:
                 result.warnings.append(f"{bag}: {note}")
@@ -88,17 +95,17 @@ def split_train_validation(n: int, fraction: float, seed: int) -> tuple[list[int
 
 
 def bag_measurements(bag: Path, topic: str, frame: str, table_frame: str,
-                     tracker: Mapping[str, Any]) -> tuple[list, list, str]:
-    """(pose records, table-frame measurements, off-table warning or "") of one bag: the puck's poses on
-    ``topic`` (``frame`` on a TF topic), in the table frame of ``mocap_table_pose`` or, with
-    ``table_frame``, of the bag's own transform to that frame (the ROS 1 lab's ``world -> Table``).
+                     tracker: Mapping[str, Any]) -> tuple[list, list, str, tuple]:
+    """(pose records, table-frame measurements, off-table warning or "", the table pose used) of one bag:
+    the puck's poses on ``topic`` (``frame`` on a TF topic), in the table frame of ``mocap_table_pose`` or,
+    with ``table_frame``, of the bag's own transform to that frame (the ROS 1 lab's ``world -> Table``).
     Raises :class:`BagError`."""
     records = read_poses(bag, topic, frame)
     table_pose = tracker["mocap_table_pose"]
     if table_frame:
         table_pose = table_pose_from_tf(bag, table_frame, records)
     measurements = measurements_of(records, table_pose)
-    return records, measurements, off_table_warning(measurements, tracker, table_pose)
+    return records, measurements, off_table_warning(measurements, tracker, table_pose), tuple(table_pose)
 
 
 def table_pose_from_tf(bag: Path, table_frame: str, records: Sequence) -> tuple[float, float, float, float]:

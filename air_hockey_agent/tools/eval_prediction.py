@@ -77,7 +77,7 @@ def run(args: argparse.Namespace) -> int:
     failed = 0
     for bag in args.bags:
         try:
-            records, measurements, warning = bag_measurements(bag, args.topic, args.frame, args.table_frame, params)
+            records, measurements, warning, _ = bag_measurements(bag, args.topic, args.frame, args.table_frame, params)
         except BagError as exc:
             print(f"{PROG}: error: {exc}", file=sys.stderr)
             failed += 1

@@ -184,7 +184,7 @@ def run(args: argparse.Namespace) -> int:
             print("starting HEBO (loading torch takes several seconds) ...", flush=True)
     if args.method == "split":
         try:
-            result = _identify_split(args, tracker, settings, train, validation, loaded.unposed_bags == 0)
+            result = _identify_split(args, tracker, settings, train, validation, loaded.common_table_pose())
         except ValueError as exc:
             return report_error(PROG, f"--method split: {exc} (in {len(train)} training trajectories)")
     else:
@@ -240,8 +240,8 @@ def _geometry_warnings(geometry: dict | None, settings: dict) -> list[str]:
                                               for part in pose_parts):
         out.append(f"the rims' centre is ({values['centre_x'] * 1e3:+.2f}, {values['centre_y'] * 1e3:+.2f}) mm from "
                    f"the table frame's origin and turned {values['yaw'] * 1e3:+.2f} mrad, but the poses did not come "
-                   f"through mocap_table_pose (--table-frame or poses in the table frame): move the table's "
-                   f"transform by that; only the size was moved")
+                   f"through one table pose (bags with different transforms to --table-frame, or poses in the "
+                   f"table frame): move the table's transform by that; only the size was moved")
     return out
 
 
@@ -264,14 +264,18 @@ def _calibration_warning(loss: str, tracker: dict, settings: dict, train: list) 
             f"does not depend on it")
 
 
-def _identify_split(args, tracker: dict, settings: dict, train: list, validation: list, posed: bool) -> dict:
+def _identify_split(args, tracker: dict, settings: dict, train: list, validation: list,
+                    table_pose: tuple | None) -> dict:
     """--method split: the fits, then the same before/after reports as HEBO's (after a move of the rims,
-    table_geometry, on the trajectories measured from the moved table frame). ``posed``: every bag's poses
-    came through mocap_table_pose, so the table's centre can move."""
+    table_geometry, on the trajectories measured from the moved table frame). ``table_pose``: the one table
+    pose every bag's poses were read through (mocap_table_pose, or the bags' common transform to
+    --table-frame), which a moved table centre or yaw corrects; None: only the table's size can move."""
     names = args.identify
     start = time.monotonic()
     box = bounds(settings, names)
-    split = identify_split(train, tracker, settings, names, box, move_centre=posed)
+    posed = table_pose is not None
+    base = {**tracker, "mocap_table_pose": list(table_pose)} if posed else tracker
+    split = identify_split(train, base, settings, names, box, move_centre=posed)
     chosen = dict(split.identified)
     geometry = split.geometry or {}
     moved = {**tracker, **geometry}
@@ -322,7 +326,8 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
                                                            settings["bound_margin"])
                             if phrase.split()[0] not in _absent(split, chosen, box, settings["split.significance"])]}
     if split.rim_lines is not None:
-        result["table_geometry"] = _geometry_report(split, tracker, posed)
+        result["table_geometry"] = _geometry_report(split, base, posed)
+        result["table_geometry"]["read_without_table_frame"] = bool(args.table_frame) and "mocap_table_pose" in geometry
     kept = [n for n in chosen if polished is None or n not in polished["values"]]
     result["learning_priors"] = learning_priors(split, kept, std, {s.name: (s.low, s.high) for s in TRACKER_PARAMS})
     result["before"] = _loss_reports(tracker, train, validation, args.horizon)
@@ -580,9 +585,18 @@ def _geometry_text(geometry: dict) -> str:
     moved = geometry["parameters"]
     if not moved:
         return f"table geometry: the rims' {found}: none moved (none significant, or beyond its bounds)"
-    changes = ", ".join(f"{name} {_value_text(value)} (was {_value_text(geometry['initial'][name])})"
+    changes = ", ".join(f"{name} {_geometry_value(value)} (was {_geometry_value(geometry['initial'][name])})"
                         for name, value in moved.items())
-    return f"table geometry: the rims' {found}: moved {changes}; the fits above are on the moved rims"
+    text = f"table geometry: the rims' {found}: moved {changes}; the fits above are on the moved rims"
+    if geometry["read_without_table_frame"]:
+        text += ("; the moved mocap_table_pose replaces the bags' transform to --table-frame: read them with "
+                 "--params-file and without --table-frame")
+    return text
+
+
+def _geometry_value(value) -> str:
+    """A table size or pose to 0.01 mm / 0.01 mrad: the geometry moves by millimetres."""
+    return ("[" + ", ".join(f"{v:.5f}" for v in value) + "]") if isinstance(value, list) else f"{value:.5f}"
 
 
 def _priors_text(priors: dict) -> str:
