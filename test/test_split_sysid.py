@@ -220,6 +220,14 @@ def cli(*args, timeout=300):
     return subprocess.run([str(EXE), *map(str, args)], capture_output=True, text=True, timeout=timeout)
 
 
+@pytest.fixture(scope="module")
+def testbed16(tmp_path_factory):
+    """A 16-shot test-bed bag (seed 4), made once for the tests that read it with a wrong table geometry."""
+    bag = tmp_path_factory.mktemp("testbed16") / "tb"
+    assert cli("synth-bag", bag, "--source", "testbed", "--shots", 16, "--seed", 4).returncode == 0
+    return bag
+
+
 def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     bag = tmp_path / "tb"
     made = cli("synth-bag", bag, "--source", "testbed", "--shots", 12, "--seed", 3)
@@ -325,12 +333,11 @@ def test_the_learning_priors_carry_the_identifications_weight():
     assert learning_priors(result, ["damping"], tiny, ranges) == {"acceleration_adaptation.damping_prior_std": 1e-6}
 
 
-def test_the_rim_lines_offsets_show_a_table_pose_off_by_millimetres(tmp_path):
+def test_the_rim_lines_offsets_show_a_table_pose_off_by_millimetres(testbed16, tmp_path):
     """Each rim's offset at no speed (where an impact's paths would meet, from the model's rim line) shows a
     table pose 3 mm off sideways: the left rim's impacts meet 3 mm beyond its line, the right's 3 mm inside,
     the short rims' as before; with the true pose every rim sits within 3 standard errors (and 0.5 mm)."""
-    bag = tmp_path / "tb"
-    assert cli("synth-bag", bag, "--source", "testbed", "--shots", 16, "--seed", 4).returncode == 0
+    bag = testbed16
     shifted = tmp_path / "shifted.yaml"
     shifted.write_text("/**/puck_tracker:\n  ros__parameters:\n    mocap_table_pose: [1.504, 0.003, 0.0, 0.0]\n")
     for extra, expected in (([], {}), (["--params-file", shifted], {"left": -0.003, "right": 0.003})):
@@ -346,14 +353,13 @@ def test_the_rim_lines_offsets_show_a_table_pose_off_by_millimetres(tmp_path):
         assert all("mocap_table_pose" in w and w.startswith("air-hockey sysid: warning: ") for w in warned)
 
 
-def test_sysid_moves_the_model_rims_where_the_impacts_put_them(tmp_path):
+def test_sysid_moves_the_model_rims_where_the_impacts_put_them(testbed16, tmp_path):
     """A table pose 3 mm off sideways and turned by 3 mrad, and a table configured 3 mm wider than it is:
     `sysid` (its default identification includes table_geometry) finds the rims' centre, turn and width,
     writes the pose and width that put the model's rims there (within 0.3 mm, 0.5 mrad and 0.5 mm of the
     truth), warns about no rim, and the YAML predicts as well as the true geometry does, where the wrong
     one's error at 1.0 s is far larger."""
-    bag = tmp_path / "tb"
-    assert cli("synth-bag", bag, "--source", "testbed", "--shots", 16, "--seed", 4).returncode == 0
+    bag = testbed16
     wrong = tmp_path / "wrong.yaml"
     wrong.write_text("/**/puck_tracker:\n  ros__parameters:\n    mocap_table_pose: [1.504, 0.003, 0.0, 0.003]\n"
                      "    table.width: 1.045\n")
@@ -383,14 +389,13 @@ def test_sysid_moves_the_model_rims_where_the_impacts_put_them(tmp_path):
     assert medians["moved"] < 1.05 * medians["true"] and medians["wrong"] > 1.2 * medians["true"], medians
 
 
-def test_a_table_transform_off_in_the_bags_is_corrected_through_mocap_table_pose(tmp_path):
+def test_a_table_transform_off_in_the_bags_is_corrected_through_mocap_table_pose(testbed16, tmp_path):
     """The lab's ROS 1 bags carry the table's pose as a transform (--table-frame Table). Here it is 3 mm off
     sideways in every bag: sysid finds the rims' centre and writes the corrected transform as
     mocap_table_pose, saying to read the bags without --table-frame; so read, they predict as well as the
     true pose does, where the bags' own transform's error at 1.0 s is far larger."""
     from helpers.ros1_bags import poses_to_tf_bag
-    bag = tmp_path / "tb"
-    assert cli("synth-bag", bag, "--source", "testbed", "--shots", 16, "--seed", 4).returncode == 0
+    bag = testbed16
     lab = tmp_path / "lab.bag"
     assert poses_to_tf_bag(bag, lab, moved=((1.694, 0.813, 0.1, 0.3), "Table"),
                            table_in_source=(1.504, 0.003, 0.0, 0.0)) > 500
