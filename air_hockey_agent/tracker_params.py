@@ -85,6 +85,9 @@ TRACKER_PARAMS = (
               "is a fraction of Routh's sticking one", 0.0, 100.0),
     ParamSpec("rim_adaptation.max_delay", float, "[s] an impact whose paths meet farther from the rim line than "
               "this times its normal speed is not learned from (impact_delay)", 0.0, 0.1),
+    ParamSpec("rim_adaptation.offset_warning", float, "[m] a rim whose impacts meet farther from its line is said "
+              "to be off (table pose or size)", 0.0, 0.1),
+    ParamSpec("rim_adaptation.offset_significance", float, "[-] ... and beyond this many standard errors", 0.0, 100.0),
     ParamSpec("acceleration_adaptation.enabled", bool, "learn this table's acceleration (tilt, air film's mean) "
               "online from free flight"),
     ParamSpec("acceleration_adaptation.prior_std", float, "[m/s^2] std of the configured table_acceleration",

@@ -45,7 +45,9 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     spin = report["spin_damping"]  # the shots' spin is constant, as the configured model's
     assert set(spin) == {"windows", "value", "std"} and spin["windows"] >= 10 and spin["value"] < 3 * spin["std"]
     delay = report["impact_delay"]  # the model's rims are rigid: their paths meet on the line
-    assert set(delay) == {"impacts", "value"} and 0 < delay["impacts"] <= law["impacts"] and delay["value"] < 2e-4
+    assert set(delay) == {"impacts", "value", "rim_offsets", "rims_off"} and 0 < delay["impacts"] <= law["impacts"]
+    assert delay["value"] < 2e-4 and delay["rims_off"] == []  # and on the model's lines
+    assert sum(o["impacts"] for o in delay["rim_offsets"].values()) == delay["impacts"]
     assert set(report["nis"]) == {"median", "mean"}
     assert set(report["by_path"]) == set(report["horizons"])
     for key, paths in report["by_path"].items():

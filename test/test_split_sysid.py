@@ -381,12 +381,15 @@ def test_sysid_moves_the_model_rims_where_the_impacts_put_them(testbed16, tmp_pa
     physics_only = tmp_path / "physics_only.yaml"
     physics_only.write_text("".join(line for line in text.splitlines(keepends=True)
                                     if not line.strip().startswith(("mocap_table_pose", "table."))))
-    medians = {}
+    medians, off = {}, {}
     for name, files in (("moved", [wrong, out]), ("wrong", [wrong, physics_only]), ("true", [physics_only])):
         evaluation = cli("eval-prediction", bag, "--json", *[a for f in files for a in ("--params-file", f)])
         assert evaluation.returncode == 0, evaluation.stderr[-2000:]
-        medians[name] = json.loads(evaluation.stdout)["horizons"]["1.0"]["median_m"]
+        report = json.loads(evaluation.stdout)
+        medians[name], off[name] = report["horizons"]["1.0"]["median_m"], report["impact_delay"]["rims_off"]
     assert medians["moved"] < 1.05 * medians["true"] and medians["wrong"] > 1.2 * medians["true"], medians
+    # the online learning sees the long rims off their lines too (it cannot move them), and says so
+    assert off == {"moved": [], "wrong": ["left", "right"], "true": []}, off
 
 
 def test_a_table_transform_off_in_the_bags_is_corrected_through_mocap_table_pose(testbed16, tmp_path):

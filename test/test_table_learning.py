@@ -392,3 +392,26 @@ def test_a_bounce_off_a_goal_post_is_not_learned_from_as_the_rims(params):
         learning.forget()
         learning.after_frame(ekf.model, 10.0 + 1 / 120, None, before, p, 10.0)
         assert (learning._watch is not None) == watched
+
+
+def test_the_delay_learning_places_each_rim_and_says_which_are_off():
+    """Impacts meeting, at no speed, 3 mm beyond the left rim, 2.5 mm inside the right one and on the far one,
+    with a 1 ms delay: the per-rim offsets at the learned delay come back within 3 standard errors, and the
+    report names the rims off by more than offset_warning (1 mm) and offset_significance (3) errors."""
+    from air_hockey_agent.core.estimation.delay_adaptation import DelayAdaptation
+    from air_hockey_agent.core.table import WALL_FAR, WALL_LEFT, WALL_RIGHT
+    rng = np.random.default_rng(3)
+    learning = DelayAdaptation(0.001, 5.0, 0.01, 0.001, 3.0)
+    truth = {WALL_LEFT: -0.003, WALL_RIGHT: 0.0025, WALL_FAR: 0.0}
+    for _ in range(40):
+        for rim, offset in truth.items():
+            speed = rng.uniform(0.3, 2.5)
+            assert learning.observe(offset - 0.001 * speed + rng.normal(0.0, 2e-4), speed, rim)
+    offsets = learning.rim_offsets()
+    for rim, offset in truth.items():
+        value, std, n = offsets[rim]
+        assert n == 40 and abs(value - offset) < 3 * std + 1e-4 and std < 1e-4
+    report = learning.report()
+    assert report["rims_off"] == ["left", "right"] and report["rim_offsets"]["far"]["impacts"] == 40
+    assert learning.observe(-0.001, 1.0) and learning.impacts == 121  # no rim given: not kept per rim
+    assert sum(o[2] for o in learning.rim_offsets().values()) == 120

@@ -11,18 +11,32 @@ a prior worth ``prior_impacts`` impacts of the mean size seen (as the rim law's,
 never below 0. An impact whose paths meet farther from the line than ``max_delay`` times its normal speed,
 either way, met a hand or a mallet, not the rim: left out. ``split`` sysid fits the same relation over a
 recording (:func:`~air_hockey_agent.core.identification.impact_fit.fit_delay`).
+
+Each rim's own mean of ``depth + s |vn|`` is where its impacts meet at no speed, from the model's line
+(:meth:`DelayAdaptation.rim_offsets`): a table pose or size millimetres off shows there (opposite rims
+apart, or alike), which the tracker cannot correct online but says (``sysid --method split`` moves them:
+``table_geometry``).
 """
 from __future__ import annotations
+
+import math
+from collections import defaultdict
+
+from air_hockey_agent.core.table import WALL_NAMES
 
 
 class DelayAdaptation:
     """Least-squares estimate of the impact delay s [s] from watched rim impacts, with a prior."""
 
-    def __init__(self, configured: float, prior_impacts: float, max_delay: float) -> None:
+    def __init__(self, configured: float, prior_impacts: float, max_delay: float, offset_warning: float = math.inf,
+                 offset_significance: float = 3.0) -> None:
         self.configured, self.prior_impacts, self.max_delay = configured, prior_impacts, max_delay
+        self.offset_warning, self.offset_significance = offset_warning, offset_significance
         self.impacts = 0
         self._depth_speed = 0.0  # sum of -depth |vn| [m^2/s]
         self._speed2 = 0.0       # sum of vn^2 [m^2/s^2]
+        # per rim: impacts, sums of depth, |vn|, depth^2, depth |vn|, vn^2 (its offset at no speed)
+        self._rims: dict = defaultdict(lambda: [0, 0.0, 0.0, 0.0, 0.0, 0.0])
 
     @property
     def value(self) -> float:
@@ -32,15 +46,38 @@ class DelayAdaptation:
         prior = self.prior_impacts * self._speed2 / self.impacts  # prior_impacts impacts of the mean vn^2
         return max(0.0, (prior * self.configured + self._depth_speed) / (prior + self._speed2))
 
-    def observe(self, depth: float, speed: float) -> bool:
-        """Learn from one impact whose paths met ``depth`` [m] from the rim line at normal speed ``speed``
-        [m/s]; False when it is left out (no speed, or beyond ``max_delay``)."""
+    def observe(self, depth: float, speed: float, rim: int | None = None) -> bool:
+        """Learn from one impact on ``rim`` (its id; None: not kept per rim) whose paths met ``depth`` [m] from
+        the rim line at normal speed ``speed`` [m/s]; False when it is left out (no speed, or beyond
+        ``max_delay``)."""
         if speed <= 0.0 or abs(depth) > self.max_delay * speed:
             return False
         self._depth_speed -= depth * speed
         self._speed2 += speed * speed
         self.impacts += 1
+        if rim is not None:
+            sums = self._rims[rim]
+            for k, term in enumerate((1.0, depth, speed, depth * depth, depth * speed, speed * speed)):
+                sums[k] += term
         return True
 
+    def rim_offsets(self) -> dict[int, tuple[float, float, int]]:
+        """Per rim id: (offset [m], its standard error [m], impacts): the mean of ``depth + s |vn|`` at the
+        current delay s, where the rim's impacts meet at no speed (> 0: inside the model's line); the error
+        from their scatter (infinite below two impacts)."""
+        s, out = self.value, {}
+        for rim, (n, d, v, dd, dv, vv) in sorted(self._rims.items()):
+            mean = (d + s * v) / n
+            square = (dd + 2.0 * s * dv + s * s * vv) / n
+            spread = math.sqrt(max(square - mean * mean, 0.0) * n / (n - 1)) if n > 1 else math.inf
+            out[rim] = (mean, spread / math.sqrt(n), int(n))
+        return out
+
     def report(self) -> dict:
-        return {"impacts": self.impacts, "value": self.value}
+        """Impacts, the delay [s], each rim's offset (:meth:`rim_offsets`) by rim name, and the names of the
+        rims that are off (farther than ``offset_warning`` [m] and ``offset_significance`` errors)."""
+        offsets = {WALL_NAMES[rim]: {"offset_m": o, "std_m": e, "impacts": n} for rim, (o, e, n) in
+                   self.rim_offsets().items()}
+        off = [name for name, o in offsets.items()
+               if abs(o["offset_m"]) > max(self.offset_warning, self.offset_significance * o["std_m"])]
+        return {"impacts": self.impacts, "value": self.value, "rim_offsets": offsets, "rims_off": off}

@@ -67,6 +67,8 @@ class AdaptationSettings:
     knee_max: float = 0.0     # [m/s] the fastest knee tried
     stick_friction_rim: float = 1.0  # [-] mu_rim of a learned law in the stick-fraction form
     max_delay: float = 0.01   # [s] paths meeting farther from the rim than this times the speed: no rim's
+    offset_warning: float = 0.001  # [m] a rim whose impacts meet farther from its line (and beyond ...
+    offset_significance: float = 3.0  # [-] ... this many standard errors) is said to be off
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AdaptationSettings":
@@ -74,7 +76,7 @@ class AdaptationSettings:
         return cls(*(params[p + name] for name in ("enabled", "prior_impacts", "window", "min_frames",
                                                     "min_normal_speed", "max_scale", "max_incoming_uncertainty",
                                                     "knee_count", "knee_max", "stick_friction_rim",
-                                                    "max_delay")))
+                                                    "max_delay", "offset_warning", "offset_significance")))
 
     def knees(self, configured: float) -> np.ndarray:
         """The knees tried [m/s]: the configured one first, then ``knee_count`` from 0 to ``knee_max``."""

@@ -151,7 +151,8 @@ class TableLearning:
         self.spin = (SpinAdaptation(base.spin_damping, acceleration.spin_prior_std, acceleration.spin_gate,
                                     angle_variance)
                      if acceleration is not None and acceleration.spin_prior_std > 0.0 else None)
-        self.delay = None if rim is None else DelayAdaptation(base.impact_delay, rim.prior_impacts, rim.max_delay)
+        self.delay = None if rim is None else DelayAdaptation(base.impact_delay, rim.prior_impacts, rim.max_delay,
+                                                              rim.offset_warning, rim.offset_significance)
         self.windows = 0  # free-flight windows learned from (the acceleration's, the spin's or both)
         self.limits = (table.x_limit, table.y_limit)  # [m] largest |x|, |y| of the centre off the rims
         self._watch: _ImpactWatch | None = None
@@ -241,7 +242,7 @@ class TableLearning:
             return False
         met = paths_meet(WALL_NORMALS[watch.wall], *watch.path, fit.position, np.array([fit.vx, fit.vy]))
         if met is not None:  # how far beyond the rim line the paths meet: a compliant rim's delay
-            self.delay.observe(met[1] + self.table.wall_offset(watch.wall), -watch.before[1])
+            self.delay.observe(met[1] + self.table.wall_offset(watch.wall), -watch.before[1], watch.wall)
         return True
 
     def _fly(self, t: float, z, speed: float) -> bool:
@@ -304,4 +305,15 @@ def describe_learning(report: dict) -> str:
     if delay is not None and delay["impacts"]:
         parts.append(f"impact delay {delay['value'] * 1e3:.3f} ms from {delay['impacts']} "
                      f"impact{'' if delay['impacts'] == 1 else 's'}")
+        if delay.get("rims_off"):
+            parts.append(_rims_off(delay["rim_offsets"], delay["rims_off"]))
     return "; ".join(parts)
+
+
+def _rims_off(offsets: dict, names: list) -> str:
+    """The rims whose impacts meet off their lines, in words."""
+    each = ", ".join(f"{name} {abs(o['offset_m']) * 1e3:.2f} +- {o['std_m'] * 1e3:.2f} mm "
+                     f"{'inside' if o['offset_m'] > 0 else 'beyond'} ({o['impacts']} impacts)"
+                     for name, o in ((n, offsets[n]) for n in names))
+    return (f"rims met off their lines: {each}: the table's pose or size is off there (mocap_table_pose, "
+            f"table.length / table.width; `sysid --method split` moves them)")
