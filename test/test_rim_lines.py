@@ -83,7 +83,9 @@ def test_the_corrected_pose_puts_the_table_origin_at_the_rims_centre(yaw):
         assert (nx, ny) == pytest.approx((c * (x - cx) + s * (y - cy), -s * (x - cx) + c * (y - cy)), abs=1e-12)
         moved = recentred(GridTrajectory(0.0, 0.01, np.array([[x, y, 0.1]])), (cx, cy), turn)
         assert moved.z[0] == pytest.approx([nx, ny, 0.1 - turn], abs=1e-12)
-    assert "mocap_table_pose" not in corrected_geometry(tracker, lines, pose=False)
+    fixed = rim_lines(delay_fit({WALL_LEFT: -0.003, WALL_RIGHT: 0.004}, yaw=(turn, 1e-4)), 3.0, BOUNDS, YAW_BOUNDS,
+                      centre=False)
+    assert corrected_geometry(tracker, fixed) == {"table.width": pytest.approx(1.042 - 0.001)}
     assert corrected_geometry(tracker, rim_lines(delay_fit({WALL_LEFT: 0.0}), 3.0, BOUNDS, YAW_BOUNDS)) == {}
 
 
@@ -106,7 +108,8 @@ def test_the_offsets_are_where_the_model_delay_puts_the_rims():
     for wall, offset in ((WALL_LEFT, 0.002), (WALL_RIGHT, -0.001)):
         impacts += [_impact(wall, v, offset + 0.001 * v + rng.normal(0, 1e-5)) for v in speeds]
     free = fit_delay(impacts, (-1.0, 1.0), 10.0)
-    assert free.value == pytest.approx(-0.001, abs=2e-5) and free.offsets[WALL_LEFT][0] == pytest.approx(0.002, abs=2e-5)
+    assert free.value == pytest.approx(-0.001, abs=2e-5)
+    assert free.offsets[WALL_LEFT][0] == pytest.approx(0.002, abs=2e-5)
     clamped = fit_delay(impacts, (0.0, 0.01), 10.0)
     assert clamped.value == 0.0 and clamped.fitted == pytest.approx(-0.001, abs=2e-5)
     for wall, offset in ((WALL_LEFT, 0.002), (WALL_RIGHT, -0.001)):

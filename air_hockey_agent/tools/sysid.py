@@ -317,14 +317,14 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
         chosen.update(polished["values"])
         for name in polished["values"]:  # the fits' errors are not the polished values'
             std.pop(name, None)
+    absent = _absent(split, chosen, box, settings["split.significance"])
+    edges = on_bounds(_flat(chosen), _flat_bounds({n: b for n, b in box.items() if n in chosen}),
+                      settings["bound_margin"])
     result = {"method": "split", "horizon": args.horizon, "significance": settings["split.significance"],
               "initial": {n: tracker[n] for n in names if n in tracker},
               "identified": chosen, "std": std, "plots": plots, "seconds": round(time.monotonic() - start, 1),
               "objective": objective, "before": {}, "after": {},
-              "on_bounds": [phrase for phrase in on_bounds(_flat(chosen), _flat_bounds({n: b for n, b in box.items()
-                                                                                     if n in chosen}),
-                                                           settings["bound_margin"])
-                            if phrase.split()[0] not in _absent(split, chosen, box, settings["split.significance"])]}
+              "on_bounds": [phrase for phrase in edges if phrase.split()[0] not in absent]}
     if split.rim_lines is not None:
         result["table_geometry"] = _geometry_report(split, base, posed)
         result["table_geometry"]["read_without_table_frame"] = bool(args.table_frame) and "mocap_table_pose" in geometry

@@ -84,14 +84,13 @@ def rim_lines(delay: DelayFit, significance: float, bounds: tuple[float, float],
     return RimLines(values, std, taken, beyond)
 
 
-def corrected_geometry(tracker: Mapping[str, Any], lines: RimLines, pose: bool = True) -> dict:
+def corrected_geometry(tracker: Mapping[str, Any], lines: RimLines) -> dict:
     """Tracker parameters that put the model's rims where ``lines`` found them: ``mocap_table_pose`` moved by
-    the taken centre (turned into the mocap frame by its yaw) and turned by the taken yaw (only with
-    ``pose``: poses read through it),
-    ``table.length`` and ``table.width`` changed by the taken sizes. Only the parameters that change."""
+    the taken centre (turned into the mocap frame by its yaw) and turned by the taken yaw, ``table.length``
+    and ``table.width`` changed by the taken sizes. Only the parameters that change."""
     out = {}
     (cx, cy), yaw = lines.centre(), lines.yaw()
-    if pose and (cx or cy or yaw):
+    if cx or cy or yaw:
         p = [float(v) for v in tracker["mocap_table_pose"]]
         x, y, turned = table_to_mocap(cx, cy, yaw, p)
         out["mocap_table_pose"] = [x, y, p[2], turned]

@@ -67,7 +67,8 @@ def noise_model(tracker: Mapping[str, Any]) -> NoiseModel:
 
 
 def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str, Any], settings: Mapping[str, Any],
-                   names: Sequence[str], bounds: Mapping[str, Sequence[float]], move_centre: bool = True) -> SplitResult:
+                   names: Sequence[str], bounds: Mapping[str, Sequence[float]],
+                   move_centre: bool = True) -> SplitResult:
     """Identify ``names`` (of SPLIT_IDENTIFIABLE) within ``bounds`` (per name; the table acceleration's
     per axis); raises ValueError when the recordings hold too little free flight or too few impacts. With
     ``table_geometry``, rims found elsewhere than the model has them (:func:`.rim_lines.rim_lines`) are moved
