@@ -102,6 +102,22 @@ def test_a_human_hit_moves_a_resting_puck_at_its_time():
     assert after[-1, 0] == pytest.approx(0.1 + 1.0 * 0.6, abs=2e-3)
 
 
+def test_a_hit_that_pushes_brings_the_puck_to_its_speed_evenly():
+    """testbed.hit_duration: a 10 ms push to 1 m/s raises the speed evenly in 1 ms steps (5.5 mm covered in
+    them where the impulse covers 10), then the puck flies as after an impulse, 4.5 mm behind."""
+    start, velocity = np.array([0.1, 0.2, 0.0, 0.0, 0.0, 0.0]), np.array([1.0, 0.0])
+    impulse = RealTablePuck(TABLE, TableEffects(), np.random.default_rng(5)).simulate(start, 1.0, 1e-3, 0.4, velocity)
+    pushed = RealTablePuck(TABLE, TableEffects(hit_duration=0.01), np.random.default_rng(5)).simulate(
+        start, 1.0, 1e-3, 0.4, velocity)
+    times = pushed[0]
+    speeds = pushed[1][(times > 0.3995) & (times < 0.4115), 2]  # from 0.400 s: the push's steps, then full speed
+    assert speeds == pytest.approx([0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8, 0.9, 1.0, 1.0, 1.0, 1.0], abs=1e-3)
+    assert pushed[1][np.searchsorted(times, 0.409), 0] - 0.1 == pytest.approx(0.0055, abs=1e-6)
+    after = times > 0.42
+    assert pushed[1][after, 2] == pytest.approx(impulse[1][after, 2], abs=1e-9)
+    assert impulse[1][after, 0] - pushed[1][after, 0] == pytest.approx(np.full(after.sum(), 0.0045), abs=1e-6)
+
+
 def test_marker_noise_grows_with_speed():
     noise = MocapImperfections(position_std=1e-4, position_std_per_speed=4e-4, angle_std=0.0, jitter_std=0.0)
     sampler = MocapSampler(noise, np.random.default_rng(6))

@@ -71,6 +71,7 @@ SESSION_PARAMS = (
     ParamSpec("testbed.friction_rim", float, "[-] rim friction of the Coulomb bound", 0.0, 2.0),
     ParamSpec("testbed.tangential_scale", float, "[-] tangential impulse as a fraction of Coulomb's", 0.0, 1.0),
     ParamSpec("testbed.hit_delay", list, "[s] range of the rest before the human hit", 0.0, 600.0, 2),
+    ParamSpec("testbed.hit_duration", float, "[s] how long the human hit pushes the puck (0: an impulse)", 0.0, 1.0),
     ParamSpec("mujoco.timestep", float, "[s] MuJoCo table's integration step", 1e-5, 0.01),
     ParamSpec("mujoco.puck_mass", float, "[kg] MuJoCo table's puck mass", 1e-4, 10.0),
     ParamSpec("mujoco.damping", float, "[1/s] MuJoCo table's viscous damping", 0.0, 10.0),

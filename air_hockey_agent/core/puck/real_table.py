@@ -57,6 +57,7 @@ class TableEffects:
     restitution_speed_high: float = 2.0       # [m/s] normal speed from which restitution_fast holds
     friction_rim: float = 0.1                 # mu_rim [-] of the Coulomb bound
     tangential_scale: float = 1.0             # [-] tangential impulse as a fraction of Routh/Coulomb's
+    hit_duration: float = 0.0                 # [s] a human hit's push (0: an impulse)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "testbed.") -> "TableEffects":
@@ -180,18 +181,20 @@ class RealTablePuck:
     def simulate(self, state: np.ndarray, duration: float, dt: float,
                  hit_at: float | None = None, hit_velocity: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """True states every ``dt`` [s] for ``duration`` [s] from ``state``; with ``hit_at`` [s], the puck's
-        velocity becomes ``hit_velocity`` [m/s] then (a human hit; the puck is held still before). Returns
-        times (n,), states (n, 6)."""
+        velocity becomes ``hit_velocity`` [m/s] then (a human hit; the puck is held still before), growing
+        evenly over ``effects.hit_duration`` [s] (a mallet's push; 0: at once). Returns times (n,), states
+        (n, 6)."""
         n = int(round(duration / dt)) + 1
         states = np.empty((n, 6))
         states[0] = state
         hit_step = 0 if hit_at is None else int(round(hit_at / dt))
+        push = max(1, int(round(self.effects.hit_duration / dt)))  # steps of the push
         for i in range(1, n):
             if i < hit_step:  # held by the hand until the hit
                 states[i] = states[i - 1]
                 continue
-            if i == hit_step:
-                states[i - 1, 2:4] = hit_velocity
+            if hit_at is not None and i - hit_step < push:
+                states[i - 1, 2:4] = hit_velocity * (i - hit_step + 1) / push
             states[i] = self.step(states[i - 1], (i - 1) * dt, dt)
         return np.arange(n) * dt, states
 
