@@ -139,3 +139,20 @@ def _impact(wall: int, speed: float, depth: float, along: float = 0.0) -> Simple
     """What fit_delay reads of an impact: its rim, incoming (tangential, normal < 0, spin), meeting depth and
     where along the rim."""
     return SimpleNamespace(wall=wall, before=(0.0, -speed, 0.0), depth=depth, along=along)
+
+
+def test_the_sysid_report_of_a_rim_pair_not_met_is_null_and_readable():
+    """Impacts on the long rims only: the length and the centre along x are unknown; sysid's --json gives
+    them as null (strict JSON, no NaN) and its report line and warnings print "?" for them."""
+    import json
+    from air_hockey_agent.tools.sysid import _geometry_report, _geometry_text, _geometry_warnings
+    fit = delay_fit({WALL_LEFT: -0.003, WALL_RIGHT: 0.003})
+    lines = rim_lines(fit, 3.0, BOUNDS, YAW_BOUNDS, centre=False)
+    split = SimpleNamespace(rim_lines=lines, first_delay=fit, geometry={})
+    tracker = {"mocap_table_pose": [1.504, 0.0, 0.0, 0.0], "table.length": 1.956, "table.width": 1.042}
+    report = {**_geometry_report(split, tracker, posed=False), "read_without_table_frame": False}
+    text = json.dumps(report, allow_nan=False)
+    assert json.loads(text)["values_m"]["length"] is None and json.loads(text)["values_m"]["centre_x"] is None
+    assert "length ? +- ? mm" in _geometry_text(report)
+    warned = _geometry_warnings(report, {"split.significance": 3.0, "bounds.table_geometry": BOUNDS})
+    assert len(warned) == 1 and "(?, -3.00) mm" in warned[0]

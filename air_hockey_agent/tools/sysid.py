@@ -236,10 +236,10 @@ def _geometry_warnings(geometry: dict | None, settings: dict) -> list[str]:
            f"table's configuration (config/table.yaml, mocap_table_pose) looks wrong, not its calibration"
            for part, beyond in geometry["beyond"].items() if beyond]
     pose_parts = ("centre_x", "centre_y", "yaw")
-    if not geometry["centre_movable"] and any(abs(values[part]) > settings["split.significance"] * errors[part]
-                                              for part in pose_parts):
-        out.append(f"the rims' centre is ({values['centre_x'] * 1e3:+.2f}, {values['centre_y'] * 1e3:+.2f}) mm from "
-                   f"the table frame's origin and turned {values['yaw'] * 1e3:+.2f} mrad, but the poses did not come "
+    if not geometry["centre_movable"] and any(values[part] is not None and abs(values[part]) >
+                                              settings["split.significance"] * errors[part] for part in pose_parts):
+        out.append(f"the rims' centre is ({_mm(values['centre_x'])}, {_mm(values['centre_y'])}) mm from "
+                   f"the table frame's origin and turned {_mm(values['yaw'])} mrad, but the poses did not come "
                    f"through one table pose (bags with different transforms to --table-frame, or poses in the "
                    f"table frame): move the table's transform by that; only the size was moved")
     return out
@@ -247,6 +247,11 @@ def _geometry_warnings(geometry: dict | None, settings: dict) -> list[str]:
 
 def _part_text(part: str, value: float) -> str:
     return f"{value * 1e3:+.2f} mrad" if part == "yaw" else f"{value * 1e3:+.1f} mm"
+
+
+def _mm(value: float | None, sign: str = "+") -> str:
+    """[m] (or [rad]) as mm (mrad) text; "?" for a part whose two rims were not both met."""
+    return "?" if value is None else f"{value * 1e3:{sign}.2f}"
 
 
 def _calibration_warning(loss: str, tracker: dict, settings: dict, train: list) -> str:
@@ -385,8 +390,10 @@ def _geometry_report(split, tracker: dict, posed: bool) -> dict:
     lines = split.rim_lines
     first = split.first_delay
     metres = [n for n in lines.values if n != "yaw"]
-    return {"values_m": {n: lines.values[n] for n in metres}, "std_m": {n: lines.std[n] for n in metres},
-            "yaw_rad": lines.values["yaw"], "yaw_std_rad": lines.std["yaw"], "taken": lines.taken,
+    known = {n: None if math.isnan(v) else v for n, v in lines.values.items()}  # null in JSON: a rim not met
+    errors = {n: None if math.isnan(v) else v for n, v in lines.std.items()}
+    return {"values_m": {n: known[n] for n in metres}, "std_m": {n: errors[n] for n in metres},
+            "yaw_rad": known["yaw"], "yaw_std_rad": errors["yaw"], "taken": lines.taken,
             "beyond": lines.beyond,
             "centre_movable": posed, "parameters": dict(split.geometry or {}),
             "initial": {n: tracker[n] for n in ("mocap_table_pose", "table.length", "table.width")},
@@ -578,10 +585,10 @@ def _delay_text(delay: dict) -> str:
 def _geometry_text(geometry: dict) -> str:
     """One line on where the rims were found (table_geometry) and what was moved."""
     v, e = geometry["values_m"], geometry["std_m"]
-    found = (f"centre ({v['centre_x'] * 1e3:+.2f}, {v['centre_y'] * 1e3:+.2f}) +- ({e['centre_x'] * 1e3:.2f}, "
-             f"{e['centre_y'] * 1e3:.2f}) mm from the table frame's origin, yaw {geometry['yaw_rad'] * 1e3:+.2f} +- "
-             f"{geometry['yaw_std_rad'] * 1e3:.2f} mrad, length {v['length'] * 1e3:+.2f} +- {e['length'] * 1e3:.2f} "
-             f"mm, width {v['width'] * 1e3:+.2f} +- {e['width'] * 1e3:.2f} mm")
+    found = (f"centre ({_mm(v['centre_x'])}, {_mm(v['centre_y'])}) +- ({_mm(e['centre_x'], '')}, "
+             f"{_mm(e['centre_y'], '')}) mm from the table frame's origin, yaw {_mm(geometry['yaw_rad'])} +- "
+             f"{_mm(geometry['yaw_std_rad'], '')} mrad, length {_mm(v['length'])} +- {_mm(e['length'], '')} mm, "
+             f"width {_mm(v['width'])} +- {_mm(e['width'], '')} mm")
     moved = geometry["parameters"]
     if not moved:
         return f"table geometry: the rims' {found}: none moved (none significant, or beyond its bounds)"
