@@ -387,6 +387,7 @@ def test_sysid_moves_the_model_rims_where_the_impacts_put_them(testbed16, tmp_pa
         assert evaluation.returncode == 0, evaluation.stderr[-2000:]
         report = json.loads(evaluation.stdout)
         medians[name], off[name] = report["horizons"]["1.0"]["median_m"], report["impact_delay"]["rims_off"]
+        assert ("rims met off their lines: left" in evaluation.stderr) == bool(off[name]), evaluation.stderr
     assert medians["moved"] < 1.05 * medians["true"] and medians["wrong"] > 1.2 * medians["true"], medians
     # the online learning sees the long rims off their lines too (it cannot move them), and says so
     assert off == {"moved": [], "wrong": ["left", "right"], "true": []}, off

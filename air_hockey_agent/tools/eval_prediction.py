@@ -35,7 +35,7 @@ from pathlib import Path
 from air_hockey_agent.bags.reader import BagError
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
-from air_hockey_agent.core.estimation.table_learning import describe_learning, learning_report
+from air_hockey_agent.core.estimation.table_learning import describe_learning, learning_report, rims_off_text
 from air_hockey_agent.bags.trajectories import bag_measurements
 from air_hockey_agent.core.identification.preprocess import preprocess
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
@@ -92,6 +92,9 @@ def run(args: argparse.Namespace) -> int:
             print(f"{bag}: {len(frames)} frames", file=sys.stderr)
     summary = totals.summary()
     summary.update(learning_report(ekf.learning))
+    delay = summary.get("impact_delay")
+    if delay is not None and delay["rims_off"]:
+        print(f"{PROG}: warning: {rims_off_text(delay['rim_offsets'], delay['rims_off'])}", file=sys.stderr)
     summary["thesis_style"] = thesis_style(params, cut, args.horizons)
     print(json.dumps(summary) if args.json else format_table(summary))
     return 2 if failed else 0

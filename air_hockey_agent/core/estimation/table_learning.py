@@ -306,11 +306,11 @@ def describe_learning(report: dict) -> str:
         parts.append(f"impact delay {delay['value'] * 1e3:.3f} ms from {delay['impacts']} "
                      f"impact{'' if delay['impacts'] == 1 else 's'}")
         if delay.get("rims_off"):
-            parts.append(_rims_off(delay["rim_offsets"], delay["rims_off"]))
+            parts.append(rims_off_text(delay["rim_offsets"], delay["rims_off"]))
     return "; ".join(parts)
 
 
-def _rims_off(offsets: dict, names: list) -> str:
+def rims_off_text(offsets: dict, names: list) -> str:
     """The rims whose impacts meet off their lines, in words."""
     each = ", ".join(f"{name} {abs(o['offset_m']) * 1e3:.2f} +- {o['std_m'] * 1e3:.2f} mm "
                      f"{'inside' if o['offset_m'] > 0 else 'beyond'} ({o['impacts']} impacts)"
