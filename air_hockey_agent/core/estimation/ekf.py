@@ -221,12 +221,7 @@ class PuckEKF:
         over the frames since the event, short enough for the model's deceleration not to matter), with
         the fit's own covariance; then forget them."""
         last = self._pending[-1]
-        t = np.array([m.t for m in self._pending]) - last.t
-        z = np.array([m.z for m in self._pending])
-        z[:, 2] = last.z[2] + np.array([wrap_angle(a - last.z[2]) for a in z[:, 2]])
-        design = np.column_stack([np.ones_like(t), t])
-        gram_inv = np.linalg.inv(design.T @ design)  # (A^T A)^-1: the fit's covariance per unit noise
-        coef = gram_inv @ design.T @ z               # rows: value at the last frame, rate
+        _, _, coef, gram_inv = self._pending_line_fit()
         speed = math.hypot(coef[1, 0], coef[1, 1])
         r = np.diag(self.settings.measurement_noise(speed))
         state = [coef[0, 0], coef[0, 1], coef[1, 0], coef[1, 1], wrap_angle(coef[0, 2]), coef[1, 2]]
@@ -237,6 +232,18 @@ class PuckEKF:
             self.P[value, rate] = self.P[rate, value] = block[0, 1]
         self._last_z = last.z
         self.stats.reinitialisations += 1
+
+    def _pending_line_fit(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The collected frames' least-squares constant-velocity fit, times counted from the last frame: (their
+        (x, y, theta), angles unwrapped about the last one; the design [1, t]; the coefficients, rows value at
+        the last frame and rate; (A^T A)^-1, the fit's covariance per unit noise)."""
+        last = self._pending[-1]
+        t = np.array([m.t for m in self._pending]) - last.t
+        z = np.array([m.z for m in self._pending])
+        z[:, 2] = last.z[2] + np.array([wrap_angle(a - last.z[2]) for a in z[:, 2]])
+        design = np.column_stack([np.ones_like(t), t])
+        gram_inv = np.linalg.inv(design.T @ design)
+        return z, design, gram_inv @ design.T @ z, gram_inv
 
     # --- filter steps -----------------------------------------------------------------------------
     def predict_to(self, t: float) -> None:
@@ -420,11 +427,8 @@ class PuckEKF:
         the chi-square of the least-squares fit's residuals (2 n - 4 dof for n frames; 2 for the
         acquisition's 3, as the position gate) within ``gate_threshold``. Over a few frames the model's
         deceleration is far below the marker noise (0.4 m/s^2 moves 0.06 mm in 17 ms)."""
-        t = np.array([m.t for m in self._pending]) - self._pending[-1].t
-        z = np.array([m.z[:2] for m in self._pending])
-        design = np.column_stack([np.ones_like(t), t])
-        coef, *_ = np.linalg.lstsq(design, z, rcond=None)
-        residual = z - design @ coef
+        z, design, coef, _ = self._pending_line_fit()
+        residual = z[:, :2] - design @ coef[:, :2]
         r = self.settings.measurement_noise(math.hypot(coef[1, 0], coef[1, 1]))
         chi2 = float(residual[:, 0] @ residual[:, 0] / r[0, 0] + residual[:, 1] @ residual[:, 1] / r[1, 1])
         return chi2 <= self.settings.gate_threshold
