@@ -413,5 +413,5 @@ def test_the_delay_learning_places_each_rim_and_says_which_are_off():
         assert n == 40 and abs(value - offset) < 3 * std + 1e-4 and std < 1e-4
     report = learning.report()
     assert report["rims_off"] == ["left", "right"] and report["rim_offsets"]["far"]["impacts"] == 40
-    assert learning.observe(-0.001, 1.0) and learning.impacts == 121  # no rim given: not kept per rim
-    assert sum(o[2] for o in learning.rim_offsets().values()) == 120
+    assert learning.impacts == sum(o[2] for o in learning.rim_offsets().values()) == 120
+    assert learning.value == pytest.approx(0.001, abs=1e-4)  # the delay, fitted over every rim's impacts

@@ -36,6 +36,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 
 from air_hockey_agent.bags.trajectories import split_train_validation
+from air_hockey_agent.core.identification.local_fit import beyond_noise
 from air_hockey_agent.core.identification.rim_lines import recentred
 from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split, learning_priors
 from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PHYSICAL, combine, identify,
@@ -221,7 +222,7 @@ def _rims_off(result: dict, limit: float, significance: float) -> list[str]:
     return [f"the {rim} rim's impacts meet {offset * 1e3:+.2f} +- {delay['offset_std_m'][rim] * 1e3:.2f} mm from "
             f"the model's rim line ({'inside' if offset > 0 else 'beyond'} it)"
             for rim, offset in delay["offsets_m"].items()
-            if abs(offset) > max(limit, significance * delay["offset_std_m"][rim])]
+            if beyond_noise(offset, delay["offset_std_m"][rim], significance, limit)]
 
 
 def _geometry_warnings(geometry: dict | None, settings: dict) -> list[str]:
@@ -236,8 +237,9 @@ def _geometry_warnings(geometry: dict | None, settings: dict) -> list[str]:
            f"table's configuration (config/table.yaml, mocap_table_pose) looks wrong, not its calibration"
            for part, beyond in geometry["beyond"].items() if beyond]
     pose_parts = ("centre_x", "centre_y", "yaw")
-    if not geometry["centre_movable"] and any(values[part] is not None and abs(values[part]) >
-                                              settings["split.significance"] * errors[part] for part in pose_parts):
+    if not geometry["centre_movable"] and any(values[part] is not None and
+                                              beyond_noise(values[part], errors[part], settings["split.significance"])
+                                              for part in pose_parts):
         out.append(f"the rims' centre is ({_mm(values['centre_x'])}, {_mm(values['centre_y'])}) mm from "
                    f"the table frame's origin and turned {_mm(values['yaw'])} mrad, but the poses did not come "
                    f"through one table pose (bags with different transforms to --table-frame, or poses in the "
@@ -350,7 +352,8 @@ def _absent(split, chosen: dict, box: dict, significance: float) -> set[str]:
     fits = {"spin_damping": (split.spin.rate, split.spin.std) if split.spin is not None else None,
             "impact_delay": (split.delay.fitted, split.delay.std) if split.delay is not None else None}
     return {name for name, fit in fits.items()
-            if fit is not None and name in chosen and box[name][0] == 0.0 and abs(fit[0]) <= significance * fit[1]}
+            if fit is not None and name in chosen and box[name][0] == 0.0
+            and not beyond_noise(fit[0], fit[1], significance)}
 
 
 def _polish_split(args, tracker: dict, settings: dict, train: list, split_values: dict) -> dict:
@@ -560,7 +563,7 @@ def _spin_text(spin: dict, identified: bool, significance: float) -> str:
     rate, std = spin["rate_per_s"], spin["std_per_s"]
     seen = (f"{rate:.3f} +- {std:.3f} 1/s over {spin['windows']} windows ({spin['dropped']} dropped, RMS spin "
             f"{spin['rms_spin_rad_s']:.2f} rad/s)")
-    if abs(rate) <= significance * std:
+    if not beyond_noise(rate, std, significance):
         return f"spin decay: none shown ({seen}): a constant spin holds"
     if identified:
         return f"spin decay: the spin decays in free flight at {seen}: spin_damping identified"

@@ -22,6 +22,7 @@ from __future__ import annotations
 import math
 from collections import defaultdict
 
+from air_hockey_agent.core.identification.local_fit import beyond_noise
 from air_hockey_agent.core.table import WALL_NAMES
 
 
@@ -32,33 +33,33 @@ class DelayAdaptation:
                  offset_significance: float = 3.0) -> None:
         self.configured, self.prior_impacts, self.max_delay = configured, prior_impacts, max_delay
         self.offset_warning, self.offset_significance = offset_warning, offset_significance
-        self.impacts = 0
-        self._depth_speed = 0.0  # sum of -depth |vn| [m^2/s]
-        self._speed2 = 0.0       # sum of vn^2 [m^2/s^2]
-        # per rim: impacts, sums of depth, |vn|, depth^2, depth |vn|, vn^2 (its offset at no speed)
+        # per rim id: impacts, sums of depth, |vn|, depth^2, depth |vn|, vn^2 (the delay's fit is their total)
         self._rims: dict = defaultdict(lambda: [0, 0.0, 0.0, 0.0, 0.0, 0.0])
+
+    @property
+    def impacts(self) -> int:
+        """Impacts learned from, on every rim."""
+        return int(sum(sums[0] for sums in self._rims.values()))
 
     @property
     def value(self) -> float:
         """The estimate [s]: the configured delay until an impact is seen, never below zero."""
-        if self.impacts == 0:
+        impacts = self.impacts
+        if impacts == 0:
             return self.configured
-        prior = self.prior_impacts * self._speed2 / self.impacts  # prior_impacts impacts of the mean vn^2
-        return max(0.0, (prior * self.configured + self._depth_speed) / (prior + self._speed2))
+        depth_speed = sum(sums[4] for sums in self._rims.values())  # sum of depth |vn| [m^2/s]
+        speed2 = sum(sums[5] for sums in self._rims.values())       # sum of vn^2 [m^2/s^2]
+        prior = self.prior_impacts * speed2 / impacts  # prior_impacts impacts of the mean vn^2
+        return max(0.0, (prior * self.configured - depth_speed) / (prior + speed2))
 
-    def observe(self, depth: float, speed: float, rim: int | None = None) -> bool:
-        """Learn from one impact on ``rim`` (its id; None: not kept per rim) whose paths met ``depth`` [m] from
-        the rim line at normal speed ``speed`` [m/s]; False when it is left out (no speed, or beyond
-        ``max_delay``)."""
+    def observe(self, depth: float, speed: float, rim: int) -> bool:
+        """Learn from one impact on ``rim`` (its id) whose paths met ``depth`` [m] from the rim line at normal
+        speed ``speed`` [m/s]; False when it is left out (no speed, or beyond ``max_delay``)."""
         if speed <= 0.0 or abs(depth) > self.max_delay * speed:
             return False
-        self._depth_speed -= depth * speed
-        self._speed2 += speed * speed
-        self.impacts += 1
-        if rim is not None:
-            sums = self._rims[rim]
-            for k, term in enumerate((1.0, depth, speed, depth * depth, depth * speed, speed * speed)):
-                sums[k] += term
+        sums = self._rims[rim]
+        for k, term in enumerate((1.0, depth, speed, depth * depth, depth * speed, speed * speed)):
+            sums[k] += term
         return True
 
     def rim_offsets(self) -> dict[int, tuple[float, float, int]]:
@@ -79,5 +80,5 @@ class DelayAdaptation:
         offsets = {WALL_NAMES[rim]: {"offset_m": o, "std_m": e, "impacts": n} for rim, (o, e, n) in
                    self.rim_offsets().items()}
         off = [name for name, o in offsets.items()
-               if abs(o["offset_m"]) > max(self.offset_warning, self.offset_significance * o["std_m"])]
+               if beyond_noise(o["offset_m"], o["std_m"], self.offset_significance, self.offset_warning)]
         return {"impacts": self.impacts, "value": self.value, "rim_offsets": offsets, "rims_off": off}

@@ -111,6 +111,13 @@ def smooth_fits(quality, factor: float) -> np.ndarray:
     return quality <= factor * max(float(np.median(quality)), 1e-12)
 
 
+def beyond_noise(value: float, std: float, significance: float, limit: float = 0.0) -> bool:
+    """Whether an estimate ``value`` lies farther from 0 than ``limit`` and ``significance`` times its standard
+    error ``std`` (same units): the one rule for an offset, a rate or a part of the table's geometry that
+    counts. False for a NaN value (nothing estimated)."""
+    return abs(value) > max(limit, significance * std)
+
+
 def paths_meet(normal: tuple[float, float], p_before: np.ndarray, v_before: np.ndarray, p_after: np.ndarray,
                v_after: np.ndarray) -> tuple[float, float] | None:
     """Where two straight paths, positions ``p_*`` [m] at a common time and velocities ``v_*`` [m/s], are

@@ -26,6 +26,7 @@ import numpy as np
 
 from air_hockey_agent.core.frames import table_to_mocap
 from air_hockey_agent.core.identification.impact_fit import DelayFit
+from air_hockey_agent.core.identification.local_fit import beyond_noise
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.table import WALL_FAR, WALL_LEFT, WALL_NEAR, WALL_RIGHT
 
@@ -77,7 +78,7 @@ def rim_lines(delay: DelayFit, significance: float, bounds: tuple[float, float],
     taken, beyond = {}, {}
     for name in values:
         low, high = yaw_bounds if name == "yaw" else bounds
-        significant = abs(values[name]) > significance * std[name]  # False for NaN
+        significant = beyond_noise(values[name], std[name], significance)
         inside = low <= values[name] <= high
         movable = centre or name not in ("centre_x", "centre_y", "yaw")
         taken[name], beyond[name] = significant and inside and movable, significant and not inside
