@@ -145,7 +145,8 @@ def test_the_sysid_report_of_a_rim_pair_not_met_is_null_and_readable():
     """Impacts on the long rims only: the length and the centre along x are unknown; sysid's --json gives
     them as null (strict JSON, no NaN) and its report line and warnings print "?" for them."""
     import json
-    from air_hockey_agent.tools.sysid import _geometry_report, _geometry_text, _geometry_warnings
+    from air_hockey_agent.tools.sysid import _geometry_report
+    from air_hockey_agent.tools.sysid_report import geometry_text, geometry_warnings
     fit = delay_fit({WALL_LEFT: -0.003, WALL_RIGHT: 0.003})
     lines = rim_lines(fit, 3.0, BOUNDS, YAW_BOUNDS, centre=False)
     split = SimpleNamespace(rim_lines=lines, first_delay=fit, geometry={})
@@ -153,6 +154,6 @@ def test_the_sysid_report_of_a_rim_pair_not_met_is_null_and_readable():
     report = {**_geometry_report(split, tracker, posed=False), "read_without_table_frame": False}
     text = json.dumps(report, allow_nan=False)
     assert json.loads(text)["values_m"]["length"] is None and json.loads(text)["values_m"]["centre_x"] is None
-    assert "length ? +- ? mm" in _geometry_text(report)
-    warned = _geometry_warnings(report, {"split.significance": 3.0, "bounds.table_geometry": BOUNDS})
+    assert "length ? +- ? mm" in geometry_text(report)
+    warned = geometry_warnings(report, {"split.significance": 3.0, "bounds.table_geometry": BOUNDS})
     assert len(warned) == 1 and "(?, -3.00) mm" in warned[0]

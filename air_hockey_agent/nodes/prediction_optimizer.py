@@ -25,7 +25,7 @@ from air_hockey_agent.nodes.messages import to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeFailure, NodeStartupError, run
 from air_hockey_agent.params import ParamSpec
 from air_hockey_agent.sysid_params import SYSID_PARAMS, bounds
-from air_hockey_agent.tools.sysid import write_params_yaml
+from air_hockey_agent.tools.sysid_report import write_params_yaml
 from air_hockey_agent.tracker_params import load_tracker_params
 
 OPTIMIZER_PARAMS = (
