@@ -94,6 +94,8 @@ TRACKER_PARAMS = (
               1e-6, 10.0),
     ParamSpec("acceleration_adaptation.damping_prior_std", float, "[1/s] std of the configured damping",
               1e-6, 10.0),
+    ParamSpec("acceleration_adaptation.friction_prior_std", float, "[m/s^2] std of the configured "
+              "friction_surface (0: it is not learned)", 0.0, 10.0),
     ParamSpec("acceleration_adaptation.field_std", float, "[m/s^2] added to each window's std: what a constant "
               "acceleration cannot follow", 0.0, 10.0),
     ParamSpec("acceleration_adaptation.window", float, "[s] fused free-flight frames per fit", 0.05, 5.0),

@@ -40,8 +40,10 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert abs(law["fall_scale"] - 1.0) < 0.1 and abs(law["tangential_scale"] - 1.0) < 0.1
     assert law["params"]["restitution_knee"] == law["knee"]
     flight = report["table_acceleration"]
-    assert set(flight) == {"windows", "value", "std", "damping", "damping_std"} and flight["windows"] >= 10
+    assert set(flight) == {"windows", "value", "std", "damping", "damping_std", "friction_surface",
+                           "friction_surface_std"} and flight["windows"] >= 10
     assert max(map(abs, flight["value"])) < 0.01 and abs(flight["damping"] - 0.125) < 0.02
+    assert flight["friction_surface"] < 0.02 and flight["friction_surface_std"] > 0.0
     spin = report["spin_damping"]  # the shots' spin is constant, as the configured model's
     assert set(spin) == {"windows", "value", "std"} and spin["windows"] >= 10 and spin["value"] < 3 * spin["std"]
     delay = report["impact_delay"]  # the model's rims are rigid: their paths meet on the line

@@ -84,11 +84,13 @@ def mujoco_session():
 
 
 def test_the_tracker_learns_the_mujoco_tables_flight(mujoco_session):
-    """Damping and tilt learned online from MuJoCo's free flight: within 10 % of its 0.13 1/s and within
-    3 standard deviations of its g sin(0.001) along +x, the spin's decay within 10 % of its hinge's 0.4 1/s
+    """Damping and tilt learned online from MuJoCo's free flight: within 10 % of its 0.13 1/s (and no
+    surface friction beyond 2 std: its film is viscous) and within 3 standard deviations of its g sin(0.001)
+    along +x, the spin's decay within 10 % of its hinge's 0.4 1/s
     (config/synthetic.yaml's mujoco.*)."""
     flight = mujoco_session[0]["table_acceleration"]
     assert flight["damping"] == pytest.approx(CONFIGURED.damping, rel=0.1)
+    assert flight["friction_surface"] < 2 * flight["friction_surface_std"]  # a viscous film alone: no constant part
     assert mujoco_session[0]["spin_damping"]["value"] == pytest.approx(CONFIGURED.angular_damping, rel=0.1)
     for axis in range(2):
         assert abs(flight["value"][axis] - CONFIGURED.tilt_acceleration[axis]) < 3 * flight["std"][axis]

@@ -321,13 +321,14 @@ def test_the_learning_priors_carry_the_identifications_weight():
     from air_hockey_agent.core.identification.split import SplitResult, learning_priors
     ranges = {"rim_adaptation.prior_impacts": (0.0, 1e6), "acceleration_adaptation.prior_std": (1e-6, 10.0),
               "acceleration_adaptation.damping_prior_std": (1e-6, 10.0),
+              "acceleration_adaptation.friction_prior_std": (0.0, 10.0),
               "acceleration_adaptation.spin_prior_std": (0.0, 100.0)}
     std = {"damping": 0.002, "table_acceleration": [0.0003, 0.0007], "spin_damping": 0.0, "friction_surface": 0.01}
     result = SplitResult({"damping": 0.1, "restitution": 0.9}, std, None, SimpleNamespace(impacts=57))
     kept = ["damping", "table_acceleration", "spin_damping", "restitution", "friction_surface"]
     assert learning_priors(result, kept, std, ranges) == {
         "rim_adaptation.prior_impacts": 57.0, "acceleration_adaptation.prior_std": 0.0007,
-        "acceleration_adaptation.damping_prior_std": 0.002}
+        "acceleration_adaptation.damping_prior_std": 0.002, "acceleration_adaptation.friction_prior_std": 0.01}
     assert learning_priors(result, ["damping"], std, ranges) == {"acceleration_adaptation.damping_prior_std": 0.002}
     tiny = {**std, "damping": 1e-9}
     assert learning_priors(result, ["damping"], tiny, ranges) == {"acceleration_adaptation.damping_prior_std": 1e-6}

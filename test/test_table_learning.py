@@ -300,6 +300,32 @@ def test_a_tilt_and_the_damping_are_told_apart_when_every_shot_goes_one_way(para
     assert held.damping == pytest.approx(base.damping, abs=1e-5) and held.value[0] < -0.05  # the damping's error, as a tilt
 
 
+def test_a_constant_deceleration_and_the_damping_are_told_apart(params):
+    """Windows of shots at 0.2-3 m/s on a table with damping 0.1 1/s and a constant deceleration mu_s 0.03
+    m/s^2 (configured: 0.125 and 0), all toward +x within 35 degrees (a human's): learning mu_s too
+    recovers both; with mu_s held at 0 (friction_prior_std 0, the old learning) the constant part turns
+    up as a tilt against the shots and in the damping, and the report says mu_s was not learned."""
+    base = base_law(params)
+    assert base.friction_surface == 0.0
+    rng = np.random.default_rng(8)
+    g, d, mu = np.array([0.0, 0.02]), 0.1, 0.03
+    windows = []
+    for _ in range(400):
+        v = rng.uniform(0.2, 3.0) * np.array([math.cos(a := rng.uniform(-0.6, 0.6)), math.sin(a)])
+        windows.append((g - d * v - mu * v / np.linalg.norm(v) + rng.normal(0.0, 0.01, 2), np.full(2, 1e-4), v))
+    free = AccelerationAdaptation(base, AccelerationSettings(**{**FLIGHT.__dict__, "friction_prior_std": 0.1}))
+    held = AccelerationAdaptation(base, FLIGHT)
+    for w in windows:
+        assert free.observe(*w)
+        held.observe(*w)
+    assert free.damping == pytest.approx(d, abs=3e-3) and free.friction_surface == pytest.approx(mu, abs=3e-3)
+    assert free.value == pytest.approx(tuple(g), abs=2e-3)
+    report = free.report()
+    assert report["friction_surface"] == free.friction_surface and 0.0 < report["friction_surface_std"] < 5e-3
+    assert held.friction_surface == 0.0 and held.report()["friction_surface_std"] is None
+    assert held.value[0] < -0.015 and held.damping > d + 0.003  # mu_s taken as a tilt against the shots and as damping
+
+
 def test_a_window_a_hand_pushed_is_not_learned_from(params):
     """A puck pushed by a hand at 0.5 m/s^2 (smoothly: its fit is precise) among free-flight windows of a
     level table: refused, the estimate stays level."""
@@ -316,8 +342,9 @@ def test_a_window_a_hand_pushed_is_not_learned_from(params):
 
 def test_the_filter_learns_the_test_beds_tilt_and_the_models_own_flight_stays(params):
     """A test-bed session (tilt 0.002 rad toward +y: 0.0196 m/s^2, an air film of 0.01 m/s^2, random
-    accelerations of 0.01 m/s^2, config/synthetic.yaml): the learned table acceleration is the tilt's;
-    on the model's own shots (no tilt, the configured damping) nothing moves."""
+    accelerations of 0.01 m/s^2, config/synthetic.yaml): the learned table acceleration is the tilt's,
+    the damping and the surface friction the test bed's; on the model's own shots (no tilt, the
+    configured damping, no surface friction) nothing moves."""
     from test_evaluation import SHOTS, REAL_LIKE
     from air_hockey_agent.core.estimation.synthetic import synthetic_session
     ekf = PuckEKF.from_params(params)
@@ -327,12 +354,16 @@ def test_the_filter_learns_the_test_beds_tilt_and_the_models_own_flight_stays(pa
     learned = ekf.learning.acceleration
     assert learned.windows >= 100
     assert learned.value == pytest.approx((0.0, 0.0196), abs=4e-3)
+    # the flight law's two parts too (test bed: d 0.1, mu_s 0.02; configured 0.125 and 0), within 2 std
+    assert learned.damping == pytest.approx(0.1, abs=0.012) and learned.friction_surface == pytest.approx(0.02, abs=0.011)
+    assert ekf.model.params.friction_surface == learned.friction_surface
     ekf = PuckEKF.from_params(params)
     session = synthetic_session(ekf.model, SHOTS, 8, 120.0, REAL_LIKE, np.random.default_rng(3), 0.002)
     evaluate_stream(ekf, [(f.stamp, f.measurement) for f in session], EvaluationTotals((1.0,)))
     learned = ekf.learning.acceleration
     assert learned.windows >= 30  # 57 (6 shots gave 29 once posts turned some pucks into the goals)
     assert learned.value == pytest.approx((0.0, 0.0), abs=3e-3) and learned.damping == pytest.approx(0.125, abs=0.01)
+    assert learned.friction_surface < 0.01
 
 
 def decaying_angles(rng, k, spin, noise, frames=30, rate=120.0):

@@ -207,6 +207,7 @@ def _priors_text(priors: dict) -> str:
     parts = {"rim_adaptation.prior_impacts": lambda v: f"the rim law worth {v:g} impacts",
              "acceleration_adaptation.prior_std": lambda v: f"table acceleration +- {v:.2g} m/s^2",
              "acceleration_adaptation.damping_prior_std": lambda v: f"damping +- {v:.2g} 1/s",
+             "acceleration_adaptation.friction_prior_std": lambda v: f"surface friction +- {v:.2g} m/s^2",
              "acceleration_adaptation.spin_prior_std": lambda v: f"spin damping +- {v:.2g} 1/s"}
     return "online learning's priors (with --out): " + ", ".join(parts[n](v) for n, v in priors.items())
 

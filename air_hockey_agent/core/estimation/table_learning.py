@@ -54,29 +54,44 @@ class AccelerationSettings:
     gate: float          # squared Mahalanobis distance (2 dof) beyond which a window is no free flight
     spin_prior_std: float  # [1/s] of the configured spin_damping (0: it is not learned)
     spin_gate: float     # squared distance (1 dof) beyond which a window's spin is not the table's
+    friction_prior_std: float = 0.0  # [m/s^2] of the configured friction_surface (0: it is not learned)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AccelerationSettings":
         p = "acceleration_adaptation."
         return cls(*(params[p + name] for name in ("enabled", "prior_std", "damping_prior_std", "field_std", "window",
                                                     "min_frames", "min_speed", "gate", "spin_prior_std",
-                                                    "spin_gate")))
+                                                    "spin_gate", "friction_prior_std")))
 
 
 class AccelerationAdaptation:
-    """Gaussian estimate of the table acceleration g = (gx, gy) [m/s^2] and the damping d [1/s] from
-    free-flight windows: each window's acceleration a at velocity v is ``g - d v - mu_s v/|v|``
-    (eq. 3.1 with the table acceleration), linear in (gx, gy, d) once mu_s is taken as configured. Fitting
-    d too keeps a wrong configured damping out of g when the shots share a direction (a human's)."""
+    """Gaussian estimate of the table acceleration g = (gx, gy) [m/s^2], the damping d [1/s] and the
+    surface friction mu_s [m/s^2] from free-flight windows: each window's acceleration a at velocity v is
+    ``g - d v - mu_s v/|v|`` (eq. 3.1 with the table acceleration), linear in (gx, gy, d, mu_s). Fitting d
+    too keeps a wrong configured damping out of g when the shots share a direction (a human's); fitting
+    mu_s keeps a constant deceleration out of d, which would otherwise take it as d + mu_s / |v| at the
+    session's typical speed and mispredict faster and slower pucks. With ``friction_prior_std`` 0, mu_s
+    stays as configured and only (gx, gy, d) are fitted."""
 
     def __init__(self, base: PuckParams, settings: AccelerationSettings) -> None:
         self.settings, self.friction = settings, base.friction_surface
+        self.learns_friction = settings.friction_prior_std > 0.0
         self.windows = 0
-        self._information = np.diag([settings.prior_std ** -2] * 2 + [settings.damping_prior_std ** -2])
-        self._weighted = self._information @ np.array([*base.table_acceleration, base.damping])
+        stds = [settings.prior_std] * 2 + [settings.damping_prior_std]
+        prior = [*base.table_acceleration, base.damping]
+        if self.learns_friction:
+            stds.append(settings.friction_prior_std)
+            prior.append(base.friction_surface)
+        self._information = np.diag(np.array(stds) ** -2.0)
+        self._weighted = self._information @ np.array(prior)
 
     def _mean(self) -> np.ndarray:
-        return np.linalg.solve(self._information, self._weighted)
+        """The posterior mean; where its mu_s is below 0 (a friction cannot push), the mean of the rest
+        given mu_s = 0, so that the others do not keep what they took on to balance a negative mu_s."""
+        mean = np.linalg.solve(self._information, self._weighted)
+        if self.learns_friction and mean[3] < 0.0:
+            mean = np.append(np.linalg.solve(self._information[:3, :3], self._weighted[:3]), 0.0)
+        return mean
 
     @property
     def value(self) -> tuple[float, float]:
@@ -88,7 +103,13 @@ class AccelerationAdaptation:
         return max(0.0, float(self._mean()[2]))
 
     @property
-    def std(self) -> tuple[float, float, float]:
+    def friction_surface(self) -> float:
+        """[m/s^2] mu_s: learned (never below 0), or the configured one."""
+        return float(self._mean()[3]) if self.learns_friction else self.friction
+
+    @property
+    def std(self) -> tuple[float, ...]:
+        """Standard errors of (gx, gy, d[, mu_s])."""
         return tuple(float(s) for s in np.sqrt(np.diag(np.linalg.inv(self._information))))
 
     def observe(self, acceleration: np.ndarray, variance: np.ndarray, velocity: np.ndarray) -> bool:
@@ -97,8 +118,12 @@ class AccelerationAdaptation:
         mallet moved the puck, not the table)."""
         vx, vy = velocity.tolist()
         speed = math.hypot(vx, vy)
-        known = -self.friction * np.array([vx, vy]) / speed  # the configured surface friction's part
-        design = np.array([[1.0, 0.0, -vx], [0.0, 1.0, -vy]])
+        if self.learns_friction:
+            known = np.zeros(2)
+            design = np.array([[1.0, 0.0, -vx, -vx / speed], [0.0, 1.0, -vy, -vy / speed]])
+        else:
+            known = -self.friction * np.array([vx, vy]) / speed  # the configured surface friction's part
+            design = np.array([[1.0, 0.0, -vx], [0.0, 1.0, -vy]])
         noise = np.asarray(variance, float) + self.settings.field_std ** 2
         unexplained = np.asarray(acceleration, float) - known
         innovation = unexplained - design @ self._mean()
@@ -112,9 +137,12 @@ class AccelerationAdaptation:
         return True
 
     def report(self) -> dict:
-        sx, sy, sd = self.std
+        """Windows, value and std [m/s^2] of g, the damping and its std [1/s], the surface friction and its
+        std [m/s^2] (std None when it is not learned)."""
+        sx, sy, sd, *sf = self.std
         return {"windows": self.windows, "value": list(self.value), "std": [sx, sy],
-                "damping": self.damping, "damping_std": sd}
+                "damping": self.damping, "damping_std": sd,
+                "friction_surface": self.friction_surface, "friction_surface_std": sf[0] if sf else None}
 
 
 def quadratic_fit(times: list[float], poses: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
@@ -177,7 +205,8 @@ class TableLearning:
         """The configured parameters with what was learned so far."""
         p = self.base if self.rim is None else self.rim.params()
         if self.acceleration is not None and self.acceleration.windows:
-            p = p.with_values(table_acceleration=self.acceleration.value, damping=self.acceleration.damping)
+            p = p.with_values(table_acceleration=self.acceleration.value, damping=self.acceleration.damping,
+                              friction_surface=self.acceleration.friction_surface)
         if self.spin is not None and self.spin.windows:
             p = p.with_values(spin_damping=self.spin.value)
         if self.delay is not None and self.delay.impacts:
@@ -296,9 +325,12 @@ def describe_learning(report: dict) -> str:
     flight = report["table_acceleration"]
     if flight is not None:
         (gx, gy), (sx, sy) = flight["value"], flight["std"]
-        parts.append(f"table acceleration ({gx:+.4f} +- {sx:.4f}, {gy:+.4f} +- {sy:.4f}) m/s^2 and damping "
-                     f"{flight['damping']:.4f} +- {flight['damping_std']:.4f} 1/s from {flight['windows']} "
-                     f"free-flight window{'' if flight['windows'] == 1 else 's'}")
+        friction = ("" if flight.get("friction_surface_std") is None else
+                    f", surface friction {flight['friction_surface']:.4f} +- {flight['friction_surface_std']:.4f} "
+                    f"m/s^2")
+        parts.append(f"table acceleration ({gx:+.4f} +- {sx:.4f}, {gy:+.4f} +- {sy:.4f}) m/s^2, damping "
+                     f"{flight['damping']:.4f} +- {flight['damping_std']:.4f} 1/s{friction} from "
+                     f"{flight['windows']} free-flight window{'' if flight['windows'] == 1 else 's'}")
     if report.get("spin_damping") is not None:
         parts.append(describe_spin(report["spin_damping"]))
     delay = report.get("impact_delay")

@@ -148,16 +148,17 @@ def learning_priors(result: SplitResult, kept: Collection[str], std: Mapping[str
                     ranges: Mapping[str, tuple[float, float]]) -> dict[str, float]:
     """What the online learning (``rim_adaptation``, ``acceleration_adaptation`` in config/tracker.yaml) should
     take as its priors' weights when it starts from this identification, by tracker parameter name: the rim
-    law is worth the impacts it was fitted to (``prior_impacts``), the table acceleration, damping and spin
-    damping their standard errors (``std``). Only for parameters in ``kept`` (identified and left as fitted:
-    a polished value has neither), each within its parameter's (low, high) in ``ranges``; an error of 0 (the
-    fit could not tell) leaves the configured prior. The configured priors are a stranger's table's, weak by
+    law is worth the impacts it was fitted to (``prior_impacts``), the table acceleration, damping, surface
+    friction and spin damping their standard errors (``std``). Only for parameters in ``kept`` (identified
+    and left as fitted: a polished value has neither), each within its parameter's (low, high) in
+    ``ranges``; an error of 0 (the fit could not tell) leaves the configured prior. The configured priors are a stranger's table's, weak by
     design; kept after an identification they let a session's windows replace a better estimate."""
     priors = {}
     if result.impacts is not None and result.impacts.impacts and any(n in kept for n in IMPACT_NAMES):
         priors["rim_adaptation.prior_impacts"] = float(result.impacts.impacts)
     errors = {"table_acceleration": "acceleration_adaptation.prior_std",
               "damping": "acceleration_adaptation.damping_prior_std",
+              "friction_surface": "acceleration_adaptation.friction_prior_std",
               "spin_damping": "acceleration_adaptation.spin_prior_std"}
     for name, prior in errors.items():
         value = float(np.max(std[name])) if name in kept and name in std else 0.0
