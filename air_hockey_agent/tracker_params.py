@@ -81,6 +81,9 @@ TRACKER_PARAMS = (
     ParamSpec("rim_adaptation.knee_count", int, "restitution knees tried, evenly from 0 to knee_max (0: the "
               "configured one only)", 0, 1000),
     ParamSpec("rim_adaptation.knee_max", float, "[m/s] the fastest restitution knee tried", 0.0, 20.0),
+    ParamSpec("rim_adaptation.fall_width_count", int, "widths of the restitution's fall tried, evenly up to "
+              "fall_width_max (0: the configured one only)", 0, 1000),
+    ParamSpec("rim_adaptation.fall_width_max", float, "[m/s] the widest fall of the restitution tried", 0.0, 20.0),
     ParamSpec("rim_adaptation.stick_friction_rim", float, "[-] mu_rim of a learned rim law whose tangential impulse "
               "is a fraction of Routh's sticking one", 0.0, 100.0),
     ParamSpec("rim_adaptation.max_delay", float, "[s] an impact whose paths meet farther from the rim line than "

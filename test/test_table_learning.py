@@ -8,7 +8,7 @@ import pytest
 
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, _filter_pass, evaluate_stream
-from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, fall_regressors,
+from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, fall_regressors, fall_width,
                                                              outgoing_fit, scaled_params)
 from air_hockey_agent.core.estimation.spin_adaptation import SpinAdaptation
 from air_hockey_agent.core.estimation.table_learning import AccelerationAdaptation, AccelerationSettings, quadratic_fit
@@ -165,13 +165,50 @@ def test_the_knee_where_the_restitution_starts_to_fall_is_found(params):
     assert learned[0].knee == base.restitution_knee and abs(learned[0].fall_scale - 1.2) > 0.01
 
 
+def test_the_width_over_which_the_restitution_falls_to_its_floor_is_found(params):
+    """Rims whose restitution falls from 0.96 at 0.5 m/s to 0.45 at 3.0 m/s (a floor lower and later than
+    the configured law's 0.67 at 2.0 m/s: its fall runs over 2.5 m/s of normal speed, not 1.5) at the
+    same slope: of the (knee, width) pairs tried (config/tracker.yaml's grids) the true one fits
+    exactly and the learned law is the truth up to 4 m/s; with the configured width only, the fit bends
+    the knee and the level to the fast impacts and mispredicts the slow ones."""
+    base = base_law(params)
+    truth = scaled_params(base, 1.0, 1.0, fall_scale=1.0, knee=0.5, width=2.5)
+    assert truth.restitution_min == pytest.approx(0.96 - 0.193 * 2.5)
+    rng = np.random.default_rng(9)
+    impacts = [(rng.uniform(-1.0, 1.0), -rng.uniform(0.15, 4.0), 0.0) for _ in range(300)]
+    learned = {}
+    for count in (16, 0):  # config/tracker.yaml's widths (0.25, 0.5, ... 4.0 m/s), and the configured one only
+        settings = AdaptationSettings(**{**SETTINGS.__dict__, "prior_impacts": 0.0, "knee_count": 41,
+                                         "knee_max": 2.0, "fall_width_count": count, "fall_width_max": 4.0})
+        adapt = RimAdaptation(base, TABLE, settings)
+        for before in impacts:
+            assert adapt.observe(before, impact_of(truth, before))
+        learned[count] = adapt
+    grid = learned[16]
+    for before in impacts[:10]:  # all pairs at once as one pair at a time
+        for knee, width, row in zip(grid.knees, grid.widths, grid._regressors(before[1])):
+            level, fall = fall_regressors(base, before[1], knee, width)
+            assert tuple(row) == pytest.approx((level, -fall), rel=1e-12, abs=1e-15)
+    assert grid.width == pytest.approx(2.5) and grid.knee == pytest.approx(0.5) and grid.report()["fall_width"] == 2.5
+    assert grid.params().restitution_min == pytest.approx(truth.restitution_min, abs=1e-6)
+    for vn in (0.3, 1.0, 2.0, 3.5):
+        assert impact_of(grid.params(), (0.1, -vn, 0.0)).vn == pytest.approx(impact_of(truth, (0.1, -vn, 0.0)).vn, rel=1e-6)
+    fixed = learned[0]
+    assert fixed.width == fall_width(base) and len(fixed.widths) == len(fixed.knees) == 41
+    errors = [impact_of(fixed.params(), (0.1, -vn, 0.0)).vn / impact_of(truth, (0.1, -vn, 0.0)).vn - 1.0
+              for vn in (0.3, 1.0, 2.0, 3.5)]
+    assert max(map(abs, errors)) > 0.1  # (the knee and the level bend to the fast impacts: 0.3 m/s off by 14 %)
+
+
 def test_noise_does_not_move_the_knee_and_a_real_knee_is_found(params):
     """Outgoing normal speeds with noise (0.01 m/s + 1 % of the speed, an outgoing fit's), 200 impacts
-    from 0.15 to 3 m/s, ten sessions each: a constant restitution 0.947 (no fall: every knee fits it as
-    well, up to the noise) keeps the configured knee, where the knee with the least sum of squares alone
-    went anywhere from 0.25 to 2.0 m/s; rims that lose from 1.0 m/s are found all the same."""
+    from 0.15 to 3 m/s, ten sessions each, with config/tracker.yaml's grids of knees and fall widths: a
+    constant restitution 0.947 (no fall: every knee fits it as well, up to the noise) keeps the configured
+    knee and width, where the knee with the least sum of squares alone went anywhere from 0.25 to 2.0 m/s;
+    rims that lose from 1.0 m/s are found all the same."""
     base = base_law(params)
-    settings = AdaptationSettings(**{**SETTINGS.__dict__, "knee_count": 41, "knee_max": 2.0})
+    settings = AdaptationSettings(**{**SETTINGS.__dict__, "knee_count": 41, "knee_max": 2.0, "fall_width_count": 16,
+                                     "fall_width_max": 4.0})
     kneed = scaled_params(base, 0.95 / 0.96, 1.0, fall_scale=1.0, knee=1.0)
     truths = {"constant": lambda before: 0.947 * -before[1], "knee 1.0": lambda before: impact_of(kneed, before).vn}
     for name, truth in truths.items():
@@ -184,6 +221,8 @@ def test_noise_does_not_move_the_knee_and_a_real_knee_is_found(params):
                 assert adapt.observe(before, (out.vb, truth(before) + rng.normal(0.0, 0.01 - 0.01 * before[1]), out.omega))
             expected = base.restitution_knee if name == "constant" else 1.0
             assert adapt.knee == pytest.approx(expected, abs=0.051), (name, seed)
+            if name == "constant":  # no fall: no width either
+                assert adapt.width == fall_width(base), (name, seed)
             for vn in (0.3, 1.0, 2.5):
                 assert impact_of(adapt.params(), (0.1, -vn, 0.0)).vn == pytest.approx(truth((0.1, -vn, 0.0)), rel=0.02)
 

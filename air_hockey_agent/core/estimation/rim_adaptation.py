@@ -16,7 +16,11 @@ scales the configured law by numbers it estimates from each rim impact it observ
   ``knee_max`` and the configured one: (k, f) are fitted for each, and the knee whose fit leaves the
   least sum of squares (the prior's pseudo-impacts included) wins, another knee than the configured one
   only by more than the Bayesian information criterion's price of one more parameter (``ln n`` times the
-  best fit's residual variance, n impacts): noise alone does not move it;
+  best fit's residual variance, n impacts): noise alone does not move it. So is the fall's width w, the
+  normal speeds over which it runs from the knee to its floor (``fall = slope min(max(|vn| - knee, 0),
+  w)``; configured: ``(e - e_min) / slope``), among ``fall_width_count`` widths up to ``fall_width_max``:
+  a table whose restitution keeps falling past the configured floor's speed, or stops sooner, gets its
+  own floor ``k e - f slope w``; a width other than the configured one pays BIC's price too;
 * the tangential impulse, in one of two forms, whichever fits the impacts better (the configured
   form unless the other beats it by BIC's price of a parameter, as the knee):
 
@@ -69,6 +73,8 @@ class AdaptationSettings:
     max_delay: float = 0.01   # [s] paths meeting farther from the rim than this times the speed: no rim's
     offset_warning: float = 0.001  # [m] a rim whose impacts meet farther from its line (and beyond ...
     offset_significance: float = 3.0  # [-] ... this many standard errors) is said to be off
+    fall_width_count: int = 0  # fall widths tried, evenly up to fall_width_max (0: the configured one only)
+    fall_width_max: float = 0.0  # [m/s] the widest fall tried
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AdaptationSettings":
@@ -76,12 +82,20 @@ class AdaptationSettings:
         return cls(*(params[p + name] for name in ("enabled", "prior_impacts", "window", "min_frames",
                                                     "min_normal_speed", "max_scale", "max_incoming_uncertainty",
                                                     "knee_count", "knee_max", "stick_friction_rim",
-                                                    "max_delay", "offset_warning", "offset_significance")))
+                                                    "max_delay", "offset_warning", "offset_significance",
+                                                    "fall_width_count", "fall_width_max")))
 
     def knees(self, configured: float) -> np.ndarray:
         """The knees tried [m/s]: the configured one first, then ``knee_count`` from 0 to ``knee_max``."""
         grid = np.linspace(0.0, self.knee_max, self.knee_count) if self.knee_count > 1 else \
             np.zeros(self.knee_count)
+        return np.concatenate(([configured], grid[np.abs(grid - configured) > 1e-9]))
+
+    def widths(self, configured: float) -> np.ndarray:
+        """The fall widths tried [m/s]: the configured one first, then ``fall_width_count`` evenly from
+        ``fall_width_max / fall_width_count`` to ``fall_width_max``."""
+        count = self.fall_width_count
+        grid = np.linspace(self.fall_width_max / count, self.fall_width_max, count) if count else np.zeros(0)
         return np.concatenate(([configured], grid[np.abs(grid - configured) > 1e-9]))
 
 
@@ -97,32 +111,40 @@ def _falls(law: PuckParams) -> bool:
     return law.restitution_slope > 0.0 and law.restitution_min < law.restitution
 
 
-def fall_regressors(base: PuckParams, incoming_normal_speed: float, knee=None):
+def fall_width(law: PuckParams) -> float:
+    """[m/s] The normal speeds over which ``law``'s restitution falls from its knee to its floor (0
+    without a fall)."""
+    return (law.restitution - law.restitution_min) / law.restitution_slope if _falls(law) else 0.0
+
+
+def fall_regressors(base: PuckParams, incoming_normal_speed: float, knee=None, width=None):
     """``(e |vn|, fall(|vn|) |vn|)`` [m/s] of ``base``'s restitution law (module docstring), its fall
-    starting at ``knee`` [m/s] (None: the law's own; an array of knees gives an array of falls): the
-    outgoing normal speed is ``k`` times the first less ``f`` times the second. A law without a fall has
-    the whole outgoing speed in the first."""
+    starting at ``knee`` [m/s] and running over ``width`` [m/s] of normal speed (None: the law's own;
+    arrays of knees and widths give an array of falls): the outgoing normal speed is ``k`` times the first
+    less ``f`` times the second. A law without a fall has the whole outgoing speed in the first."""
     speed = abs(incoming_normal_speed)
     e, floor = base.restitution, base.restitution_min
     knee = base.restitution_knee if knee is None else knee
+    width = fall_width(base) if width is None else width
     if not _falls(base):
-        return max(e, floor) * speed, np.zeros_like(knee, dtype=float)
-    fall = np.minimum(base.restitution_slope * np.maximum(speed - knee, 0.0), e - floor)
+        return max(e, floor) * speed, np.zeros_like(np.asarray(knee) + np.asarray(width), dtype=float)
+    fall = base.restitution_slope * np.minimum(np.maximum(speed - knee, 0.0), width)
     return e * speed, fall * speed
 
 
 def scaled_params(base: PuckParams, restitution_scale: float, tangential_scale: float,
-                  fall_scale: float | None = None, knee: float | None = None) -> PuckParams:
+                  fall_scale: float | None = None, knee: float | None = None, width: float | None = None) -> PuckParams:
     """``base`` with its rim law scaled (module docstring; ``fall_scale`` None: the restitution's fall
-    scaled with it, the whole law by ``restitution_scale``), its fall from ``knee`` [m/s] (None: the
-    law's own); restitutions kept in [0, 1], beta in [-1, 1]."""
+    scaled with it, the whole law by ``restitution_scale``), its fall from ``knee`` [m/s] over ``width``
+    [m/s] of normal speed (None: the law's own); restitutions kept in [0, 1], beta in [-1, 1]."""
     k, s = restitution_scale, tangential_scale
     f = k if fall_scale is None else max(0.0, fall_scale)  # a restitution rising with speed is no rim's
     e = base.restitution
     if not _falls(base):  # the level alone
         floor, slope = base.restitution_min * k, base.restitution_slope
     else:
-        floor, slope = k * e - f * (e - base.restitution_min), base.restitution_slope * f
+        width = fall_width(base) if width is None else width
+        floor, slope = k * e - f * base.restitution_slope * width, base.restitution_slope * f
     if knee is not None and slope > 0.0:
         base = base.with_values(restitution_knee=knee)
     return base.with_values(restitution=min(1.0, e * k), restitution_min=min(1.0, max(0.0, floor)),
@@ -137,14 +159,18 @@ class RimAdaptation:
         self.base, self.settings = base, settings
         self.radius = table.puck_radius
         self.impacts = 0
-        # normal, per knee tried: sums over impacts of x x^T, x o and x c, x = (e |vn|, -fall |vn|) with the
-        # fall from that knee, o the observed outgoing normal speed, c the configured law's [m^2/s^2]; and
-        # of o^2, c^2. Tangential: of the law's impulse per mass times the observed, and squared.
-        self.knees = settings.knees(base.restitution_knee)
+        # normal, per (knee, width) tried: sums over impacts of x x^T, x o and x c, x = (e |vn|, -fall |vn|)
+        # with that fall, o the observed outgoing normal speed, c the configured law's [m^2/s^2]; and of
+        # o^2, c^2. Tangential: of the law's impulse per mass times the observed, and squared. The
+        # configured (knee, width) first.
+        knees, widths = settings.knees(base.restitution_knee), settings.widths(fall_width(base))
+        self.knees, self.widths = np.repeat(knees, len(widths)), np.tile(widths, len(knees))
+        self._freedom = (self.knees != knees[0]).astype(float) + (self.widths != widths[0])  # BIC parameters
+        self._fitted = 2 + int(len(knees) > 1) + int(len(widths) > 1)  # k, f and the grids' dimensions
         self._xx, self._xo, self._xc = np.zeros((len(self.knees), 2, 2)), np.zeros((len(self.knees), 2)), \
             np.zeros((len(self.knees), 2))
         self._oo = self._cc = 0.0
-        self._fit = (1.0, 1.0, base.restitution_knee)  # (k, f, knee) of the impacts so far (:meth:`_restitution`)
+        self._fit = (1.0, 1.0, base.restitution_knee, widths[0])  # (k, f, knee, width) (:meth:`_restitution`)
         # tangential, over impacts: the law's impulse per mass a [m/s] (configured form) and Routh's sticking
         # one x = -c / 3 (stick-fraction form), seen = (from vb, from the spin): sums of a (seen0 + seen1),
         # 2 a^2; of x (seen0 + seen1), 2 x^2, 2 x a (the prior: the configured law's impulses); seen0^2 + seen1^2
@@ -170,33 +196,42 @@ class RimAdaptation:
         (k, f) fits best (the configured one until another fits better)."""
         return self._fit[2]
 
-    def _restitution(self) -> tuple[float, float, float]:
-        """(k, f, knee): for each knee tried, least squares of the observed outgoing normal speeds and of
-        ``prior_impacts`` pseudo-impacts of the mean impact seen that the configured law predicts exactly
-        (the estimate moves from the configured law toward the impacts' own fit as they outnumber it);
-        the knee with the least sum of squares wins, a knee other than the configured one (the first
-        tried) paying BIC's ``ln n`` residual variances for being chosen. A fall no impact has shown (none
-        faster than the knee) stays at 1. k and f kept in [1 / max_scale, max_scale] and [0, max_scale]."""
+    @property
+    def width(self) -> float:
+        """[m/s] the normal speeds over which the restitution falls to its floor: of the widths tried, the
+        one whose (k, f) fits best (the configured one until another fits better)."""
+        return self._fit[3]
+
+    def _restitution(self) -> tuple[float, float, float, float]:
+        """(k, f, knee, width): for each (knee, width) tried, least squares of the observed outgoing normal
+        speeds and of ``prior_impacts`` pseudo-impacts of the mean impact seen that the configured law
+        predicts exactly (the estimate moves from the configured law toward the impacts' own fit as they
+        outnumber it); the pair with the least sum of squares wins, a knee and a width other than the
+        configured ones each paying BIC's ``ln n`` residual variances for being chosen. A fall no impact
+        has shown (none faster than the knee) stays at 1. k and f kept in [1 / max_scale, max_scale] and
+        [0, max_scale]."""
         if self.impacts == 0:
-            return 1.0, 1.0, self.base.restitution_knee
+            return self._fit
         w = self.settings.prior_impacts / self.impacts
-        b = self._xo + w * self._xc                               # (knees, 2)
-        weighted = (1.0 + w) * self._xx
-        a = weighted.copy()
-        ridge = PRIOR_FLOOR * a[:, 0, 0]                          # f = 1 until the fall is seen: solvable
-        a[:, 1, 1] += ridge
-        b[:, 1] += ridge
-        theta = np.linalg.solve(a, b[..., None])[..., 0]          # (knees, 2)
-        quad = np.einsum("ki,kij,kj->k", theta, weighted, theta)
-        cost = self._oo + w * self._cc - 2.0 * np.einsum("ki,ki->k", theta, b) + quad
-        variance = max(cost.min(), 0.0) / max(self.impacts - 3, 1)  # per impact, of the best fit (k, f, knee)
-        cost[1:] += np.log(self.impacts) * variance               # BIC: the knee is one more parameter
-        # ties (knees no impact tells apart: all above the fastest, say) go to the one nearest the configured
+        b0, b1 = (self._xo + w * self._xc).T                      # (pairs,) each
+        s00, s01, s11 = ((1.0 + w) * self._xx[:, i, j] for i, j in ((0, 0), (0, 1), (1, 1)))
+        ridge = PRIOR_FLOOR * s00                                 # f = 1 until the fall is seen: solvable
+        b1 = b1 + ridge
+        a11 = s11 + ridge
+        det = s00 * a11 - s01 * s01                               # the 2x2 normal equations in closed form
+        k_all, f_all = (a11 * b0 - s01 * b1) / det, (s00 * b1 - s01 * b0) / det
+        quad = s00 * k_all * k_all + 2.0 * s01 * k_all * f_all + s11 * f_all * f_all
+        cost = self._oo + w * self._cc - 2.0 * (k_all * b0 + f_all * b1) + quad
+        variance = max(cost.min(), 0.0) / max(self.impacts - self._fitted, 1)  # per impact, of the best fit
+        cost += np.log(self.impacts) * variance * self._freedom   # BIC: a knee, a width, each one more parameter
+        # ties (fits no impact tells apart: all knees above the fastest, say) go to the one nearest the configured
         tied = np.flatnonzero(cost <= cost.min() + TIE * (self._oo + w * self._cc))
-        best = int(tied[np.argmin(np.abs(self.knees[tied] - self.base.restitution_knee))])
+        distance = np.abs(self.knees[tied] - self.knees[0]) + np.abs(self.widths[tied] - self.widths[0])
+        best = int(tied[np.argmin(distance)])
         bound = self.settings.max_scale
-        k, f = theta[best]
-        return float(min(max(k, 1.0 / bound), bound)), float(min(max(f, 0.0), bound)), float(self.knees[best])
+        k, f = k_all[best], f_all[best]
+        return (float(min(max(k, 1.0 / bound), bound)), float(min(max(f, 0.0), bound)), float(self.knees[best]),
+                float(self.widths[best]))
 
     @property
     def tangential_scale(self) -> float:
@@ -241,10 +276,10 @@ class RimAdaptation:
         """The rim law learned so far (``base`` itself before any impact)."""
         if self.impacts == 0:
             return self.base
-        k, f, knee = self._fit
+        k, f, knee, width = self._fit
         if not self._stick_form:
-            return scaled_params(self.base, k, self.tangential_scale, f, knee)
-        law = scaled_params(self.base, k, 1.0, f, knee)
+            return scaled_params(self.base, k, self.tangential_scale, f, knee, width)
+        law = scaled_params(self.base, k, 1.0, f, knee, width)
         return law.with_values(friction_rim=max(law.friction_rim, self.settings.stick_friction_rim),
                                tangential_restitution=self.stick_fraction - 1.0)
 
@@ -252,8 +287,8 @@ class RimAdaptation:
         """The law learned so far, for reports: impacts learned from, both scales and the scaled rim
         parameters (names as in ``config/tracker.yaml``)."""
         p = self.params()
-        k, f, knee = self._fit
-        return {"impacts": self.impacts, "restitution_scale": k, "fall_scale": f, "knee": knee,
+        k, f, knee, width = self._fit
+        return {"impacts": self.impacts, "restitution_scale": k, "fall_scale": f, "knee": knee, "fall_width": width,
                 "tangential_scale": self.tangential_scale, "stick_fraction": self.stick_fraction,
                 "tangential_form": "stick fraction" if self._stick_form else "scaled",
                 "params": {n: getattr(p, n) for n in ("restitution", "restitution_knee", "restitution_slope",
@@ -269,8 +304,8 @@ class RimAdaptation:
             return False
         configured = self._impact(self.base, before).vn  # the configured law's outgoing normal speed [m/s]
         ratio = after[1] / configured
-        k, f, knee = self._fit
-        law = scaled_params(self.base, k, 1.0, f, knee)
+        k, f, knee, width = self._fit
+        law = scaled_params(self.base, k, 1.0, f, knee, width)
         model = self._impact(law, before).vb - vb  # the law's tangential impulse per mass [m/s], e learned so far
         seen = (after[0] - vb, 0.5 * self.radius * (after[2] - omega))  # from vb, and from the spin
         stick = -(vb + self.radius * omega) / 3.0  # Routh's sticking impulse per mass [m/s]
@@ -298,8 +333,8 @@ class RimAdaptation:
         return True
 
     def _regressors(self, vn: float) -> np.ndarray:
-        """(knees, 2): x = (e |vn|, -fall |vn|) with the fall from each knee tried."""
-        level, fall = fall_regressors(self.base, vn, self.knees)
+        """(pairs, 2): x = (e |vn|, -fall |vn|) with the fall of each (knee, width) tried."""
+        level, fall = fall_regressors(self.base, vn, self.knees, self.widths)
         return np.column_stack((np.full(len(self.knees), level), -fall))
 
     def _impact(self, law: PuckParams, before: RimState):
@@ -313,7 +348,8 @@ def describe(report: dict) -> str:
     tangential = f"{report['stick_fraction']:.3f} of Routh's sticking one, uncapped" \
         if report["tangential_form"] == "stick fraction" else f"x{report['tangential_scale']:.3f}"
     return (f"from {impacts} impact{'' if impacts == 1 else 's'}: restitution x{report['restitution_scale']:.3f} "
-            f"(its fall with speed x{report['fall_scale']:.3f} from {report['knee']:.2f} m/s), tangential impulse "
+            f"(its fall with speed x{report['fall_scale']:.3f} from {report['knee']:.2f} m/s over "
+            f"{report['fall_width']:.2f} m/s), tangential impulse "
             f"{tangential}")
 
 
