@@ -84,6 +84,10 @@ TRACKER_PARAMS = (
     ParamSpec("rim_adaptation.fall_width_count", int, "widths of the restitution's fall tried, evenly up to "
               "fall_width_max (0: the configured one only)", 0, 1000),
     ParamSpec("rim_adaptation.fall_width_max", float, "[m/s] the widest fall of the restitution tried", 0.0, 20.0),
+    ParamSpec("rim_adaptation.friction_count", int, "rim frictions tried for Coulomb's bound alone, evenly in the "
+              "logarithm from friction_min to friction_max (0: that form is not tried)", 0, 1000),
+    ParamSpec("rim_adaptation.friction_min", float, "[-] the smallest rim friction tried", 1e-6, 100.0),
+    ParamSpec("rim_adaptation.friction_max", float, "[-] the largest rim friction tried", 1e-6, 100.0),
     ParamSpec("rim_adaptation.stick_friction_rim", float, "[-] mu_rim of a learned rim law whose tangential impulse "
               "is a fraction of Routh's sticking one", 0.0, 100.0),
     ParamSpec("rim_adaptation.max_delay", float, "[s] an impact whose paths meet farther from the rim line than "

@@ -34,7 +34,7 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
                            "spin_damping", "impact_delay", "thesis_style"}
     law = report["rim_law"]  # the bags' shots are flown with the configured physics: learning it keeps it
     assert set(law) == {"impacts", "restitution_scale", "fall_scale", "knee", "fall_width", "tangential_scale",
-                        "stick_fraction", "tangential_form", "params"}
+                        "stick_fraction", "friction_rim", "tangential_form", "params"}
     assert law["tangential_form"] == "scaled"
     assert law["impacts"] >= 3 and abs(law["restitution_scale"] - 1.0) < 0.02
     assert abs(law["fall_scale"] - 1.0) < 0.1 and abs(law["tangential_scale"] - 1.0) < 0.1

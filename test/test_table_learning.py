@@ -113,6 +113,56 @@ def test_rims_pushing_a_fraction_of_rouths_sticking_impulse_are_learned_in_that_
     assert np.median(errors) < (1e-9 if prior == 0.0 else 0.02)
 
 
+GRIDS = {"friction_count": 41, "friction_min": 0.01, "friction_max": 1.0}  # config/tracker.yaml's mu_rim grid
+
+
+@pytest.mark.parametrize("prior", [0.0, 5.0])
+def test_rims_gripping_harder_than_configured_are_learned_in_the_friction_form(params, prior):
+    """Rims that stick as Routh's impact does but whose Coulomb bound is mu_rim 0.3 (the configured 0.098
+    slides many impacts these stick): scaling the configured law cannot hold both (it scales the sticking
+    impulse with the bound), the stick fraction neither (no bound); Coulomb's bound alone with the mu_rim
+    that fits (config/tracker.yaml's grid, 12 % apart, refined between neighbours) does, and is chosen:
+    mu_rim within 2 % and the impulses within 0.5 % (mean) without a prior, 5 % and 1 % with 5 impacts'
+    weight. Each mu_rim's impulses at the configured one are the law's."""
+    base = base_law(params)
+    truth = base.with_values(friction_rim=0.3)  # between the grid's 0.282 and 0.316
+    adapt = RimAdaptation(base, TABLE, AdaptationSettings(**{**SETTINGS.__dict__, "prior_impacts": prior, **GRIDS}))
+    assert len(adapt.frictions) == 42 and adapt.frictions[0] == base.friction_rim
+    impacts = random_impacts(np.random.default_rng(11), 200)
+    for before in impacts[:20]:
+        assert adapt._friction_impulses(base, before)[0] == pytest.approx(impact_of(base, before).vb - before[0], abs=1e-12)
+    for before in impacts:
+        out = impact_of(truth, before)
+        assert adapt.observe(before, (out.vb, out.vn, out.omega))
+    assert adapt.tangential_form == "friction" and adapt.report()["tangential_form"] == "friction"
+    assert adapt.friction_rim == pytest.approx(0.3, rel=0.02 if prior == 0.0 else 0.05)
+    assert adapt.params().friction_rim == adapt.friction_rim
+    errors = [abs(impact_of(adapt.params(), b).vb - impact_of(truth, b).vb) for b in impacts]
+    impulses = [abs(impact_of(truth, b).vb - b[0]) for b in impacts]
+    assert np.mean(errors) < (0.005 if prior == 0.0 else 0.01) * np.mean(impulses)
+    sliding = sum(abs(impact_of(base, b).vb - b[0]) < abs(b[0] + TABLE.puck_radius * b[2]) / 3.0 - 1e-9 for b in impacts)
+    assert sliding > 50  # the configured mu_rim slides many that the truth sticks
+
+
+def test_the_other_forms_stay_chosen_where_they_fit_with_the_friction_form_on_offer(params):
+    """With config/tracker.yaml's mu_rim grid: the test bed's rims (0.3 of the configured law's impulse)
+    stay in the scaled form, soft rims (0.45 of Routh's sticking impulse, unbounded) in the stick
+    fraction, the configured law's own impacts in the scaled form at 1."""
+    base = base_law(params)
+    effects = TableEffects(restitution_slow=0.96, restitution_fast=0.67, restitution_speed_low=0.5,
+                           restitution_speed_high=2.0, friction_rim=base.friction_rim, tangential_scale=0.3)
+    soft = base.with_values(friction_rim=50.0, tangential_restitution=-0.55)
+    truths = {"scaled": lambda b: real_rim_impact(*b, TABLE.puck_radius, effects),
+              "stick fraction": lambda b: tuple(impact_of(soft, b)[:3]),
+              "own": lambda b: tuple(impact_of(base, b)[:3])}
+    for name, truth in truths.items():
+        adapt = RimAdaptation(base, TABLE, AdaptationSettings(**{**SETTINGS.__dict__, **GRIDS}))
+        for before in random_impacts(np.random.default_rng(12), 200):
+            assert adapt.observe(before, truth(before))
+        assert adapt.tangential_form == ("scaled" if name == "own" else name), name
+        assert adapt.friction_rim == base.friction_rim or name != "own"
+
+
 @pytest.mark.parametrize("fast", [True, False])
 def test_a_restitution_that_does_not_fall_with_speed_is_learned(params, fast):
     """Rims that return a constant 0.947 of the normal speed (the pybullet table's) against the configured

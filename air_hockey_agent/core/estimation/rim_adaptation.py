@@ -21,8 +21,8 @@ scales the configured law by numbers it estimates from each rim impact it observ
   w)``; configured: ``(e - e_min) / slope``), among ``fall_width_count`` widths up to ``fall_width_max``:
   a table whose restitution keeps falling past the configured floor's speed, or stops sooner, gets its
   own floor ``k e - f slope w``; a width other than the configured one pays BIC's price too;
-* the tangential impulse, in one of two forms, whichever fits the impacts better (the configured
-  form unless the other beats it by BIC's price of a parameter, as the knee):
+* the tangential impulse, in one of three forms, whichever fits the impacts better (the configured
+  form unless another beats it by BIC's price of a parameter, as the knee):
 
   - ``tangential_scale`` s: s times the configured law's (Routh's sticking impulse with ``(1 + beta)``
     scaled by s, Coulomb's bound with ``mu_rim`` scaled by s: the same impacts stick and slide);
@@ -30,7 +30,12 @@ scales the configured law by numbers it estimates from each rim impact it observ
     restitution ``beta = q - 1``) with ``mu_rim`` raised to ``stick_friction_rim``, so Coulomb's bound
     no longer decides: soft rims whose impulse follows the contact point's slip, not the normal impulse
     (a MuJoCo table's rims return 0.45 of Routh's sticking impulse on every impact and stay far below
-    Coulomb's bound: ``sim/mujoco_table.py``; issue #13's other engine pushed far less than Coulomb's).
+    Coulomb's bound: ``sim/mujoco_table.py``; issue #13's other engine pushed far less than Coulomb's);
+  - ``friction_rim`` alone: Coulomb's bound with its own ``mu_rim``, chosen among ``friction_count``
+    values from ``friction_min`` to ``friction_max`` (evenly in the logarithm) and the configured one,
+    the sticking impulse as configured: rims that grip harder (or slip more) than the configured mu_rim
+    (thesis table 5.3's 0.098) while sticking as Routh's impact does, which the first form cannot hold
+    (it scales the sticking impulse with the bound).
 
 Each is a least-squares estimate with the configured law (scales 1) as a prior worth ``prior_impacts``
 impacts of the mean size seen that the law predicts exactly. An impact is observed in its rim's frame
@@ -41,6 +46,7 @@ estimate), not the filter's post-impact state, which the law being learned has b
 """
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Any, Mapping, NamedTuple, Sequence
 
@@ -73,23 +79,29 @@ class AdaptationSettings:
     max_delay: float = 0.01   # [s] paths meeting farther from the rim than this times the speed: no rim's
     offset_warning: float = 0.001  # [m] a rim whose impacts meet farther from its line (and beyond ...
     offset_significance: float = 3.0  # [-] ... this many standard errors) is said to be off
+    friction_count: int = 0    # rim friction values tried, evenly in the logarithm (0: not learned alone)
+    friction_min: float = 0.01  # [-] the smallest mu_rim tried
+    friction_max: float = 1.0  # [-] the largest
     fall_width_count: int = 0  # fall widths tried, evenly up to fall_width_max (0: the configured one only)
     fall_width_max: float = 0.0  # [m/s] the widest fall tried
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AdaptationSettings":
         p = "rim_adaptation."
-        return cls(*(params[p + name] for name in ("enabled", "prior_impacts", "window", "min_frames",
-                                                    "min_normal_speed", "max_scale", "max_incoming_uncertainty",
-                                                    "knee_count", "knee_max", "stick_friction_rim",
-                                                    "max_delay", "offset_warning", "offset_significance",
-                                                    "fall_width_count", "fall_width_max")))
+        return cls(**{name: params[p + name] for name in cls.__dataclass_fields__})
 
     def knees(self, configured: float) -> np.ndarray:
         """The knees tried [m/s]: the configured one first, then ``knee_count`` from 0 to ``knee_max``."""
         grid = np.linspace(0.0, self.knee_max, self.knee_count) if self.knee_count > 1 else \
             np.zeros(self.knee_count)
         return np.concatenate(([configured], grid[np.abs(grid - configured) > 1e-9]))
+
+    def frictions(self, configured: float) -> np.ndarray:
+        """The rim frictions mu_rim tried [-]: the configured one first, then ``friction_count`` evenly in
+        the logarithm from ``friction_min`` to ``friction_max``."""
+        grid = np.geomspace(self.friction_min, self.friction_max, self.friction_count) if self.friction_count \
+            else np.zeros(0)
+        return np.concatenate(([configured], grid[np.abs(grid - configured) > 1e-12]))
 
     def widths(self, configured: float) -> np.ndarray:
         """The fall widths tried [m/s]: the configured one first, then ``fall_width_count`` evenly from
@@ -177,7 +189,13 @@ class RimAdaptation:
         self._tangential = [0.0, 0.0]
         self._stick = [0.0, 0.0, 0.0]
         self._seen_square = 0.0
-        self._stick_form = False
+        # friction form, per mu_rim tried: sums of the impulse y (seen0 + seen1), 2 y^2, 2 y a; and of 2 a^2
+        self.frictions = settings.frictions(base.friction_rim)
+        self._friction = np.zeros((3, len(self.frictions)))
+        self._law_square = 0.0
+        self._chosen_friction = 0  # index into frictions of the friction form's fit
+        self._refined_friction = float(base.friction_rim)
+        self._form = "scaled"      # the tangential form taken: "scaled", "stick fraction" or "friction"
 
     @property
     def restitution_scale(self) -> float:
@@ -252,16 +270,60 @@ class RimAdaptation:
     def stick_form(self) -> bool:
         """True when the stick-fraction form fits the impacts better than the configured law scaled, by
         more than BIC's ``ln n`` residual variances (n impacts)."""
-        return self._stick_form
+        return self._form == "stick fraction"
 
-    def _prefers_stick(self) -> bool:
-        s, q = self.tangential_scale, self.stick_fraction
+    @property
+    def tangential_form(self) -> str:
+        """The tangential form taken: "scaled" (the configured), "stick fraction" or "friction"."""
+        return self._form
+
+    @property
+    def friction_rim(self) -> float:
+        """[-] mu_rim of the friction form's fit: of the values tried, the one whose impulses with the
+        configured sticking impulse fit best, with ``prior_impacts`` pseudo-impacts of the configured
+        law's impulses (the configured one until another fits better), refined between its neighbours
+        on the grid by the parabola through the three sums of squares (in the logarithm of mu_rim)."""
+        return self._refined_friction
+
+    def _friction_fit(self) -> tuple[int, float]:
+        """Index of the mu_rim tried whose impulses leave the least sum of squares against the impacts and
+        the prior's pseudo-impacts (ties, values no impact tells apart as when none slid, go to the one
+        nearest the configured in the logarithm), and the refined mu_rim (:attr:`friction_rim`)."""
+        cross, square, prior = self._friction
+        w = self.settings.prior_impacts / self.impacts
+        cost = -2.0 * cross + square + w * (square - 2.0 * prior)  # + seen^2 + w a^2, alike for all
+        tied = np.flatnonzero(cost <= cost.min() + TIE * (self._seen_square + w * self._law_square))
+        best = int(tied[np.argmin(np.abs(np.log(self.frictions[tied] / self.frictions[0])))])
+        return best, self._refine(cost, best)
+
+    def _refine(self, cost: np.ndarray, best: int) -> float:
+        """mu_rim at the vertex of the parabola through the sums of squares of ``best`` and its neighbours
+        on the grid (the values after the configured one, ascending), in the logarithm of mu_rim and within
+        half-way to either neighbour; the value tried itself for the configured one, at the grid's ends,
+        or where the sums do not curve upward."""
+        if not 2 <= best <= len(self.frictions) - 2:
+            return float(self.frictions[best])
+        x, y = np.log(self.frictions[best - 1:best + 2]), cost[best - 1:best + 2]
+        slopes = np.diff(y) / np.diff(x)
+        curvature = (slopes[1] - slopes[0]) / (x[2] - x[0])  # half the parabola's second derivative
+        if curvature <= 0.0:
+            return float(self.frictions[best])
+        vertex = 0.5 * (x[0] + x[1]) - slopes[0] / (2.0 * curvature)
+        return float(np.exp(min(max(vertex, 0.5 * (x[0] + x[1])), 0.5 * (x[1] + x[2]))))
+
+    def _choose_form(self) -> str:
+        """The tangential form whose fit leaves the least sum of squares of the observed impulses; another
+        than the configured ("scaled") only by more than BIC's ``ln n`` residual variances (n impacts)."""
+        s, q, j = self.tangential_scale, self.stick_fraction, self._chosen_friction
         (cross_a, square_a), (cross_x, square_x, _) = self._tangential, self._stick
-        scaled = self._seen_square - 2.0 * s * cross_a + s * s * square_a
-        stick = self._seen_square - 2.0 * q * cross_x + q * q * square_x
-        variance = max(min(scaled, stick), 0.0) / max(2 * self.impacts - 1, 1)
-        # ties (both fit, as one impact does) keep the configured form
-        return stick + np.log(self.impacts) * variance < scaled - TIE * self._seen_square
+        sums = {"scaled": self._seen_square - 2.0 * s * cross_a + s * s * square_a,
+                "stick fraction": self._seen_square - 2.0 * q * cross_x + q * q * square_x,
+                "friction": self._seen_square - 2.0 * self._friction[0, j] + self._friction[1, j]}
+        variance = max(min(sums.values()), 0.0) / max(2 * self.impacts - 1, 1)
+        price = np.log(self.impacts) * variance
+        other = min(("stick fraction", "friction"), key=lambda form: sums[form])
+        # ties (all fit, as one impact does) keep the configured form
+        return other if sums[other] + price < sums["scaled"] - TIE * self._seen_square else "scaled"
 
     def _scale(self, sums: list) -> float:
         """``(prior + sum a b) / (prior + sum a^2)``: the prior is ``prior_impacts`` impacts of the mean size
@@ -277,9 +339,11 @@ class RimAdaptation:
         if self.impacts == 0:
             return self.base
         k, f, knee, width = self._fit
-        if not self._stick_form:
+        if self._form == "scaled":
             return scaled_params(self.base, k, self.tangential_scale, f, knee, width)
         law = scaled_params(self.base, k, 1.0, f, knee, width)
+        if self._form == "friction":
+            return law.with_values(friction_rim=self.friction_rim)
         return law.with_values(friction_rim=max(law.friction_rim, self.settings.stick_friction_rim),
                                tangential_restitution=self.stick_fraction - 1.0)
 
@@ -290,7 +354,7 @@ class RimAdaptation:
         k, f, knee, width = self._fit
         return {"impacts": self.impacts, "restitution_scale": k, "fall_scale": f, "knee": knee, "fall_width": width,
                 "tangential_scale": self.tangential_scale, "stick_fraction": self.stick_fraction,
-                "tangential_form": "stick fraction" if self._stick_form else "scaled",
+                "tangential_form": self._form, "friction_rim": self.friction_rim,
                 "params": {n: getattr(p, n) for n in ("restitution", "restitution_knee", "restitution_slope",
                                                       "restitution_min", "friction_rim", "tangential_restitution")}}
 
@@ -329,8 +393,22 @@ class RimAdaptation:
         self._stick[1] += 2.0 * stick * stick
         self._stick[2] += 2.0 * stick * model
         self._seen_square += seen[0] * seen[0] + seen[1] * seen[1]
-        self._stick_form = self._prefers_stick()
+        impulses = self._friction_impulses(law, before)
+        self._friction += (impulses * (seen[0] + seen[1]), 2.0 * impulses * impulses, 2.0 * impulses * model)
+        self._law_square += 2.0 * model * model
+        self._chosen_friction, self._refined_friction = self._friction_fit()
+        self._form = self._choose_form()
         return True
+
+    def _friction_impulses(self, law: PuckParams, before: RimState) -> np.ndarray:
+        """(frictions,): the tangential impulse per mass [m/s] of ``law`` with each mu_rim tried: Routh's
+        sticking impulse, capped by Coulomb's bound mu (1 + e) |vn| (:func:`~air_hockey_agent.core.puck.
+        impact.rim_impact`'s two branches)."""
+        vb, vn, omega = before
+        slip = vb + self.radius * omega
+        e = self._impact(law, before).vn / -vn
+        sticking = (1.0 + law.tangential_restitution) * abs(slip) / 3.0
+        return -math.copysign(1.0, slip) * np.minimum(sticking, self.frictions * (1.0 + e) * abs(vn))
 
     def _regressors(self, vn: float) -> np.ndarray:
         """(pairs, 2): x = (e |vn|, -fall |vn|) with the fall of each (knee, width) tried."""
@@ -345,8 +423,9 @@ class RimAdaptation:
 def describe(report: dict) -> str:
     """A learned law's :meth:`RimAdaptation.report` in words, for logs and tables."""
     impacts = report["impacts"]
-    tangential = f"{report['stick_fraction']:.3f} of Routh's sticking one, uncapped" \
-        if report["tangential_form"] == "stick fraction" else f"x{report['tangential_scale']:.3f}"
+    tangential = {"stick fraction": f"{report['stick_fraction']:.3f} of Routh's sticking one, uncapped",
+                  "friction": f"Routh's capped by Coulomb's bound with mu_rim {report['friction_rim']:.3f}",
+                  "scaled": f"x{report['tangential_scale']:.3f}"}[report["tangential_form"]]
     return (f"from {impacts} impact{'' if impacts == 1 else 's'}: restitution x{report['restitution_scale']:.3f} "
             f"(its fall with speed x{report['fall_scale']:.3f} from {report['knee']:.2f} m/s over "
             f"{report['fall_width']:.2f} m/s), tangential impulse "
