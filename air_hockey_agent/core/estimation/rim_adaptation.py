@@ -98,9 +98,9 @@ class AdaptationSettings:
 
     def frictions(self, configured: float) -> np.ndarray:
         """The rim frictions mu_rim tried [-]: the configured one first, then ``friction_count`` evenly in
-        the logarithm from ``friction_min`` to ``friction_max``."""
-        grid = np.geomspace(self.friction_min, self.friction_max, self.friction_count) if self.friction_count \
-            else np.zeros(0)
+        the logarithm between ``friction_min`` and ``friction_max``, ascending."""
+        grid = np.sort(np.geomspace(self.friction_min, self.friction_max, self.friction_count)) \
+            if self.friction_count else np.zeros(0)
         return np.concatenate(([configured], grid[np.abs(grid - configured) > 1e-12]))
 
     def widths(self, configured: float) -> np.ndarray:
