@@ -277,6 +277,33 @@ def test_noise_does_not_move_the_knee_and_a_real_knee_is_found(params):
                 assert impact_of(adapt.params(), (0.1, -vn, 0.0)).vn == pytest.approx(truth((0.1, -vn, 0.0)), rel=0.02)
 
 
+def test_impacts_pushing_against_the_slip_give_a_valid_law(params):
+    """A few noisy impacts whose tangential impulses point against the law's (a scale below 0 fits them):
+    the learned law keeps mu_rim at 0 or above and beta in [-1, 1], so the model accepts it (a negative
+    mu_rim stopped the filter with a ValueError in a session's first impacts)."""
+    base = base_law(params)
+    adapt = RimAdaptation(base, TABLE, AdaptationSettings(**{**SETTINGS.__dict__, "prior_impacts": 1.0}))
+    for before in random_impacts(np.random.default_rng(13), 3):
+        out = impact_of(base, before)
+        reversed_push = 2.0 * before[0] - out.vb  # the law's tangential impulse, the other way
+        assert adapt.observe(before, (reversed_push, out.vn, before[2] - (out.omega - before[2])))
+    assert adapt.tangential_scale < 0.0
+    law = adapt.params()
+    law.validate()
+    assert law.friction_rim == 0.0 and -1.0 <= law.tangential_restitution <= 1.0
+
+
+def test_a_learned_law_the_model_refuses_is_not_taken(params, monkeypatch):
+    """Should the learning ever hand over a law the model refuses (a negative mu_rim), the filter keeps the
+    law it has and goes on: a tracker node must not stop on what it learned."""
+    ekf = PuckEKF.from_params(params)
+    before = ekf.model
+    monkeypatch.setattr(ekf.learning, "after_frame", lambda *args: before.params.with_values(friction_rim=-0.01))
+    for i in range(5):
+        ekf.process(i / 120.0, (0.1 + 0.01 * i, 0.0, 0.0))
+    assert ekf.initialised and ekf.model is before
+
+
 def test_hits_slow_impacts_and_a_fresh_law_are_handled(params):
     base = base_law(params)
     adapt = RimAdaptation(base, TABLE, SETTINGS)

@@ -321,7 +321,10 @@ class PuckEKF:
             return flags
         learned = self.learning.after_frame(self.model, t, z if flags & FLAG_MEASUREMENT_USED else None, x, p, stamp)
         if learned is not None:
-            self.model = self.model.with_params(learned)
+            try:
+                self.model = self.model.with_params(learned)
+            except ValueError:  # a law the model refuses (the learning clamps its values) is not taken
+                pass
         return flags
 
     def _process(self, t: float, z: Sequence[float] | None) -> int:

@@ -148,8 +148,10 @@ def scaled_params(base: PuckParams, restitution_scale: float, tangential_scale: 
                   fall_scale: float | None = None, knee: float | None = None, width: float | None = None) -> PuckParams:
     """``base`` with its rim law scaled (module docstring; ``fall_scale`` None: the restitution's fall
     scaled with it, the whole law by ``restitution_scale``), its fall from ``knee`` [m/s] over ``width``
-    [m/s] of normal speed (None: the law's own); restitutions kept in [0, 1], beta in [-1, 1]."""
-    k, s = restitution_scale, tangential_scale
+    [m/s] of normal speed (None: the law's own); restitutions kept in [0, 1], beta in [-1, 1], the
+    tangential scale at 0 or above (a rim pushing the contact point's slip on is no rim: a few noisy
+    impacts can fit a negative scale, which would make mu_rim negative)."""
+    k, s = restitution_scale, max(0.0, tangential_scale)
     f = k if fall_scale is None else max(0.0, fall_scale)  # a restitution rising with speed is no rim's
     e = base.restitution
     if not _falls(base):  # the level alone
