@@ -35,6 +35,15 @@ def impact_of(law, before):
                       law.restitution_min, law.tangential_restitution, law.restitution_knee)
 
 
+def learned_from(base, truth, impacts, **overrides):
+    """A RimAdaptation of ``base`` (SETTINGS with ``overrides``) after the impacts ``impacts`` off rims of
+    the law ``truth``, each learned from."""
+    adapt = RimAdaptation(base, TABLE, AdaptationSettings(**{**SETTINGS.__dict__, **overrides}))
+    for before in impacts:
+        assert adapt.observe(before, impact_of(truth, before))
+    return adapt
+
+
 def random_impacts(rng, n):
     """Incoming (vb, vn, omega): sliding and sticking ones, normal speeds 0.2-3 m/s."""
     return [(rng.uniform(-2.0, 2.0), -rng.uniform(0.2, 3.0), rng.uniform(-30.0, 30.0)) for _ in range(n)]
@@ -195,13 +204,9 @@ def test_the_knee_where_the_restitution_starts_to_fall_is_found(params):
     truth = scaled_params(base, 0.9, 1.0, fall_scale=1.2, knee=0.3)
     rng = np.random.default_rng(5)
     impacts = [(rng.uniform(-1.0, 1.0), -rng.uniform(0.15, 3.0), 0.0) for _ in range(300)]
-    learned = {}
-    for count in (41, 0):  # config/tracker.yaml's grid (0, 0.05, ... 2.0 m/s), and the configured knee only
-        settings = AdaptationSettings(**{**SETTINGS.__dict__, "prior_impacts": 0.0, "knee_count": count, "knee_max": 2.0})
-        adapt = RimAdaptation(base, TABLE, settings)
-        for before in impacts:
-            assert adapt.observe(before, impact_of(truth, before))
-        learned[count] = adapt
+    # config/tracker.yaml's grid (0, 0.05, ... 2.0 m/s), and the configured knee only
+    learned = {count: learned_from(base, truth, impacts, prior_impacts=0.0, knee_count=count, knee_max=2.0)
+               for count in (41, 0)}
     grid = learned[41]
     for before in impacts[:20]:  # all knees at once as one knee at a time
         rows = grid._regressors(before[1])
@@ -226,14 +231,9 @@ def test_the_width_over_which_the_restitution_falls_to_its_floor_is_found(params
     assert truth.restitution_min == pytest.approx(0.96 - 0.193 * 2.5)
     rng = np.random.default_rng(9)
     impacts = [(rng.uniform(-1.0, 1.0), -rng.uniform(0.15, 4.0), 0.0) for _ in range(300)]
-    learned = {}
-    for count in (16, 0):  # config/tracker.yaml's widths (0.25, 0.5, ... 4.0 m/s), and the configured one only
-        settings = AdaptationSettings(**{**SETTINGS.__dict__, "prior_impacts": 0.0, "knee_count": 41,
-                                         "knee_max": 2.0, "fall_width_count": count, "fall_width_max": 4.0})
-        adapt = RimAdaptation(base, TABLE, settings)
-        for before in impacts:
-            assert adapt.observe(before, impact_of(truth, before))
-        learned[count] = adapt
+    # config/tracker.yaml's widths (0.25, 0.5, ... 4.0 m/s), and the configured one only
+    learned = {count: learned_from(base, truth, impacts, prior_impacts=0.0, knee_count=41, knee_max=2.0,
+                                   fall_width_count=count, fall_width_max=4.0) for count in (16, 0)}
     grid = learned[16]
     for before in impacts[:10]:  # all pairs at once as one pair at a time
         for knee, width, row in zip(grid.knees, grid.widths, grid._regressors(before[1])):
