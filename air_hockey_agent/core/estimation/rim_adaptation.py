@@ -372,7 +372,8 @@ class RimAdaptation:
         ratio = after[1] / configured
         k, f, knee, width = self._fit
         law = scaled_params(self.base, k, 1.0, f, knee, width)
-        model = self._impact(law, before).vb - vb  # the law's tangential impulse per mass [m/s], e learned so far
+        outgoing = self._impact(law, before)  # the law's impact, e learned so far, tangential law configured
+        model = outgoing.vb - vb  # its tangential impulse per mass [m/s]
         seen = (after[0] - vb, 0.5 * self.radius * (after[2] - omega))  # from vb, and from the spin
         stick = -(vb + self.radius * omega) / 3.0  # Routh's sticking impulse per mass [m/s]
         bound = self.settings.max_scale
@@ -395,20 +396,19 @@ class RimAdaptation:
         self._stick[1] += 2.0 * stick * stick
         self._stick[2] += 2.0 * stick * model
         self._seen_square += seen[0] * seen[0] + seen[1] * seen[1]
-        impulses = self._friction_impulses(law, before)
+        impulses = self._friction_impulses(law, before, outgoing.vn / -vn)
         self._friction += (impulses * (seen[0] + seen[1]), 2.0 * impulses * impulses, 2.0 * impulses * model)
         self._law_square += 2.0 * model * model
         self._chosen_friction, self._refined_friction = self._friction_fit()
         self._form = self._choose_form()
         return True
 
-    def _friction_impulses(self, law: PuckParams, before: RimState) -> np.ndarray:
-        """(frictions,): the tangential impulse per mass [m/s] of ``law`` with each mu_rim tried: Routh's
-        sticking impulse, capped by Coulomb's bound mu (1 + e) |vn| (:func:`~air_hockey_agent.core.puck.
-        impact.rim_impact`'s two branches)."""
+    def _friction_impulses(self, law: PuckParams, before: RimState, e: float) -> np.ndarray:
+        """(frictions,): the tangential impulse per mass [m/s] of ``law`` with each mu_rim tried, at this
+        impact's restitution ``e``: Routh's sticking impulse, capped by Coulomb's bound mu (1 + e) |vn|
+        (:func:`~air_hockey_agent.core.puck.impact.rim_impact`'s two branches)."""
         vb, vn, omega = before
         slip = vb + self.radius * omega
-        e = self._impact(law, before).vn / -vn
         sticking = (1.0 + law.tangential_restitution) * abs(slip) / 3.0
         return -math.copysign(1.0, slip) * np.minimum(sticking, self.frictions * (1.0 + e) * abs(vn))
 

@@ -151,8 +151,9 @@ def learning_priors(result: SplitResult, kept: Collection[str], std: Mapping[str
     law is worth the impacts it was fitted to (``prior_impacts``), the table acceleration, damping, surface
     friction and spin damping their standard errors (``std``). Only for parameters in ``kept`` (identified
     and left as fitted: a polished value has neither), each within its parameter's (low, high) in
-    ``ranges``; an error of 0 (the fit could not tell) leaves the configured prior. The configured priors are a stranger's table's, weak by
-    design; kept after an identification they let a session's windows replace a better estimate."""
+    ``ranges``; an error of 0 (the fit could not tell) leaves the configured prior. The configured priors
+    are a stranger's table's, weak by design; kept after an identification they let a session's windows
+    replace a better estimate."""
     priors = {}
     if result.impacts is not None and result.impacts.impacts and any(n in kept for n in IMPACT_NAMES):
         priors["rim_adaptation.prior_impacts"] = float(result.impacts.impacts)
