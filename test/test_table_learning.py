@@ -369,8 +369,9 @@ def test_on_the_models_own_rims_the_law_stays_and_predictions_use_the_law_of_the
     assert law.impacts >= 10
     assert law.restitution_scale == pytest.approx(1.0, abs=0.02) and law.tangential_scale == pytest.approx(1.0, abs=0.1)
     assert records[0].model.params == law.base and records[-1].model is ekf.model
-    learned = law.impacts + ekf.learning.acceleration.windows
+    learned = law.impacts + ekf.learning.acceleration.fits
     assert len({id(r.model) for r in records}) == learned + 1  # one model per thing learned, in frame order
+    assert ekf.learning.acceleration.windows < ekf.learning.acceleration.fits  # first halves, then whole windows
     ekf.reset()
     assert ekf.learning.rim is law and ekf.model.params == ekf.learning.params()
     ekf.set_model_params(law.base.with_values(damping=0.2))
@@ -378,7 +379,7 @@ def test_on_the_models_own_rims_the_law_stays_and_predictions_use_the_law_of_the
     assert PuckEKF.from_params(without_learning(params)).learning is None
 
 
-FLIGHT = AccelerationSettings(enabled=True, prior_std=0.03, damping_prior_std=0.1, field_std=0.01, window=0.25,
+FLIGHT = AccelerationSettings(enabled=True, prior_std=0.03, damping_prior_std=0.1, field_std=0.01, window=0.5,
                               min_frames=15, min_speed=0.1, gate=13.82, spin_prior_std=0.5, spin_gate=10.83)
 
 
@@ -455,6 +456,73 @@ def test_a_window_a_hand_pushed_is_not_learned_from(params):
     v = np.array([0.3, 0.0])
     assert not learned.observe(np.array([0.5, 0.0]) - d * v, np.full(2, 1e-6), v)
     assert learned.windows == 20 and max(map(abs, learned.value)) < 0.005
+
+
+
+def _flight_windows(rng, n):
+    """Windows of a level table with the configured damping 0.125: (acceleration, variance, velocity)."""
+    out = []
+    for _ in range(n):
+        v = rng.uniform(-2.0, 2.0, 2)
+        out.append((-0.125 * v + rng.normal(0.0, 0.005, 2), np.full(2, 1e-4), v))
+    return out
+
+
+def test_a_windows_provisional_fit_is_replaced_by_its_whole_one(params):
+    """A window's first half learned provisionally, then the whole: the estimate is the whole window's
+    alone (the first half's information taken back), counted as one window; a provisional fit the window
+    ends without replacing (commit) stays, as does one whose whole window the gate refuses (a hand
+    pushed the puck in its second half)."""
+    base = base_law(params)
+    first, whole, later = _flight_windows(np.random.default_rng(12), 3)
+    replaced, alone = AccelerationAdaptation(base, FLIGHT), AccelerationAdaptation(base, FLIGHT)
+    assert replaced.observe(*first, provisional=True) and replaced.observe(*whole) and alone.observe(*whole)
+    assert np.allclose(replaced._information, alone._information) and replaced.std == pytest.approx(alone.std)
+    assert replaced.value == pytest.approx(alone.value) and replaced.damping == pytest.approx(alone.damping)
+    assert (replaced.windows, replaced.fits, alone.windows) == (1, 2, 1)
+    kept, both = AccelerationAdaptation(base, FLIGHT), AccelerationAdaptation(base, FLIGHT)
+    assert kept.observe(*first, provisional=True)
+    kept.commit()
+    assert kept.observe(*later) and both.observe(*first) and both.observe(*later)
+    assert kept.value == pytest.approx(both.value) and kept.windows == 2
+    pushed = AccelerationAdaptation(base, FLIGHT)
+    assert pushed.observe(*first, provisional=True)
+    v = np.array([0.3, 0.0])
+    assert not pushed.observe(np.array([0.5, 0.0]) - 0.125 * v, np.full(2, 1e-6), v)
+    one = AccelerationAdaptation(base, FLIGHT)
+    assert one.observe(*first) and pushed.value == pytest.approx(one.value) and pushed.windows == 1
+
+
+def test_a_flight_window_learns_at_its_half_at_its_end_and_where_an_impact_cuts_it(params):
+    """Frames of a puck flying at 1 m/s toward the long rim it meets after 0.4 s (the window is 0.5 s):
+    the first 0.25 s are learned from provisionally, the 0.4 s before the impact replace them (not thrown
+    away for being short of a window); a flight of 0.6 s gives a whole window at 0.5 s."""
+    from air_hockey_agent.core.estimation.table_learning import TableLearning
+    settings = {**params, "acceleration_adaptation.window": 0.5, "acceleration_adaptation.min_frames": 15,
+                "acceleration_adaptation.spin_prior_std": 0.0}
+    model = PuckEKF.from_params(settings).model
+    d = model.params.damping
+
+    def flight(seconds, y0):
+        learning = TableLearning.from_params(model.params, TABLE, settings)
+        stamps = np.arange(0.0, seconds, 1.0 / 120.0)
+        fits, prev = [], None
+        for t in stamps:
+            y = y0 + t - 0.5 * d * t * t
+            before = None if prev is None else np.array([0.3, prev[1], 0.0, 1.0 - d * prev[0], 0.0, 0.0])
+            if before is not None:
+                learning.after_frame(model, t, np.array([0.3, y, 0.0]), before, np.eye(6) * 1e-8, prev[0])
+            prev = (t, y)
+            fits.append(learning.acceleration.fits)
+        return learning, stamps, fits
+
+    limit = TABLE.y_limit
+    learning, stamps, fits = flight(0.6, limit - 0.4 + 0.5 * d * 0.16)  # meets the rim 0.4 s on
+    assert max(fits) == 2 and learning.acceleration.windows == 1
+    assert stamps[fits.index(1)] == pytest.approx(0.26, abs=0.01) and stamps[fits.index(2)] == pytest.approx(0.4, abs=0.01)
+    learning, stamps, fits = flight(0.6, -0.3)
+    assert max(fits) == 2 and learning.acceleration.windows == 1 and stamps[fits.index(2)] == pytest.approx(0.51, abs=0.01)
+    assert learning.acceleration.damping == pytest.approx(d, abs=0.01)
 
 
 def test_the_filter_learns_the_test_beds_tilt_and_the_models_own_flight_stays(params):

@@ -8,10 +8,12 @@ module the frame and the state it predicted from:
   well-known incoming velocity, is watched for ``rim_adaptation.window`` seconds of fused poses, whose
   line fit gives the outgoing velocity and spin; the rim law's scales learn from it;
 * **free flight** (``acceleration_adaptation.*``): fused poses of a moving puck between rim impacts are
-  cut into windows of ``window`` seconds; a quadratic fit per window gives its acceleration, and what
-  the configured flight law (eq. 3.1) does not explain of it is the table's own acceleration (a tilt,
-  an air film's mean: issue #13 measured about 0.03 m/s^2 across the track in the lab's free flight; the
-  thesis's conclusion proposes this constant-acceleration extension). The estimate is Gaussian: the
+  cut into windows of ``window`` seconds (the first half of each learned from provisionally, replaced by
+  the whole; one an impact or a slow-down cuts short learned from as it is); a quadratic fit per window
+  gives its acceleration, and what the configured flight law (eq. 3.1) does not explain of it is the
+  table's own acceleration (a tilt, an air film's mean: issue #13 measured about 0.03 m/s^2 across the
+  track in the lab's free flight; the thesis's conclusion proposes this constant-acceleration
+  extension). The estimate is Gaussian: the
   configured ``table_acceleration`` with std ``prior_std`` as the prior, each window's fit with its own
   variance (from its residuals) plus ``field_std`` squared, for what the constant cannot follow
   (an uneven air film), so the estimate is the mean over windows across the table; the same windows'
@@ -76,7 +78,9 @@ class AccelerationAdaptation:
     def __init__(self, base: PuckParams, settings: AccelerationSettings) -> None:
         self.settings, self.friction = settings, base.friction_surface
         self.learns_friction = settings.friction_prior_std > 0.0
-        self.windows = 0
+        self.windows = 0  # windows learned from
+        self.fits = 0     # fits learned from (a window's provisional one, then its whole one)
+        self._provisional: tuple[np.ndarray, np.ndarray] | None = None  # the window in progress's first fit
         stds = [settings.prior_std] * 2 + [settings.damping_prior_std]
         prior = [*base.table_acceleration, base.damping]
         if self.learns_friction:
@@ -112,10 +116,16 @@ class AccelerationAdaptation:
         """Standard errors of (gx, gy, d[, mu_s])."""
         return tuple(float(s) for s in np.sqrt(np.diag(np.linalg.inv(self._information))))
 
-    def observe(self, acceleration: np.ndarray, variance: np.ndarray, velocity: np.ndarray) -> bool:
+    def observe(self, acceleration: np.ndarray, variance: np.ndarray, velocity: np.ndarray,
+                provisional: bool = False) -> bool:
         """Learn from one window's acceleration [m/s^2] (x, y), its fit's variance per axis and the
         velocity [m/s]; False when it is left out: farther than ``gate`` from what is known (a hand or a
-        mallet moved the puck, not the table)."""
+        mallet moved the puck, not the table). A ``provisional`` fit (the window's first part, for an
+        early estimate) is replaced by the window's next fit; one that is left out leaves the provisional
+        fit learned."""
+        earlier, self._provisional = self._provisional, None
+        if earlier is not None:
+            self._add(earlier, -1.0)
         vx, vy = velocity.tolist()
         speed = math.hypot(vx, vy)
         if self.learns_friction:
@@ -129,12 +139,24 @@ class AccelerationAdaptation:
         innovation = unexplained - design @ self._mean()
         spread = np.diag(noise) + design @ np.linalg.inv(self._information) @ design.T
         if float(innovation @ np.linalg.solve(spread, innovation)) > self.settings.gate:
+            if earlier is not None:
+                self._add(earlier, 1.0)
             return False
         weight = np.diag(1.0 / noise)
-        self._information = self._information + design.T @ weight @ design
-        self._weighted = self._weighted + design.T @ weight @ unexplained
-        self.windows += 1
+        contribution = (design.T @ weight @ design, design.T @ weight @ unexplained)
+        self._add(contribution, 1.0)
+        self.windows += int(earlier is None)
+        self.fits += 1
+        self._provisional = contribution if provisional else None
         return True
+
+    def commit(self) -> None:
+        """The window in progress ended without a further fit: its provisional fit stays learned."""
+        self._provisional = None
+
+    def _add(self, contribution: tuple[np.ndarray, np.ndarray], sign: float) -> None:
+        self._information = self._information + sign * contribution[0]
+        self._weighted = self._weighted + sign * contribution[1]
 
     def report(self) -> dict:
         """Windows, value and std [m/s^2] of g, the damping and its std [1/s], the surface friction and its
@@ -186,6 +208,8 @@ class TableLearning:
         self._watch: _ImpactWatch | None = None
         self._times: list[float] = []   # the free-flight window being collected
         self._poses: list = []
+        self._halfway = False   # its first half was learned from (provisionally)
+        self._counted = False   # it was counted in windows
 
     @classmethod
     def from_params(cls, base: PuckParams, table: TableGeometry, params: Mapping[str, Any]) -> "TableLearning | None":
@@ -216,7 +240,9 @@ class TableLearning:
     def forget(self) -> None:
         """The track broke (a hit, a restart): drop the impact being watched and the flight window."""
         self._watch = None
-        self._times, self._poses = [], []
+        if self.acceleration is not None:
+            self.acceleration.commit()
+        self._times, self._poses, self._halfway, self._counted = [], [], False, False
 
     def clear_of_rims(self, px: float, py: float, vx: float, vy: float, dt: float) -> bool:
         """True when a puck at (px, py) [m] with velocity (vx, vy) [m/s] reaches no rim line flying straight
@@ -232,10 +258,10 @@ class TableLearning:
         state = before[:4].tolist()
         vx, vy = state[2], state[3]
         hit = None if dt <= 0.0 or self.clear_of_rims(*state, dt) else model.first_impact(*state, dt)
-        if hit is not None:
-            self._times, self._poses = [], []
-            self._watch = self._new_watch(before, p, stamp, hit) if self.rim is not None else None
         learned = False
+        if hit is not None:
+            learned |= self._end_window()  # its frames all came before the impact
+            self._watch = self._new_watch(before, p, stamp, hit) if self.rim is not None else None
         if z is not None:
             if self._watch is not None and t > self._watch.t:
                 learned |= self._watch_rim(model, t, z)
@@ -275,23 +301,43 @@ class TableLearning:
         return True
 
     def _fly(self, t: float, z, speed: float) -> bool:
+        """Collect frame ``t`` of a puck at ``speed`` [m/s] into the flight window. The window's first half
+        is learned from provisionally (an estimate as early as a window half as long gives); the whole
+        window, or what was collected when an impact or a slow-down (below ``min_speed``: at rest the
+        surface may hold the puck) cut it short, replaces it."""
         settings = self.acceleration.settings
         if speed < settings.min_speed:
-            self._times, self._poses = [], []
-            return False
+            return self._end_window()
         self._times.append(t)
         self._poses.append(z)
-        if t - self._times[0] < settings.window:
-            return False
+        span = t - self._times[0]
+        if span >= settings.window:
+            return self._end_window()
+        if not self._halfway and span >= 0.5 * settings.window:
+            self._halfway = True
+            return self._learn_window(provisional=True)
+        return False
+
+    def _end_window(self) -> bool:
+        """Learn from the flight window collected so far and start a new one; True when learned from."""
+        learned = self._learn_window(provisional=False)
+        if self.acceleration is not None:
+            self.acceleration.commit()
+        self._times, self._poses, self._halfway, self._counted = [], [], False, False
+        return learned
+
+    def _learn_window(self, provisional: bool) -> bool:
+        """Learn the acceleration (and, from a whole window, the spin's decay) from the window's frames when
+        it holds ``min_frames``; count each window once."""
         times, poses = self._times, self._poses
-        self._times, self._poses = [], []
-        if len(times) < settings.min_frames:
+        if self.acceleration is None or len(times) < self.acceleration.settings.min_frames:
             return False
         fit = quadratic_fit(times, poses)
-        learned = fit is not None and self.acceleration.observe(*fit)
-        if self.spin is not None:
+        learned = fit is not None and self.acceleration.observe(*fit, provisional=provisional)
+        if self.spin is not None and not provisional:
             learned |= self.spin.observe(times, [pose[2] for pose in poses])
-        self.windows += int(learned)
+        self.windows += int(learned and not self._counted)
+        self._counted |= learned
         return learned
 
     @property
