@@ -65,6 +65,8 @@ TRACKER_PARAMS = (
     ParamSpec("angle_gate_threshold", float, "squared angle innovation over its variance beyond which the "
               "angle is not fused (1 dof)", 0.1, 1e6),
     ParamSpec("measurement_noise_per_speed", float, "[s] position noise std added per m/s of speed", 0.0, 1.0),
+    ParamSpec("marker_offset", list, "[m] the mocap rigid body's pivot off the disc's centre (x, y), puck frame",
+              -0.05, 0.05, 2),
     ParamSpec("impact_noise", float, "[-] velocity/spin std after a rim impact, fraction of their size", 0.0, 10.0),
     ParamSpec("impact_contact_time", float, "[s] position std after a rim impact, as the puck's travel in this "
               "time", 0.0, 0.1),
@@ -106,6 +108,8 @@ TRACKER_PARAMS = (
     ParamSpec("acceleration_adaptation.field_std", float, "[m/s^2] added to each window's std: what a constant "
               "acceleration cannot follow", 0.0, 10.0),
     ParamSpec("acceleration_adaptation.window", float, "[s] fused free-flight frames per fit", 0.05, 5.0),
+    ParamSpec("acceleration_adaptation.marker_offset_prior_std", float, "[m] std of the configured marker_offset "
+              "per axis (0: it is not learned)", 0.0, 0.05),
     ParamSpec("acceleration_adaptation.min_frames", int, "fused frames a window needs", 4, 10000),
     ParamSpec("acceleration_adaptation.min_speed", float, "[m/s] frames of a slower puck are not used", 0.0, 10.0),
     ParamSpec("acceleration_adaptation.gate", float, "squared Mahalanobis distance (2 dof) beyond which a window "

@@ -26,12 +26,12 @@ def finite_difference_jacobian(m: PuckModel, state: np.ndarray, dt: float, h: fl
     return jac
 
 
-def session_on_testbed(ekf, shots: int, seed: int):
-    """A session on the test bed with config/synthetic.yaml's shots, effects and mocap, as synth-bag
-    --source testbed writes it."""
+def session_on_testbed(ekf, shots: int, seed: int, **mocap):
+    """A session on the test bed with config/synthetic.yaml's shots, effects and mocap (``mocap``: fields of
+    MocapImperfections set otherwise), as synth-bag --source testbed writes it."""
     from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
     return _session(ekf, shots, seed, lambda cfg, rng: testbed_shots(
-        TableEffects.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"], cfg["fine_dt"], rng))
+        TableEffects.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"], cfg["fine_dt"], rng), mocap)
 
 
 def session_on_mujoco(ekf, shots: int, seed: int):
@@ -49,9 +49,9 @@ def synthetic_config() -> dict:
     return load_node_params(["synthetic.yaml"], "/synth_bag", SESSION_PARAMS, [])
 
 
-def _session(ekf, shots: int, seed: int, source):
+def _session(ekf, shots: int, seed: int, source, mocap: dict | None = None):
     from air_hockey_agent.core.estimation.synthetic import MocapImperfections, ShotRanges, synthetic_session
-    cfg = synthetic_config()
+    cfg = {**synthetic_config(), **{f"mocap.{name}": value for name, value in (mocap or {}).items()}}
     ranges = ShotRanges(tuple(cfg["speed"]), tuple(cfg["spin"]), cfg["shot_duration"], cfg["pause"])
     simulate = source(cfg, np.random.default_rng([seed, 1]))
     return synthetic_session(ekf.model, ranges, shots, cfg["rate"], MocapImperfections.from_params(cfg),

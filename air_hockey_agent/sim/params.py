@@ -4,7 +4,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterable
 
-from air_hockey_agent.core.estimation.synthetic import MOCAP_FIELDS
+from air_hockey_agent.core.estimation.synthetic import MOCAP_BOUNDS, MOCAP_FIELDS
 from air_hockey_agent.params import ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import MOCAP_POSE_PARAM, PUCK_HEIGHT_PARAM, TABLE_PARAMS
 
@@ -44,7 +44,7 @@ SIM_PARAMS = TABLE_PARAMS + (
     ParamSpec("lockstep_timeout", float, "[s] wall time after which a silent agent is no longer waited for",
               0.01, 600.0),
 ) + ROBOT_BASE_PARAMS + tuple(
-    ParamSpec(f"mocap.{name}", float, "OptiTrack stand-in imperfection (config/sim.yaml)", 0.0, 10.0)
+    ParamSpec(f"mocap.{name}", float, "OptiTrack stand-in imperfection (config/sim.yaml)", *MOCAP_BOUNDS[name])
     for name in MOCAP_FIELDS)
 
 

@@ -16,8 +16,10 @@ The bags are one session on one table, in the order given, as for a tracker node
 what the tracker learns online of the table (``rim_adaptation``, ``acceleration_adaptation`` in
 ``config/tracker.yaml``) carries from one bag to the next, and every prediction uses what was learned up
 to its frame. Reported: JSON "rim_law" (the impacts learned from, the scales of the configured rim
-law and the rim parameters they give) and "table_acceleration" (free-flight windows, value and std
-[m/s^2]); a ``--params-file`` with ``enabled: false`` under both evaluates the configured physics alone.
+law and the rim parameters they give), "table_acceleration" (free-flight windows, value and std
+[m/s^2]), "spin_damping", "impact_delay" and "marker_offset" (the mocap pivot's offset from the disc's
+centre: windows, value and std [m]); a ``--params-file`` with ``enabled: false`` under both evaluates
+the configured physics alone.
 
 And the thesis's own columns (tables 5.2-5.4; JSON "thesis_style"), computed as ``air-hockey sysid``
 reports them, of the configured physics (nothing learned): the bags preprocessed into cut trajectories (thesis sec. 4.5.1,

@@ -36,7 +36,8 @@ from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.frames import table_to_mocap
 from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
-from air_hockey_agent.core.estimation.synthetic import MOCAP_FIELDS, MocapImperfections, ShotRanges, synthetic_session
+from air_hockey_agent.core.estimation.synthetic import (MOCAP_BOUNDS, MOCAP_FIELDS, MocapImperfections, ShotRanges,
+                                                        synthetic_session)
 from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import load_tracker_params
 from air_hockey_agent.tools.argtypes import count
@@ -52,7 +53,7 @@ SESSION_PARAMS = (
     ParamSpec("rate", float, "[Hz] mocap frame rate", 1.0, 2000.0),
     ParamSpec("fine_dt", float, "[s] integration step of the truth", 1e-5, 0.1),
     ParamSpec("start_time", float, "[s] stamp of the first frame", 0.0, 1e10),
-) + tuple(ParamSpec(f"mocap.{name}", float, "measurement imperfection (config/synthetic.yaml)", 0.0, 10.0)
+) + tuple(ParamSpec(f"mocap.{name}", float, "measurement imperfection (config/synthetic.yaml)", *MOCAP_BOUNDS[name])
           for name in MOCAP_FIELDS) + (
     ParamSpec("testbed.damping", float, "[1/s] test bed's viscous damping", 0.0, 10.0),
     ParamSpec("testbed.friction_surface", float, "[m/s^2] test bed's constant deceleration", 0.0, 10.0),

@@ -31,6 +31,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from air_hockey_agent.core.estimation.marker_offset import centre_of
 from air_hockey_agent.core.estimation.table_learning import TableLearning
 from air_hockey_agent.core.linalg3 import inverse_sym3
 from air_hockey_agent.core.puck.prediction import Prediction, predict_fast, with_impact_noise
@@ -82,6 +83,7 @@ class FilterSettings:
     imm_rim_impact_noise: float = 0.5     # [-] the rim mode's impact noise (the free mode's: impact_noise)
     imm_contact_speed: float = 2.0        # [m/s] std of the contact mode's velocity change in one frame
     imm_contact_spin: float = 10.0        # [rad/s] ... and of its spin change
+    marker_offset: tuple[float, float] = (0.0, 0.0)  # [m] the mocap pivot off the centre, puck frame (:mod:`.marker_offset`)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "FilterSettings":
@@ -99,7 +101,8 @@ class FilterSettings:
                    imm_switch_probability=params["imm.switch_probability"],
                    imm_rim_impact_noise=params["imm.rim_impact_noise"], imm_contact_speed=params["imm.contact_speed"],
                    imm_contact_spin=params["imm.contact_spin"], q_rest=np.diag(params["process_noise_rest"]),
-                   rest_speed=params["regime_rest_speed"])
+                   rest_speed=params["regime_rest_speed"],
+                   marker_offset=(float(params["marker_offset"][0]), float(params["marker_offset"][1])))
 
     def process_noise(self, state: Sequence[float]) -> np.ndarray:
         """Q per model step for a step from ``state``: ``q_rest`` for a puck slower than ``rest_speed``
@@ -309,8 +312,12 @@ class PuckEKF:
     def process(self, t: float, z: Sequence[float] | None) -> int:
         """Handle one mocap frame at time ``t`` [s]: measurement ``z`` (x, y, theta) or None (lost).
 
-        Returns ``FLAG_*`` bits describing what was done.
+        Returns ``FLAG_*`` bits describing what was done. A measured position is the mocap pivot's: it is
+        taken back to the disc's centre by the marker offset (configured or learned) first.
         """
+        offset = self.settings.marker_offset if self.learning is None else self.learning.marker_offset
+        if z is not None and (offset[0] or offset[1]):
+            z = centre_of(np.asarray(z, float), offset)
         if self.learning is None:
             return self._process(t, z)
         x, p, stamp, initialised = self.x, self.P, self.stamp, self.initialised  # steps replace, not change, x and P

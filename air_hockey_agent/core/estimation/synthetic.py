@@ -32,6 +32,8 @@ class MocapImperfections:
     gap_max: float = 0.0             # [s] dropout length, uniform in (0, gap_max]
     heavy_tail_rate: float = 0.0     # probability that a frame's position noise is heavy_tail_scale times larger
     heavy_tail_scale: float = 1.0    # [-] (a contaminated Gaussian: seed 001's mixed-Gaussian noise)
+    marker_offset_x: float = 0.0     # [m] where the rigid body's pivot sits off the disc's centre, in the
+    marker_offset_y: float = 0.0     # puck's frame (it turns with the puck)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "mocap.") -> "MocapImperfections":
@@ -40,6 +42,8 @@ class MocapImperfections:
 
 
 MOCAP_FIELDS = tuple(f.name for f in fields(MocapImperfections))  # parameter names: mocap.<field>
+# their bounds: rates, sizes and stds are not negative; the pivot's offset is either way, within 5 cm
+MOCAP_BOUNDS = {name: (-0.05, 0.05) if name.startswith("marker_offset") else (0.0, 10.0) for name in MOCAP_FIELDS}
 
 
 @dataclass(frozen=True)
@@ -124,6 +128,10 @@ class MocapSampler:
         std = math.hypot(noise.position_std, noise.position_std_per_speed * speed)
         if noise.heavy_tail_rate and rng.random() < noise.heavy_tail_rate:  # drawn only when on: same bags
             std *= noise.heavy_tail_scale
+        if noise.marker_offset_x or noise.marker_offset_y:
+            cos, sin = math.cos(theta), math.sin(theta)
+            x += cos * noise.marker_offset_x - sin * noise.marker_offset_y
+            y += sin * noise.marker_offset_x + cos * noise.marker_offset_y
         z = np.array([x + rng.normal(0.0, std), y + rng.normal(0.0, std),
                       wrap_angle(theta + rng.normal(0.0, noise.angle_std))])
         if self.previous is not None and rng.random() < noise.repeat_rate:

@@ -34,12 +34,13 @@ from air_hockey_agent.core.identification.local_fit import fit_positions, paths_
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe, outgoing_fit,
                                                              rim_frame)
 from air_hockey_agent.core.estimation.delay_adaptation import DelayAdaptation
+from air_hockey_agent.core.estimation.marker_offset import MarkerOffsetAdaptation, centres_of, pivot_shift
 from air_hockey_agent.core.estimation.spin_adaptation import SpinAdaptation, describe_spin
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, flight_acceleration
 from air_hockey_agent.core.table import FIRST_POST, WALL_NORMALS, TableGeometry
 
 
-REPORT_KEYS = ("rim_law", "table_acceleration", "spin_damping", "impact_delay")  # TableLearning.report's, in order
+REPORT_KEYS = ("rim_law", "table_acceleration", "spin_damping", "impact_delay", "marker_offset")  # report's, in order
 
 
 @dataclass(frozen=True)
@@ -57,13 +58,14 @@ class AccelerationSettings:
     spin_prior_std: float  # [1/s] of the configured spin_damping (0: it is not learned)
     spin_gate: float     # squared distance (1 dof) beyond which a window's spin is not the table's
     friction_prior_std: float = 0.0  # [m/s^2] of the configured friction_surface (0: it is not learned)
+    marker_offset_prior_std: float = 0.0  # [m] per axis, of the configured marker_offset (0: it is not learned)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AccelerationSettings":
         p = "acceleration_adaptation."
         return cls(*(params[p + name] for name in ("enabled", "prior_std", "damping_prior_std", "field_std", "window",
                                                     "min_frames", "min_speed", "gate", "spin_prior_std",
-                                                    "spin_gate", "friction_prior_std")))
+                                                    "spin_gate", "friction_prior_std", "marker_offset_prior_std")))
 
 
 class AccelerationAdaptation:
@@ -193,8 +195,12 @@ class TableLearning:
     """The rim law and the table acceleration learned online on top of ``base`` (either may be off)."""
 
     def __init__(self, base: PuckParams, table: TableGeometry, rim: AdaptationSettings | None,
-                 acceleration: AccelerationSettings | None, angle_variance: float) -> None:
+                 acceleration: AccelerationSettings | None, angle_variance: float,
+                 marker_offset: tuple[float, float] = (0.0, 0.0)) -> None:
         self.base, self.table = base, table
+        self.configured_offset = (float(marker_offset[0]), float(marker_offset[1]))  # [m] puck frame
+        self.offset = (MarkerOffsetAdaptation(self.configured_offset, acceleration.marker_offset_prior_std)
+                       if acceleration is not None and acceleration.marker_offset_prior_std > 0.0 else None)
         self.rim = None if rim is None else RimAdaptation(base, table, rim)
         self.acceleration = None if acceleration is None else AccelerationAdaptation(base, acceleration)
         self.angle_variance = angle_variance  # [rad^2] the measured angle's noise (R's last entry)
@@ -207,7 +213,8 @@ class TableLearning:
         self.limits = (table.x_limit, table.y_limit)  # [m] largest |x|, |y| of the centre off the rims
         self._watch: _ImpactWatch | None = None
         self._times: list[float] = []   # the free-flight window being collected
-        self._poses: list = []
+        self._poses: list = []          # its poses, the position taken back to the centre (as fused)
+        self._pivots: list = []         # and as measured (the pivot's)
         self._halfway = False   # its first half was learned from (provisionally)
         self._counted = False   # it was counted in windows
 
@@ -218,12 +225,13 @@ class TableLearning:
         if not (rim.enabled or acc.enabled):
             return None
         return cls(base, table, rim if rim.enabled else None, acc if acc.enabled else None,
-                   params["measurement_noise"][2])
+                   params["measurement_noise"][2], tuple(params["marker_offset"]))
 
     def restarted(self, base: PuckParams) -> "TableLearning":
         """The same learning from new configured parameters (nothing learned yet)."""
         return TableLearning(base, self.table, None if self.rim is None else self.rim.settings,
-                             None if self.acceleration is None else self.acceleration.settings, self.angle_variance)
+                             None if self.acceleration is None else self.acceleration.settings, self.angle_variance,
+                             self.configured_offset)
 
     def params(self) -> PuckParams:
         """The configured parameters with what was learned so far."""
@@ -237,12 +245,17 @@ class TableLearning:
             p = p.with_values(impact_delay=self.delay.value)
         return p
 
+    @property
+    def marker_offset(self) -> tuple[float, float]:
+        """[m] The pivot's offset from the centre (puck frame): learned, or the configured one."""
+        return self.offset.value if self.offset is not None else self.configured_offset
+
     def forget(self) -> None:
         """The track broke (a hit, a restart): drop the impact being watched and the flight window."""
         self._watch = None
         if self.acceleration is not None:
             self.acceleration.commit()
-        self._times, self._poses, self._halfway, self._counted = [], [], False, False
+        self._times, self._poses, self._pivots, self._halfway, self._counted = [], [], [], False, False
 
     def clear_of_rims(self, px: float, py: float, vx: float, vy: float, dt: float) -> bool:
         """True when a puck at (px, py) [m] with velocity (vx, vy) [m/s] reaches no rim line flying straight
@@ -310,6 +323,8 @@ class TableLearning:
             return self._end_window()
         self._times.append(t)
         self._poses.append(z)
+        dx, dy = pivot_shift(float(z[2]), self.marker_offset)
+        self._pivots.append((z[0] + dx, z[1] + dy, z[2]))
         span = t - self._times[0]
         if span >= settings.window:
             return self._end_window()
@@ -323,7 +338,7 @@ class TableLearning:
         learned = self._learn_window(provisional=False)
         if self.acceleration is not None:
             self.acceleration.commit()
-        self._times, self._poses, self._halfway, self._counted = [], [], False, False
+        self._times, self._poses, self._pivots, self._halfway, self._counted = [], [], [], False, False
         return learned
 
     def _learn_window(self, provisional: bool) -> bool:
@@ -332,8 +347,13 @@ class TableLearning:
         times, poses = self._times, self._poses
         if self.acceleration is None or len(times) < self.acceleration.settings.min_frames:
             return False
+        if self.offset is not None:  # the positions taken back with the offset learned so far, used or not yet
+            pivots = np.array(self._pivots)
+            poses = centres_of(pivots, self.offset.value)
         fit = quadratic_fit(times, poses)
         learned = fit is not None and self.acceleration.observe(*fit, provisional=provisional)
+        if self.offset is not None and learned and not provisional:  # a window the table alone moved
+            self.offset.observe(times, pivots)
         if self.spin is not None and not provisional:
             learned |= self.spin.observe(times, [pose[2] for pose in poses])
         self.windows += int(learned and not self._counted)
@@ -354,7 +374,7 @@ class TableLearning:
         """What was learned: ``rim_law`` (:meth:`RimAdaptation.report`), ``table_acceleration``
         (windows, value and std [m/s^2]) and ``spin_damping`` (windows, value and std [1/s]), each None
         when not learned."""
-        parts = (self.rim, self.acceleration, self.spin, self.delay)
+        parts = (self.rim, self.acceleration, self.spin, self.delay, self.offset)
         return {key: None if part is None else part.report() for key, part in zip(REPORT_KEYS, parts)}
 
 
@@ -385,6 +405,11 @@ def describe_learning(report: dict) -> str:
                      f"impact{'' if delay['impacts'] == 1 else 's'}")
         if delay.get("rims_off"):
             parts.append(rims_off_text(delay["rim_offsets"], delay["rims_off"]))
+    offset = report.get("marker_offset")
+    if offset is not None and offset["windows"]:
+        (ox, oy), (sx, sy) = offset["value"], offset["std"]
+        parts.append(f"marker offset ({ox * 1e3:+.2f} +- {sx * 1e3:.2f}, {oy * 1e3:+.2f} +- {sy * 1e3:.2f}) mm from "
+                     f"{offset['windows']} window{'' if offset['windows'] == 1 else 's'}")
     return "; ".join(parts)
 
 

@@ -1,0 +1,105 @@
+"""Where the mocap's rigid body has its pivot on the puck: the marker offset (``marker_offset``).
+
+The mocap reports the pose of a rigid body defined by the puck's markers. The thesis's lab calibrates its
+pivot to the disc's centre "with a precision of 1 mm" (sec. 4.5); a pivot ``o`` [m] off the centre, in
+the puck's frame, is measured at ``p + R(theta) o``: a spinning puck's measured position circles its
+centre, its measured velocity swings by ``omega |o|`` (10 mm/s at 10 rad/s and 1 mm), and its apparent
+acceleration by ``omega^2 |o|``. The filter takes each measured position back to the centre with the
+measured angle (its noise, 9.5 mrad, moves the correction by 1 % of ``|o|``).
+
+The offset is learned online from free-flight windows (:class:`MarkerOffsetAdaptation`): per window the
+positions are a parabola in time per axis plus ``R(theta_i) o``; with each window's parabola projected
+out, the windows' normal equations in ``o`` add up. A puck that does not turn gives nothing (its
+``R(theta) o`` is a constant the parabola takes), a spinning one pins ``o`` down.
+"""
+from __future__ import annotations
+
+import math
+from typing import Sequence
+
+import numpy as np
+
+
+def pivot_shift(theta: float, offset: Sequence[float]) -> tuple[float, float]:
+    """``R(theta) o`` [m]: where the pivot ``offset`` (puck frame) sits from the centre at angle ``theta``."""
+    ox, oy = offset
+    cos, sin = math.cos(theta), math.sin(theta)
+    return cos * ox - sin * oy, sin * ox + cos * oy
+
+
+def centre_of(z: np.ndarray, offset: Sequence[float]) -> np.ndarray:
+    """The measured pose ``z`` (x, y, theta) with its position taken from the pivot back to the centre."""
+    dx, dy = pivot_shift(float(z[2]), offset)
+    return np.array([z[0] - dx, z[1] - dy, z[2]])
+
+
+def centres_of(poses: np.ndarray, offset: Sequence[float]) -> np.ndarray:
+    """:func:`centre_of` of each measured pose (n, 3)."""
+    poses = np.asarray(poses, float)
+    cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    ox, oy = offset
+    return np.column_stack([poses[:, 0] - cos * ox + sin * oy, poses[:, 1] - sin * ox - cos * oy, poses[:, 2]])
+
+
+def offset_normal_equations(times: Sequence[float], poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
+    """One window's information on the offset: ``(N, b, residual_variance)`` with ``N o = b`` the least
+    squares of the pivot positions ``poses`` (n, 3: x, y, theta) at ``times`` [s] against a parabola per
+    axis plus ``R(theta) o`` (the parabolas projected out), unweighted; the residual variance [m^2] per
+    coordinate of the joint fit."""
+    tau = np.asarray(times, float) - 0.5 * (times[0] + times[-1])
+    poses = np.asarray(poses, float)
+    x = np.column_stack([np.ones_like(tau), tau, 0.5 * tau * tau])
+    project = np.eye(len(tau)) - x @ np.linalg.solve(x.T @ x, x.T)
+    cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
+    columns = (np.column_stack([cos, -sin]), np.column_stack([sin, cos]))  # d(x, y) / d(ox, oy)
+    normal, rhs, residual = np.zeros((2, 2)), np.zeros(2), 0.0
+    for axis, b in enumerate(columns):
+        mb, my = project @ b, project @ poses[:, axis]
+        normal += b.T @ mb
+        rhs += b.T @ my
+    offset = np.linalg.lstsq(normal, rhs, rcond=None)[0]
+    for axis, b in enumerate(columns):
+        r = project @ (poses[:, axis] - b @ offset)
+        residual += float(r @ r)
+    dof = max(1, 2 * len(tau) - 8)
+    return normal, rhs, residual / dof
+
+
+class MarkerOffsetAdaptation:
+    """Gaussian estimate of the marker offset ``o`` [m] (puck frame) from free-flight windows, with the
+    configured offset as prior (std ``prior_std`` per axis). It is used as soon as learned: an offset held
+    back until it stood out of its uncertainty was never learned, as the filter's gate then refuses
+    a spinning puck's circling positions and the flight learning's gate its windows."""
+
+    def __init__(self, configured: Sequence[float], prior_std: float) -> None:
+        self.windows = 0
+        self._information = np.eye(2) / prior_std ** 2
+        self._weighted = self._information @ np.asarray(configured, float)
+
+    @property
+    def value(self) -> tuple[float, float]:
+        o = np.linalg.solve(self._information, self._weighted)
+        return float(o[0]), float(o[1])
+
+    @property
+    def std(self) -> tuple[float, float]:
+        s = np.sqrt(np.diag(np.linalg.inv(self._information)))
+        return float(s[0]), float(s[1])
+
+    def observe(self, times: Sequence[float], poses: np.ndarray) -> bool:
+        """Learn from one window's pivot positions (n, 3: x, y, theta) [m, m, rad] at ``times`` [s] (a
+        window of a puck that hardly turns adds next to no information); False without a fit. The caller
+        passes only windows the table alone moved (the flight learning's gate)."""
+        if len(times) < 5:
+            return False
+        normal, rhs, variance = offset_normal_equations(times, poses)
+        if variance <= 0.0:
+            return False
+        self._information = self._information + normal / variance
+        self._weighted = self._weighted + rhs / variance
+        self.windows += 1
+        return True
+
+    def report(self) -> dict:
+        """Windows, value and std [m] of the offset (puck frame)."""
+        return {"windows": self.windows, "value": list(self.value), "std": list(self.std)}
