@@ -49,17 +49,20 @@ def offset_normal_equations(times: Sequence[float], poses: np.ndarray) -> tuple[
     tau = np.asarray(times, float) - 0.5 * (times[0] + times[-1])
     poses = np.asarray(poses, float)
     x = np.column_stack([np.ones_like(tau), tau, 0.5 * tau * tau])
-    project = np.eye(len(tau)) - x @ np.linalg.solve(x.T @ x, x.T)
+    gram_inv = np.linalg.inv(x.T @ x)
+
+    def project(v: np.ndarray) -> np.ndarray:  # what a parabola in tau cannot take of v (n, ...)
+        return v - x @ (gram_inv @ (x.T @ v))
+
     cos, sin = np.cos(poses[:, 2]), np.sin(poses[:, 2])
     columns = (np.column_stack([cos, -sin]), np.column_stack([sin, cos]))  # d(x, y) / d(ox, oy)
     normal, rhs, residual = np.zeros((2, 2)), np.zeros(2), 0.0
     for axis, b in enumerate(columns):
-        mb, my = project @ b, project @ poses[:, axis]
-        normal += b.T @ mb
-        rhs += b.T @ my
+        normal += b.T @ project(b)
+        rhs += b.T @ project(poses[:, axis])
     offset = np.linalg.lstsq(normal, rhs, rcond=None)[0]
     for axis, b in enumerate(columns):
-        r = project @ (poses[:, axis] - b @ offset)
+        r = project(poses[:, axis] - b @ offset)
         residual += float(r @ r)
     dof = max(1, 2 * len(tau) - 8)
     return normal, rhs, residual / dof
@@ -75,11 +78,7 @@ class MarkerOffsetAdaptation:
         self.windows = 0
         self._information = np.eye(2) / prior_std ** 2
         self._weighted = self._information @ np.asarray(configured, float)
-
-    @property
-    def value(self) -> tuple[float, float]:
-        o = np.linalg.solve(self._information, self._weighted)
-        return float(o[0]), float(o[1])
+        self.value = (float(configured[0]), float(configured[1]))  # [m] the posterior mean (read every frame)
 
     @property
     def std(self) -> tuple[float, float]:
@@ -97,6 +96,8 @@ class MarkerOffsetAdaptation:
             return False
         self._information = self._information + normal / variance
         self._weighted = self._weighted + rhs / variance
+        o = np.linalg.solve(self._information, self._weighted)
+        self.value = (float(o[0]), float(o[1]))
         self.windows += 1
         return True
 

@@ -99,6 +99,13 @@ class AccelerationAdaptation:
             mean = np.append(np.linalg.solve(self._information[:3, :3], self._weighted[:3]), 0.0)
         return mean
 
+    def flight_law(self) -> dict[str, Any]:
+        """The learned ``table_acceleration`` (gx, gy) [m/s^2], ``damping`` [1/s] (never below 0) and
+        ``friction_surface`` [m/s^2] (learned, never below 0, or the configured one), from one solve."""
+        m = self._mean()
+        return {"table_acceleration": (float(m[0]), float(m[1])), "damping": max(0.0, float(m[2])),
+                "friction_surface": float(m[3]) if self.learns_friction else self.friction}
+
     @property
     def value(self) -> tuple[float, float]:
         g = self._mean()
@@ -237,8 +244,7 @@ class TableLearning:
         """The configured parameters with what was learned so far."""
         p = self.base if self.rim is None else self.rim.params()
         if self.acceleration is not None and self.acceleration.windows:
-            p = p.with_values(table_acceleration=self.acceleration.value, damping=self.acceleration.damping,
-                              friction_surface=self.acceleration.friction_surface)
+            p = p.with_values(**self.acceleration.flight_law())
         if self.spin is not None and self.spin.windows:
             p = p.with_values(spin_damping=self.spin.value)
         if self.delay is not None and self.delay.impacts:
