@@ -13,11 +13,12 @@ module the frame and the state it predicted from:
   gives its acceleration, and what the configured flight law (eq. 3.1) does not explain of it is the
   table's own acceleration (a tilt, an air film's mean: issue #13 measured about 0.03 m/s^2 across the
   track in the lab's free flight; the thesis's conclusion proposes this constant-acceleration
-  extension). The estimate is Gaussian: the
-  configured ``table_acceleration`` with std ``prior_std`` as the prior, each window's fit with its own
-  variance (from its residuals) plus ``field_std`` squared, for what the constant cannot follow
-  (an uneven air film), so the estimate is the mean over windows across the table; the same windows'
-  angles give the spin's decay (:mod:`.spin_adaptation`) unless ``spin_prior_std`` is 0.
+  extension). The estimate is Gaussian: the configured ``table_acceleration`` with std ``prior_std`` as
+  the prior, each window's fit with its own variance (from its residuals) plus ``field_std`` squared,
+  for what the constant cannot follow (an uneven air film), so the estimate is the mean over windows
+  across the table; the same windows' angles give the spin's decay (:mod:`.spin_adaptation`) unless
+  ``spin_prior_std`` is 0, and their measured positions the mocap pivot's offset from the disc's centre
+  (:mod:`.marker_offset`) unless ``marker_offset_prior_std`` is 0.
 
 A rejected frame, a re-initialisation or a restart ends any watch or window (a hit). What was learned
 stays: it is the table's, not the track's.
@@ -259,6 +260,10 @@ class TableLearning:
     def forget(self) -> None:
         """The track broke (a hit, a restart): drop the impact being watched and the flight window."""
         self._watch = None
+        self._new_window()
+
+    def _new_window(self) -> None:
+        """Start collecting a flight window (what the last one learned provisionally stays learned)."""
         if self.acceleration is not None:
             self.acceleration.commit()
         self._times, self._poses, self._pivots, self._halfway, self._counted = [], [], [], False, False
@@ -342,9 +347,7 @@ class TableLearning:
     def _end_window(self) -> bool:
         """Learn from the flight window collected so far and start a new one; True when learned from."""
         learned = self._learn_window(provisional=False)
-        if self.acceleration is not None:
-            self.acceleration.commit()
-        self._times, self._poses, self._pivots, self._halfway, self._counted = [], [], [], False, False
+        self._new_window()
         return learned
 
     def _learn_window(self, provisional: bool) -> bool:
@@ -353,7 +356,7 @@ class TableLearning:
         times, poses = self._times, self._poses
         if self.acceleration is None or len(times) < self.acceleration.settings.min_frames:
             return False
-        if self.offset is not None:  # the positions taken back with the offset learned so far, used or not yet
+        if self.offset is not None:  # the positions taken back with the offset learned so far
             pivots = np.array(self._pivots)
             poses = centres_of(pivots, self.offset.value)
         fit = quadratic_fit(times, poses)
@@ -378,8 +381,9 @@ class TableLearning:
 
     def report(self) -> dict:
         """What was learned: ``rim_law`` (:meth:`RimAdaptation.report`), ``table_acceleration``
-        (windows, value and std [m/s^2]) and ``spin_damping`` (windows, value and std [1/s]), each None
-        when not learned."""
+        (windows, value and std [m/s^2], the damping and surface friction), ``spin_damping`` (windows,
+        value and std [1/s]), ``impact_delay`` and ``marker_offset`` (windows, value and std [m]), each
+        None when not learned."""
         parts = (self.rim, self.acceleration, self.spin, self.delay, self.offset)
         return {key: None if part is None else part.report() for key, part in zip(REPORT_KEYS, parts)}
 
