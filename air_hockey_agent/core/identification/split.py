@@ -14,6 +14,7 @@ from typing import Any, Collection, Mapping, Sequence
 
 import numpy as np
 
+from air_hockey_agent.core.estimation.marker_offset import centres_of
 from air_hockey_agent.core.identification.flight_fit import (FieldCheck, FlightFit, FlightSettings, NoiseModel,
                                                            field_check, flight_law, identify_flight)
 from air_hockey_agent.core.identification.impact_fit import (IMPACT_NAMES, DelayFit, ImpactFit, ImpactSettings,
@@ -75,7 +76,10 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
     there and everything is identified again on the trajectories measured from the moved table frame
     (:func:`.rim_lines.recentred`): the flight and impact fits then see the rims where they are. Without
     ``move_centre`` (poses not read through ``mocap_table_pose``) only the table's size moves, not its centre
-    or yaw."""
+    or yaw. The fits see the disc's centre: measured positions are taken back from the mocap pivot by the
+    configured ``marker_offset`` first, as the filter takes them."""
+    if any(tracker["marker_offset"]):
+        trajectories = [at_centre(t, tracker["marker_offset"]) for t in trajectories]
     first = _identify_once(trajectories, tracker, settings, names, bounds)
     if "table_geometry" not in names:
         return first
@@ -87,6 +91,12 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
     moved = [recentred(t, lines.centre(), lines.yaw()) for t in trajectories]
     again = _identify_once(moved, {**tracker, **geometry}, settings, names, bounds)
     return replace(again, rim_lines=lines, geometry=geometry, first_delay=first.delay)
+
+
+def at_centre(trajectory: GridTrajectory, offset) -> GridTrajectory:
+    """A copy of ``trajectory`` with its positions taken back from the mocap pivot to the disc's centre by
+    ``offset`` [m] (puck frame; :func:`~air_hockey_agent.core.estimation.marker_offset.centres_of`)."""
+    return GridTrajectory(trajectory.t0, trajectory.dt, centres_of(trajectory.z, offset))
 
 
 def _identify_once(trajectories: Sequence[GridTrajectory], tracker: Mapping[str, Any], settings: Mapping[str, Any],
