@@ -23,6 +23,8 @@ SYSID_PARAMS = (
               2),
     ParamSpec("bounds.table_geometry", list, "[m] how far the rims' centre and distances may move (--identify "
               "table_geometry)", -0.5, 0.5, 2),
+    ParamSpec("bounds.marker_offset", list, "[m] bounds per axis of the mocap pivot's offset from the disc's "
+              "centre (--method split)", -0.05, 0.05, 2),
     ParamSpec("bounds.table_yaw", list, "[rad] how far the rims may turn (--identify table_geometry)", -0.5, 0.5, 2),
     ParamSpec("split.window", float, "[s] free-flight window of the split identification", 0.05, 5.0),
     ParamSpec("split.min_coverage", float, "[-] share of a window's frames that must be measured", 0.1, 1.0),

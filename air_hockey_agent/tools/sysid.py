@@ -72,9 +72,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
     parser.add_argument("--identify", nargs="+", choices=SPLIT_IDENTIFIABLE, metavar="NAME",
-                        help="parameters to identify (default: hebo the thesis's four, split all twelve; "
-                             "table_acceleration, spin_damping, impact_delay and table_geometry (where the rims "
-                             "are: mocap_table_pose's x, y, table.length, table.width) only with --method split; "
+                        help="parameters to identify (default: hebo the thesis's four, split all thirteen; "
+                             "table_acceleration, spin_damping, impact_delay, table_geometry (where the rims "
+                             "are: mocap_table_pose's x, y, table.length, table.width) and marker_offset (the mocap "
+                             "pivot off the disc's centre) only with --method split; "
                              "also restitution_slope, the rims' loss with impact speed); choices: "
                              + ", ".join(SPLIT_IDENTIFIABLE))
     parser.add_argument("--polish", type=count(0), metavar="EVALUATIONS",
@@ -129,9 +130,9 @@ class _Objective:
                 for i in range(len(candidates))]
 
 
-# split's fits the polish leaves alone: the table acceleration (two axes, fitted from every window) and the
-# spin's decay (the position loss hardly depends on it)
-UNPOLISHED = ("table_acceleration", "spin_damping")
+# split's fits the polish leaves alone: the table acceleration (two axes, fitted from every window), the
+# spin's decay (the position loss hardly depends on it) and the marker offset (two axes, from the windows)
+UNPOLISHED = ("table_acceleration", "spin_damping", "marker_offset")
 
 
 def _chosen_names(args: argparse.Namespace) -> tuple[list[str], str]:
@@ -372,8 +373,9 @@ def _flat(values: dict) -> dict:
 
 
 def _flat_bounds(box: dict) -> dict:
-    return {(f"{n}_{axis}" if n == "table_acceleration" else n): b for n, b in box.items()
-            for axis in ("xy" if n == "table_acceleration" else "x")}
+    vectors = ("table_acceleration", "marker_offset")  # bounds per axis
+    return {(f"{n}_{axis}" if n in vectors else n): b for n, b in box.items()
+            for axis in ("xy" if n in vectors else "x")}
 
 
 def _hebo_polish(args, settings: dict) -> int:

@@ -208,7 +208,8 @@ def _priors_text(priors: dict) -> str:
              "acceleration_adaptation.prior_std": lambda v: f"table acceleration +- {v:.2g} m/s^2",
              "acceleration_adaptation.damping_prior_std": lambda v: f"damping +- {v:.2g} 1/s",
              "acceleration_adaptation.friction_prior_std": lambda v: f"surface friction +- {v:.2g} m/s^2",
-             "acceleration_adaptation.spin_prior_std": lambda v: f"spin damping +- {v:.2g} 1/s"}
+             "acceleration_adaptation.spin_prior_std": lambda v: f"spin damping +- {v:.2g} 1/s",
+             "acceleration_adaptation.marker_offset_prior_std": lambda v: f"marker offset +- {v * 1e3:.2g} mm"}
     return "online learning's priors (with --out): " + ", ".join(parts[n](v) for n, v in priors.items())
 
 

@@ -14,9 +14,10 @@ from typing import Any, Collection, Mapping, Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.estimation.marker_offset import centres_of
+from air_hockey_agent.core.estimation.marker_offset import centres_of, offset_normal_equations
 from air_hockey_agent.core.identification.flight_fit import (FieldCheck, FlightFit, FlightSettings, NoiseModel,
-                                                           field_check, flight_law, identify_flight)
+                                                           field_check, flight_law, free_flight_windows,
+                                                           identify_flight)
 from air_hockey_agent.core.identification.impact_fit import (IMPACT_NAMES, DelayFit, ImpactFit, ImpactSettings,
                                                             find_impacts, fit_delay, fit_impacts)
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
@@ -31,7 +32,8 @@ IMPACT = ("restitution", "restitution_slope", "restitution_min", "restitution_kn
 # where the rims are (:mod:`.rim_lines`: mocap_table_pose's x, y and yaw, table.length, table.width), from the
 # same meeting points as impact_delay
 GEOMETRY = ("table_geometry",)
-SPLIT_IDENTIFIABLE = FLIGHT + SPIN + IMPACT + GEOMETRY
+OFFSET = ("marker_offset",)  # the mocap pivot off the disc's centre, from the flight windows' positions
+SPLIT_IDENTIFIABLE = FLIGHT + SPIN + IMPACT + GEOMETRY + OFFSET
 AXES = ("table_acceleration_x", "table_acceleration_y")
 
 
@@ -77,10 +79,16 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
     (:func:`.rim_lines.recentred`): the flight and impact fits then see the rims where they are. Without
     ``move_centre`` (poses not read through ``mocap_table_pose``) only the table's size moves, not its centre
     or yaw. The fits see the disc's centre: measured positions are taken back from the mocap pivot by the
-    configured ``marker_offset`` first, as the filter takes them."""
-    if any(tracker["marker_offset"]):
-        trajectories = [at_centre(t, tracker["marker_offset"]) for t in trajectories]
-    first = _identify_once(trajectories, tracker, settings, names, bounds)
+    ``marker_offset`` (identified first from the free-flight windows, :func:`identify_offset`, or the
+    configured one), as the filter takes them."""
+    offset = None
+    if "marker_offset" in names:
+        offset = identify_offset(trajectories, TableGeometry.from_params(tracker), flight_settings(settings),
+                                 tracker["marker_offset"], bounds["marker_offset"])
+    pivot = tracker["marker_offset"] if offset is None else offset[0]
+    if any(pivot):
+        trajectories = [at_centre(t, pivot) for t in trajectories]
+    first = _with_offset(_identify_once(trajectories, tracker, settings, names, bounds), offset)
     if "table_geometry" not in names:
         return first
     lines = rim_lines(first.delay, settings["split.significance"], bounds["table_geometry"],
@@ -89,8 +97,38 @@ def identify_split(trajectories: Sequence[GridTrajectory], tracker: Mapping[str,
         return replace(first, rim_lines=lines, geometry={}, first_delay=first.delay)
     geometry = corrected_geometry(tracker, lines)
     moved = [recentred(t, lines.centre(), lines.yaw()) for t in trajectories]
-    again = _identify_once(moved, {**tracker, **geometry}, settings, names, bounds)
+    again = _with_offset(_identify_once(moved, {**tracker, **geometry}, settings, names, bounds), offset)
     return replace(again, rim_lines=lines, geometry=geometry, first_delay=first.delay)
+
+
+def identify_offset(trajectories: Sequence[GridTrajectory], table: TableGeometry, settings: FlightSettings,
+                    configured: Sequence[float], box: Sequence[float]) -> tuple[list, list]:
+    """The mocap pivot's offset from the disc's centre [m] (puck frame) and its standard errors, from the
+    free-flight windows (``settings``; those that do not overlap) of the measured positions: each a
+    parabola per axis plus ``R(theta) o`` (:func:`.marker_offset.offset_normal_equations`), weighted by
+    its residual variance; each axis within ``box``. Pucks that do not turn cannot tell it: the
+    configured offset then stays, with errors 0."""
+    normal, rhs = np.zeros((2, 2)), np.zeros(2)
+    for traj in trajectories:
+        last = -1
+        for rows, _ in free_flight_windows(traj, table, settings):
+            if rows[0] <= last:
+                continue
+            last = int(rows[-1])
+            n, r, variance = offset_normal_equations(rows * traj.dt, traj.z[rows])
+            if variance > 0.0:
+                normal, rhs = normal + n / variance, rhs + r / variance
+    if np.linalg.eigvalsh(normal)[0] * (box[1] - box[0]) ** 2 < 1.0:  # not even the box's width pinned down
+        return [float(v) for v in configured], [0.0, 0.0]
+    value = np.clip(np.linalg.solve(normal, rhs), box[0], box[1])
+    return [float(v) for v in value], [float(s) for s in np.sqrt(np.diag(np.linalg.inv(normal)))]
+
+
+def _with_offset(result: SplitResult, offset: tuple[list, list] | None) -> SplitResult:
+    """``result`` with the identified marker offset and its errors among its values (when identified)."""
+    if offset is not None:
+        result.identified["marker_offset"], result.std["marker_offset"] = offset
+    return result
 
 
 def at_centre(trajectory: GridTrajectory, offset) -> GridTrajectory:
@@ -170,7 +208,8 @@ def learning_priors(result: SplitResult, kept: Collection[str], std: Mapping[str
     errors = {"table_acceleration": "acceleration_adaptation.prior_std",
               "damping": "acceleration_adaptation.damping_prior_std",
               "friction_surface": "acceleration_adaptation.friction_prior_std",
-              "spin_damping": "acceleration_adaptation.spin_prior_std"}
+              "spin_damping": "acceleration_adaptation.spin_prior_std",
+              "marker_offset": "acceleration_adaptation.marker_offset_prior_std"}
     for name, prior in errors.items():
         value = float(np.max(std[name])) if name in kept and name in std else 0.0
         if value > 0.0:
