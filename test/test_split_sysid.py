@@ -425,18 +425,22 @@ def test_a_table_transform_off_in_the_bags_is_corrected_through_mocap_table_pose
     assert medians["moved"] < 1.05 * medians["true"] and medians["transform"] > 1.2 * medians["true"], medians
 
 
+
+def measured_at_pivot(trajectory, offset):
+    """``trajectory`` as a mocap pivot ``offset`` [m] (puck frame) off the disc's centre measures it."""
+    from air_hockey_agent.core.estimation.marker_offset import pivot_shift
+    from air_hockey_agent.core.identification.preprocess import GridTrajectory
+    z = trajectory.z
+    shift = np.array([pivot_shift(theta, offset) if np.isfinite(theta) else (np.nan, np.nan) for theta in z[:, 2]])
+    return GridTrajectory(trajectory.t0, trajectory.dt, np.column_stack([z[:, :2] + shift, z[:, 2]]))
+
 def test_the_fits_see_the_discs_centre_when_the_mocap_pivot_sits_off_it():
     """The same trajectories measured at a pivot (2, -1) mm off the disc's centre, identified with that
     marker_offset configured, give what the centre's trajectories give with none (the fits see the centre,
     as the filter does); without it configured the flight fit sees the pivot's circles."""
-    from air_hockey_agent.core.estimation.marker_offset import pivot_shift
-    from air_hockey_agent.core.identification.preprocess import GridTrajectory
     trajectories, _ = session_on_testbed(4, 8, {})
     offset = (0.002, -0.001)
-    pivots = []
-    for t in trajectories:
-        shift = np.array([pivot_shift(theta, offset) if np.isfinite(theta) else (np.nan, np.nan) for theta in t.z[:, 2]])
-        pivots.append(GridTrajectory(t.t0, t.dt, np.column_stack([t.z[:, :2] + shift, t.z[:, 2]])))
+    pivots = [measured_at_pivot(t, offset) for t in trajectories]
     tracker, settings = load_tracker_params(), load_sysid_params()
     names = ["damping", "friction_surface", "table_acceleration"]
     centre = identify_split(trajectories, tracker, settings, names, bounds(settings, names))
@@ -449,17 +453,13 @@ def test_the_fits_see_the_discs_centre_when_the_mocap_pivot_sits_off_it():
 
 def test_the_mocap_pivots_offset_is_identified_from_the_flight_windows():
     """Ten shots' trajectories measured at a pivot (2, -1) mm off, marker_offset identified: within 0.15 mm,
-    a standard error below that (four shots: 0.5 mm, too few spinning windows away from the rims), and the flight law as the centre's trajectories give it; the centre's own
+    a standard error below that (four shots: 0.5 mm, too few spinning windows away from the rims), and the
+    flight law as the centre's trajectories give it; the centre's own
     trajectories give an offset within 0.15 mm of 0; the learning prior carries its error."""
-    from air_hockey_agent.core.estimation.marker_offset import pivot_shift
-    from air_hockey_agent.core.identification.preprocess import GridTrajectory
     from air_hockey_agent.core.identification.split import learning_priors
     trajectories, _ = session_on_testbed(10, 8, {})
     offset = (0.002, -0.001)
-    pivots = []
-    for t in trajectories:
-        shift = np.array([pivot_shift(theta, offset) if np.isfinite(theta) else (np.nan, np.nan) for theta in t.z[:, 2]])
-        pivots.append(GridTrajectory(t.t0, t.dt, np.column_stack([t.z[:, :2] + shift, t.z[:, 2]])))
+    pivots = [measured_at_pivot(t, offset) for t in trajectories]
     tracker, settings = load_tracker_params(), load_sysid_params()
     names = ["damping", "friction_surface", "table_acceleration", "marker_offset"]
     found = identify_split(pivots, tracker, settings, names, bounds(settings, names))

@@ -519,9 +519,11 @@ def test_a_flight_window_learns_at_its_half_at_its_end_and_where_an_impact_cuts_
     limit = TABLE.y_limit
     learning, stamps, fits = flight(0.6, limit - 0.4 + 0.5 * d * 0.16)  # meets the rim 0.4 s on
     assert max(fits) == 2 and learning.acceleration.windows == 1
-    assert stamps[fits.index(1)] == pytest.approx(0.26, abs=0.01) and stamps[fits.index(2)] == pytest.approx(0.4, abs=0.01)
+    assert stamps[fits.index(1)] == pytest.approx(0.26, abs=0.01)
+    assert stamps[fits.index(2)] == pytest.approx(0.4, abs=0.01)
     learning, stamps, fits = flight(0.6, -0.3)
-    assert max(fits) == 2 and learning.acceleration.windows == 1 and stamps[fits.index(2)] == pytest.approx(0.51, abs=0.01)
+    assert max(fits) == 2 and learning.acceleration.windows == 1
+    assert stamps[fits.index(2)] == pytest.approx(0.51, abs=0.01)
     assert learning.acceleration.damping == pytest.approx(d, abs=0.01)
 
 

@@ -83,7 +83,7 @@ class FilterSettings:
     imm_rim_impact_noise: float = 0.5     # [-] the rim mode's impact noise (the free mode's: impact_noise)
     imm_contact_speed: float = 2.0        # [m/s] std of the contact mode's velocity change in one frame
     imm_contact_spin: float = 10.0        # [rad/s] ... and of its spin change
-    marker_offset: tuple[float, float] = (0.0, 0.0)  # [m] the mocap pivot off the centre, puck frame (:mod:`.marker_offset`)
+    marker_offset: tuple[float, float] = (0.0, 0.0)  # [m] mocap pivot off the centre, puck frame (.marker_offset)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "FilterSettings":
