@@ -309,13 +309,19 @@ class PuckEKF:
         return all(map(math.isfinite, values)) and self.model.table.contains(values[0], values[1],
                                                                              self.settings.outside_table_margin)
 
+    @property
+    def marker_offset(self) -> tuple[float, float]:
+        """[m] The mocap pivot's offset from the disc's centre (puck frame) measured positions are taken
+        back by: learned online, or ``marker_offset`` as configured."""
+        return self.settings.marker_offset if self.learning is None else self.learning.marker_offset
+
     def process(self, t: float, z: Sequence[float] | None) -> int:
         """Handle one mocap frame at time ``t`` [s]: measurement ``z`` (x, y, theta) or None (lost).
 
         Returns ``FLAG_*`` bits describing what was done. A measured position is the mocap pivot's: it is
         taken back to the disc's centre by the marker offset (configured or learned) first.
         """
-        offset = self.settings.marker_offset if self.learning is None else self.learning.marker_offset
+        offset = self.marker_offset
         if z is not None and (offset[0] or offset[1]):
             z = centre_of(np.asarray(z, float), offset)
         if self.learning is None:

@@ -6,7 +6,9 @@ re-initialisations: the live node publishes a prediction from each), the mean is
 ahead and compared with the *valid measurement* nearest to ``t + h`` (within half a frame period; the
 prediction runs to that frame's exact stamp). A valid measurement is any finite pose on the table, whether
 the filter fused it or not, so a filter that rejects more frames does not look better. The error is the
-planar distance [m]. A pose that jumps from both neighbouring poses faster than ``glitch_speed``
+planar distance [m] between the measured position and the one the prediction says the mocap measures: the
+disc's centre, or with a marker offset (the mocap pivot off the centre, :mod:`.marker_offset`) the pivot
+at the predicted angle, as the filter knew the offset at the prediction's start. A pose that jumps from both neighbouring poses faster than ``glitch_speed``
 (config/tracker.yaml) is a marker glitch and no ground truth. Alongside: the fraction of poses the filter
 rejected, its re-initialisations per second of recording (beyond the first of each recording) and the
 normalised innovation squared (NIS) of every frame that reached the gate (3 degrees of freedom: median
@@ -25,6 +27,7 @@ import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import FilterStats, PuckEKF
 from air_hockey_agent.core.puck.model import PuckModel
+from air_hockey_agent.core.estimation.marker_offset import pivot_shift
 from air_hockey_agent.core.puck.prediction import predict_fast
 
 Frame = tuple[float, "Sequence[float] | None"]  # (stamp [s], table-frame (x, y, theta) or None if lost)
@@ -165,6 +168,7 @@ class _FrameRecord:
     P: np.ndarray | None        # its covariance (kept only when asked for)
     nis: float | None           # the frame's NIS when it reached the gate
     model: PuckModel            # the filter's model after the frame (its rim law as learned by then)
+    offset: tuple = (0.0, 0.0)  # [m] the marker offset the filter takes positions back by after the frame
 
 
 def valid_poses(frames: Sequence[Frame], ekf: PuckEKF) -> list[bool]:
@@ -206,7 +210,8 @@ def _filter_pass(ekf: PuckEKF, frames: Iterable[Frame], keep_cov: bool) -> tuple
         ekf.process(t, z)
         has_state = ekf.initialised and ekf.stamp is not None and ekf.stamp == t
         records.append(_FrameRecord(t, np.asarray(z, float) if good else None, ekf.x.copy() if has_state else None,
-                                    ekf.P.copy() if has_state and keep_cov else None, ekf.last_nis, ekf.model))
+                                    ekf.P.copy() if has_state and keep_cov else None, ekf.last_nis, ekf.model,
+                                    ekf.marker_offset))
     return records, stamps, invalid
 
 
@@ -226,7 +231,7 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
             if j is None or abs(truth_t[j] - (start.t + h)) > tolerance or truth_t[j] <= start.t:
                 continue
             pred = predict_fast(start.model, start.x, start.P, truth_t[j] - start.t, ekf.settings.dt, ekf.settings.q)
-            residual = truth[j].z[:2] - pred.state[:2]
+            residual = truth[j].z[:2] - pred.state[:2] - pivot_shift(float(pred.state[4]), start.offset)
             errors.append(float(np.hypot(*residual)))
             if totals.rest_speed is not None:
                 paths.append(_path(start.x, pred.state, len(pred.impacts), totals.rest_speed,
