@@ -10,7 +10,10 @@ measured angle (its noise, 9.5 mrad, moves the correction by 1 % of ``|o|``).
 The offset is learned online from free-flight windows (:class:`MarkerOffsetAdaptation`): per window the
 positions are a parabola in time per axis plus ``R(theta_i) o``; with each window's parabola projected
 out, the windows' normal equations in ``o`` add up. A puck that does not turn gives nothing (its
-``R(theta) o`` is a constant the parabola takes), a spinning one pins ``o`` down.
+``R(theta) o`` is a constant the parabola takes), a spinning one pins ``o`` down. ``sysid --method
+split`` identifies it the same way (:func:`~air_hockey_agent.core.identification.split.identify_offset`), and
+the evaluation compares a measured position with the pivot at the predicted angle
+(:mod:`.evaluation`).
 """
 from __future__ import annotations
 
