@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from air_hockey_agent.core.estimation.ekf import PuckEKF
-from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
+from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream, prediction_series
 from air_hockey_agent.core.estimation.marker_offset import MarkerOffsetAdaptation, centre_of, pivot_shift
 from air_hockey_agent.tracker_params import load_tracker_params
 from model_fixtures import session_on_testbed
@@ -94,3 +94,7 @@ def test_predictions_are_compared_with_what_the_mocap_measures_the_pivot_at_the_
         evaluate_stream(ekf, frames, totals)
         medians[name] = totals.summary()["horizons"]["0.5"]["median_m"]
     assert medians["told"] < 1e-4 and medians["untold"] > 0.002
+    told = PuckEKF.from_params({**without_learning(load_tracker_params()), "marker_offset": list(offset)})
+    series = prediction_series(told, frames, 0.5)  # plot's: measured positions at the centre, as the estimates
+    assert np.allclose(series.measured[:, :2], [0.2, -0.1], atol=1e-12)
+    assert np.nanmax(np.abs(series.predicted[:, :2] - [0.2, -0.1])) < 1e-4

@@ -27,7 +27,7 @@ import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import FilterStats, PuckEKF
 from air_hockey_agent.core.puck.model import PuckModel
-from air_hockey_agent.core.estimation.marker_offset import pivot_shift
+from air_hockey_agent.core.estimation.marker_offset import centre_of, pivot_shift
 from air_hockey_agent.core.puck.prediction import predict_fast
 
 Frame = tuple[float, "Sequence[float] | None"]  # (stamp [s], table-frame (x, y, theta) or None if lost)
@@ -274,7 +274,7 @@ class PredictionSeries:
 
     horizon: float
     t: np.ndarray           # (n,) stamps [s] of the valid measurements
-    measured: np.ndarray    # (n, 3) x, y, theta
+    measured: np.ndarray    # (n, 3) x, y, theta, the position taken back to the disc's centre by the marker offset
     estimated: np.ndarray   # (n, 6) filter state after the frame (NaN where the filter had none)
     predicted: np.ndarray   # (n, 6) state predicted from the frame nearest t - horizon (NaN if none)
 
@@ -296,5 +296,6 @@ def prediction_series(ekf: PuckEKF, frames: Iterable[Frame], horizon: float) -> 
         if j is not None and start_t[j] < stamp and abs(start_t[j] - (stamp - horizon)) <= tolerance:
             predicted[k] = predict_fast(starts[j].model, starts[j].x, None, stamp - start_t[j], ekf.settings.dt,
                                         ekf.settings.q).state
-    return PredictionSeries(horizon, np.array(t), np.array([r.z for r in measured]).reshape(-1, 3),
+    centres = [centre_of(r.z, r.offset) for r in measured]  # as the estimates and predictions: the disc's centre
+    return PredictionSeries(horizon, np.array(t), np.array(centres).reshape(-1, 3),
                             estimated, predicted)
