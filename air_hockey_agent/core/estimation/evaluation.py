@@ -8,8 +8,9 @@ prediction runs to that frame's exact stamp). A valid measurement is any finite 
 the filter fused it or not, so a filter that rejects more frames does not look better. The error is the
 planar distance [m] between the measured position and the one the prediction says the mocap measures: the
 disc's centre, or with a marker offset (the mocap pivot off the centre, :mod:`.marker_offset`) the pivot
-at the predicted angle, as the filter knew the offset at the prediction's start. A pose that jumps from both neighbouring poses faster than ``glitch_speed``
-(config/tracker.yaml) is a marker glitch and no ground truth. Alongside: the fraction of poses the filter
+at the predicted angle, as the filter knew the offset at the prediction's start. A pose that jumps from
+both neighbouring poses faster than ``glitch_speed`` (config/tracker.yaml) is a marker glitch and no
+ground truth. Alongside: the fraction of poses the filter
 rejected, its re-initialisations per second of recording (beyond the first of each recording) and the
 normalised innovation squared (NIS) of every frame that reached the gate (3 degrees of freedom: median
 2.37 and mean 3 when consistent), also by regime (issue #13: is the noise right at rest, in flight and at
@@ -26,8 +27,8 @@ from typing import Iterable, Sequence
 import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import FilterStats, PuckEKF
-from air_hockey_agent.core.puck.model import PuckModel
 from air_hockey_agent.core.estimation.marker_offset import centre_of, pivot_shift
+from air_hockey_agent.core.puck.model import PuckModel
 from air_hockey_agent.core.puck.prediction import predict_fast
 
 Frame = tuple[float, "Sequence[float] | None"]  # (stamp [s], table-frame (x, y, theta) or None if lost)

@@ -94,21 +94,27 @@ class AdaptationSettings:
         """The knees tried [m/s]: the configured one first, then ``knee_count`` from 0 to ``knee_max``."""
         grid = np.linspace(0.0, self.knee_max, self.knee_count) if self.knee_count > 1 else \
             np.zeros(self.knee_count)
-        return np.concatenate(([configured], grid[np.abs(grid - configured) > 1e-9]))
+        return _configured_first(configured, grid, 1e-9)
 
     def frictions(self, configured: float) -> np.ndarray:
         """The rim frictions mu_rim tried [-]: the configured one first, then ``friction_count`` evenly in
         the logarithm between ``friction_min`` and ``friction_max``, ascending."""
         grid = np.sort(np.geomspace(self.friction_min, self.friction_max, self.friction_count)) \
             if self.friction_count else np.zeros(0)
-        return np.concatenate(([configured], grid[np.abs(grid - configured) > 1e-12]))
+        return _configured_first(configured, grid, 1e-12)
 
     def widths(self, configured: float) -> np.ndarray:
         """The fall widths tried [m/s]: the configured one first, then ``fall_width_count`` evenly from
         ``fall_width_max / fall_width_count`` to ``fall_width_max``."""
         count = self.fall_width_count
         grid = np.linspace(self.fall_width_max / count, self.fall_width_max, count) if count else np.zeros(0)
-        return np.concatenate(([configured], grid[np.abs(grid - configured) > 1e-9]))
+        return _configured_first(configured, grid, 1e-9)
+
+
+def _configured_first(configured: float, grid: np.ndarray, tolerance: float) -> np.ndarray:
+    """The values a learning tries: ``configured`` first, then ``grid`` without the values within
+    ``tolerance`` of it (tried once, as the configured one)."""
+    return np.concatenate(([configured], grid[np.abs(grid - configured) > tolerance]))
 
 
 def rim_frame(wall: int, vx: float, vy: float) -> tuple[float, float]:

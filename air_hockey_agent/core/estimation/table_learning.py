@@ -222,7 +222,7 @@ class TableLearning:
         self._watch: _ImpactWatch | None = None
         self._times: list[float] = []   # the free-flight window being collected
         self._poses: list = []          # its poses, the position taken back to the centre (as fused)
-        self._pivots: list = []         # and as measured (the pivot's)
+        self._pivots: list = []         # and as measured (the pivot's), kept while the offset is learned
         self._halfway = False   # its first half was learned from (provisionally)
         self._counted = False   # it was counted in windows
 
@@ -334,8 +334,9 @@ class TableLearning:
             return self._end_window()
         self._times.append(t)
         self._poses.append(z)
-        dx, dy = pivot_shift(float(z[2]), self.marker_offset)
-        self._pivots.append((z[0] + dx, z[1] + dy, z[2]))
+        if self.offset is not None:
+            dx, dy = pivot_shift(float(z[2]), self.offset.value)
+            self._pivots.append((z[0] + dx, z[1] + dy, z[2]))
         span = t - self._times[0]
         if span >= settings.window:
             return self._end_window()
