@@ -25,6 +25,7 @@ import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import FLAG_MEASUREMENT_USED, FLAG_REINITIALISED, PuckEKF
 from air_hockey_agent.core.estimation.evaluation import REGIMES
+from air_hockey_agent.core.estimation.marker_offset import centre_of
 from air_hockey_agent.core.identification.preprocess import GridTrajectory
 from air_hockey_agent.core.identification.sysid import filter_pass_totals
 from air_hockey_agent.core.puck.model import wrap_angle
@@ -77,7 +78,9 @@ def estimate_once(params: Mapping[str, Any], trajectories: Sequence[GridTrajecto
                 if flags & FLAG_REINITIALISED or not ekf.initialised:
                     previous = None  # the track restarted: no model step links it to the last estimate
                 continue
-            meas_res.append(ekf.residual(z))  # eq. 3.12 with the posterior standing in for the truth
+            # eq. 3.12 with the posterior standing in for the truth, the pivot taken back to the centre as
+            # the filter took it (a pivot off the centre would count its circles as noise)
+            meas_res.append(ekf.residual(centre_of(np.asarray(z, float), ekf.marker_offset)))
             speeds.append(float(np.hypot(ekf.x[2], ekf.x[3])))
             if previous is not None and previous[0] == row - 1:
                 step = ekf.model.step(previous[1], traj.dt, with_jacobian=False).state - ekf.x
