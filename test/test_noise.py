@@ -39,7 +39,7 @@ def test_measurement_noise_estimate_scales_with_the_true_noise():
 
 
 def test_measurement_noise_of_a_pivot_off_the_centre_is_the_mocap_noise_alone():
-    """A pivot 2 mm off the disc's centre circles it as the puck spins (+-5 rad/s): with the offset
+    """A pivot (2, -1) mm off the disc's centre circles it as the puck spins (+-5 rad/s): with the offset
     configured (as `sysid --method split` writes it) the estimate is the noise of the pivot at the centre,
     not its circles (|o|^2 / 2 = 2.5e-6 m^2 per axis, 250 times the noise; without the offset the
     filter gates most of them and the rest still make the estimate ten times too large)."""

@@ -5,7 +5,9 @@ estimates standing in for the true states (sec. 4.4). ``--fix R`` or ``--fix Q``
 its current value (``config/tracker.yaml`` or ``--params-file``) and estimates only the other. The
 prediction error at ``--horizon`` is reported for the current noise, for estimated R only, estimated
 Q only and both (the thesis kept Q after this comparison, sec. 5.3). ``--out`` writes R and Q as a
-tracker parameter YAML.
+tracker parameter YAML. A mocap pivot off the disc's centre is not noise: the measured positions are taken
+back to the centre by the tracker's ``marker_offset`` (as configured, e.g. by ``sysid --method split``'s YAML,
+or as the filter learns it online), as the filter itself takes them.
 
 ``--by-regime`` (issue #13: noise by regime) estimates R as above (or keeps it with ``--fix R``) and
 then calibrates the process noise by regime instead of eq. 3.13: Q in flight, Q at rest

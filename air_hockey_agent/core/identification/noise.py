@@ -2,7 +2,9 @@
 
 With the filter's own estimates standing in for the true states:
 
-* R (eq. 3.12): covariance of ``z_k - h(x_k|k)`` over every fused frame (angle residual wrapped);
+* R (eq. 3.12): covariance of ``z_k - h(x_k|k)`` over every fused frame (angle residual wrapped; the
+  measured position taken back from the mocap pivot to the disc's centre by the filter's marker offset,
+  :mod:`~air_hockey_agent.core.estimation.marker_offset`, as the filter takes it);
 * Q (eq. 3.13): covariance of ``f(x_k|k) - x_k+1|k+1`` over consecutive fused model steps;
 
 both without correlation terms (diagonal, thesis sec. 4.4). :func:`calibrate_by_regime` sets the noise by
