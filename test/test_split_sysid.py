@@ -276,6 +276,30 @@ def test_cli_split_writes_params_that_eval_prediction_accepts(tmp_path):
     assert not {"table_acceleration", "spin_damping", "marker_offset"} & set(polished["values"])  # as fitted
 
 
+def test_cli_validates_on_the_bags_given_to_validate(tmp_path):
+    """Issue #13's protocol (identified on some bags, validated on others): every trajectory of the
+    training bags trains, those of --validate's bags validate, and the validation losses are the
+    thesis-style columns eval-prediction reports on those bags, before (defaults) and after (the YAML)."""
+    train, held_out, out = tmp_path / "train", tmp_path / "held_out", tmp_path / "id.yaml"
+    for bag, seed in ((train, 5), (held_out, 6)):
+        made = cli("synth-bag", bag, "--source", "testbed", "--shots", 6, "--seed", seed)
+        assert made.returncode == 0, made.stderr
+    run = cli("sysid", train, "--validate", held_out, "--out", out, "--json")
+    assert run.returncode == 0, run.stderr[-3000:]
+    report = json.loads(run.stdout)
+    alone = json.loads(cli("sysid", train, "--json").stdout)  # --split's 0.9 of the same trajectories
+    assert report["train_trajectories"] == alone["train_trajectories"] + alone["validation_trajectories"]
+    assert report["validation_bags"] == 1 and report["validation_trajectories"] > 0
+    for params, key in (((), "before"), (("--params-file", out), "after")):
+        check = cli("eval-prediction", held_out, *params, "--json")
+        assert check.returncode == 0, check.stderr
+        thesis = json.loads(check.stdout)["thesis_style"]
+        assert thesis["trajectories"] == report["validation_trajectories"]
+        assert report[key]["validation"]["loss_m"] == pytest.approx(thesis["1.0"]["loss_m"], rel=1e-6)
+        assert report[key]["validation"]["n"] == thesis["1.0"]["n"]
+    assert report["after"]["validation"]["loss_m"] < report["before"]["validation"]["loss_m"]
+
+
 def test_cli_split_errors_are_one_line(tmp_path):
     bag = tmp_path / "tb"
     assert cli("synth-bag", bag, "--source", "testbed", "--shots", 3, "--seed", 1).returncode == 0
@@ -290,7 +314,9 @@ def test_cli_split_errors_are_one_line(tmp_path):
             (("--method", "split", "--plot", bag / "metadata.yaml"), "is a file; it names the directory"),
             (("--method", "split", "--identify", "table_acceleration", "--polish", "3"), "--polish: nothing to polish"),
             (("--method", "split", "--identify", "spin_damping", "table_acceleration", "--polish", "3"),
-             "they stay as fitted")):
+             "they stay as fitted"),
+            (("--split", "0.8", "--validate", tmp_path), "--split: not with --validate"),
+            (("--validate", bag), "also a training bag (BAG_DIR); a bag validates or trains, not both")):
         run = cli("sysid", bag, *args)
         assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
         assert len(run.stderr.strip().splitlines()) == 1

@@ -26,10 +26,12 @@ class LoadedTrajectories:
     table_poses: list = field(default_factory=list)  # per bag read: the table pose (x, y, z, yaw) its poses were
     #                                                   read through, None for poses in the table frame
 
-    def common_table_pose(self) -> tuple | None:
+    def common_table_pose(self, *others: "LoadedTrajectories") -> tuple | None:
         """The one table pose every bag's poses were read through (mocap_table_pose, or each bag's transform
-        to --table-frame when they all agree), or None (they differ, or poses came in the table frame)."""
-        poses = {None if p is None else tuple(float(v) for v in p) for p in self.table_poses}
+        to --table-frame when they all agree), here and in ``others``, or None (they differ, or poses came in
+        the table frame)."""
+        poses = {None if p is None else tuple(float(v) for v in p)
+                 for p in self.table_poses + [q for other in others for q in other.table_poses]}
         return next(iter(poses)) if len(poses) == 1 else None
 
     def why_none(self, prep: Mapping[str, Any]) -> str:

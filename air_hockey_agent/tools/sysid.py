@@ -1,9 +1,11 @@
 """``air-hockey sysid BAG_DIR...``: identify the puck model's physical parameters from recordings.
 
 Bags (or directories holding bags) are preprocessed into trajectories (thesis sec. 4.5.1) and split
-into training and validation sets by trajectory. Printed: the prediction loss at ``--horizon`` before
-and after on both sets (thesis table 5.2/5.3 columns: loss, min, median) and the objective that was
-minimised. ``--out`` writes the identified parameters as a parameter YAML that ``puck_tracker
+into training and validation sets by trajectory (``--split``), or, with ``--validate BAG...``, all of
+them train and the trajectories of the bags given to ``--validate`` validate (issue #13's protocol:
+identified on 100 of the lab's bags, validated on the other 28). Printed: the prediction loss at
+``--horizon`` before and after on both sets (thesis table 5.2/5.3 columns: loss, min, median) and the
+objective that was minimised. ``--out`` writes the identified parameters as a parameter YAML that ``puck_tracker
 --ros-args --params-file`` and ``air-hockey eval-prediction --params-file`` accept; the split
 identification's also sets the online learning's priors from its own weight (the rim law worth the
 impacts it was fitted to, the flight's parameters with their standard errors): the configured priors are
@@ -35,7 +37,7 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
-from air_hockey_agent.bags.trajectories import split_train_validation
+from air_hockey_agent.bags.trajectories import LoadedTrajectories, load_trajectories, split_train_validation
 from air_hockey_agent.core.identification.local_fit import beyond_noise
 from air_hockey_agent.core.identification.rim_lines import recentred
 from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split, learning_priors
@@ -53,6 +55,7 @@ from air_hockey_agent.tools.argtypes import count, number
 PROG = "air-hockey sysid"
 HORIZONS = (0.5, 1.0, 1.5)
 METHODS = ("hebo", "split")
+DEFAULT_SPLIT = 0.9  # [-] training share of the trajectories without --validate (thesis sec. 4.5: 94 / 10)
 HEBO_DEFAULTS = {"loss": "position", "iterations": 50, "batch": 5}  # the thesis's runs (sec. 4.3: 50 iterations of 5 suggestions)
 
 
@@ -68,7 +71,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--horizon", type=float, choices=HORIZONS, default=1.0, help="prediction horizon [s]")
     parser.add_argument("--iterations", type=count(1), help=f"--method hebo: iterations (default {HEBO_DEFAULTS['iterations']})")
     parser.add_argument("--batch", type=count(1), help=f"--method hebo: suggestions per iteration (default {HEBO_DEFAULTS['batch']})")
-    parser.add_argument("--split", type=number(0.0, 1.0, low_open=True, high_open=True), default=0.9, help="training fraction of the trajectories")
+    parser.add_argument("--split", type=number(0.0, 1.0, low_open=True, high_open=True),
+                        help=f"training fraction of the trajectories (default {DEFAULT_SPLIT})")
+    parser.add_argument("--validate", nargs="+", type=Path, metavar="BAG_DIR",
+                        help="bags (or directories of bags) whose trajectories are the validation set; every "
+                             "trajectory of the BAG_DIRs then trains (instead of --split)")
     parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
     parser.add_argument("--identify", nargs="+", choices=SPLIT_IDENTIFIABLE, metavar="NAME",
@@ -151,6 +158,8 @@ def run(args: argparse.Namespace) -> int:
     hebo_only = [f"--{n}" for n in HEBO_DEFAULTS if getattr(args, n) is not None]
     if not problem and args.method == "split" and hebo_only:
         problem = f"{hebo_only[0]}: only with --method hebo (the default method, split, fits without a search)"
+    if not problem and args.validate and args.split is not None:
+        problem = "--split: not with --validate (the bags given to --validate are the validation set)"
     if not problem and args.method == "split" and args.cross_validate:
         problem = "--cross-validate: only with --method hebo (split does not learn at a horizon)"
     for name, value in HEBO_DEFAULTS.items():
@@ -171,22 +180,29 @@ def run(args: argparse.Namespace) -> int:
     if args.out is not None and args.out.exists():
         return report_error(PROG, f"--out {args.out}: exists already, not overwriting")
     try:
-        recordings = load_recordings(PROG, args, minimum=2)
+        recordings = load_recordings(PROG, args, minimum=1 if args.validate else 2)
+        held_out = _validation_recordings(args, recordings) if args.validate else None
     except ToolError as exc:
         return report_error(PROG, exc)
     tracker, settings, loaded = recordings.tracker, recordings.settings, recordings.loaded
+    others = () if held_out is None else (held_out,)  # the validation bags, read apart from the training ones
     tracker = without_learning(tracker)  # the law itself is identified: learning it online would rescale each candidate
-    train_idx, val_idx = split_train_validation(len(loaded.trajectories), args.split, args.seed)
-    train = [loaded.trajectories[i] for i in train_idx]
-    validation = [loaded.trajectories[i] for i in val_idx]
+    if held_out is None:
+        train_idx, val_idx = split_train_validation(len(loaded.trajectories), args.split or DEFAULT_SPLIT, args.seed)
+        train = [loaded.trajectories[i] for i in train_idx]
+        validation = [loaded.trajectories[i] for i in val_idx]
+    else:
+        train, validation = list(loaded.trajectories), list(held_out.trajectories)
     if not args.json:
         print(f"{len(loaded.trajectories)} trajectories from {loaded.bags} bag(s) ({loaded.frozen} frozen frames "
-              f"interpolated): {len(train)} for training, {len(validation)} for validation", flush=True)
+              f"interpolated): {len(train)} for training, {len(validation)} for validation"
+              + (f" (from the {held_out.bags} bag(s) of --validate)" if held_out is not None else ""), flush=True)
         if args.method == "hebo":
             print("starting HEBO (loading torch takes several seconds) ...", flush=True)
     if args.method == "split":
         try:
-            result = _identify_split(args, tracker, settings, train, validation, loaded.common_table_pose())
+            result = _identify_split(args, tracker, settings, train, validation,
+                                     loaded.common_table_pose(*others))
         except ValueError as exc:
             return report_error(PROG, f"--method split: {exc} (in {len(train)} training trajectories)")
     else:
@@ -194,8 +210,10 @@ def run(args: argparse.Namespace) -> int:
         if calibration:
             print(f"{PROG}: warning: {calibration}", file=sys.stderr)
         result = _identify_all(args, tracker, settings, train, validation)
+    bad_bags = sum(len(part.errors) for part in (loaded, *others))
     result.update({"train_trajectories": len(train), "validation_trajectories": len(validation),
-                   "bags": loaded.bags, "bad_bags": len(loaded.errors)})
+                   "bags": loaded.bags, "bad_bags": bad_bags,
+                   "validation_bags": held_out.bags if held_out is not None else None})
     if args.out is not None:
         write_params_yaml(args.out, {**result["identified"], **result.get("table_geometry", {}).get("parameters", {})},
                           result["summary_line"], result.get("learning_priors", {}))
@@ -210,7 +228,30 @@ def run(args: argparse.Namespace) -> int:
     for phrase in geometry_warnings(result.get("table_geometry"), settings):
         print(f"{PROG}: warning: {phrase}", file=sys.stderr)
     print(json.dumps(result) if args.json else format_report(result, args.out))
-    return 2 if loaded.errors else 0
+    return 2 if bad_bags else 0
+
+
+def _validation_recordings(args: argparse.Namespace, recordings) -> LoadedTrajectories:
+    """The trajectories of the ``--validate`` bags, read and cut as the training bags (their bad bags printed
+    as one-line errors); raises ToolError when none is usable or a bag also trains."""
+    tracker, settings = recordings.tracker, recordings.settings
+    held_out = load_trajectories(args.validate, args.topic, tracker, settings, frame=args.frame,
+                                 table_frame=args.table_frame)
+    for message in held_out.errors:
+        print(f"{PROG}: error: --validate: {message}", file=sys.stderr)
+    for message in held_out.warnings:
+        print(f"{PROG}: warning: --validate: {message}", file=sys.stderr)
+    both = sorted(_bags_of(held_out) & _bags_of(recordings.loaded))
+    if both:
+        raise ToolError(f"--validate {both[0]}: also a training bag (BAG_DIR); a bag validates or trains, not both")
+    if not held_out.trajectories:
+        raise ToolError(f"--validate: no usable trajectory in {held_out.bags} bag(s){held_out.why_none(settings)}")
+    return held_out
+
+
+def _bags_of(loaded: LoadedTrajectories) -> set[str]:
+    """The resolved paths of the bags ``loaded``'s trajectories came from."""
+    return {str(Path(bag).resolve()) for bag in loaded.sources}
 
 
 def _calibration_warning(loss: str, tracker: dict, settings: dict, train: list) -> str:
