@@ -1,15 +1,14 @@
 """``air-hockey sysid BAG_DIR...``: identify the puck model's physical parameters from recordings.
 
-Bags (or directories holding bags) are preprocessed into trajectories (thesis sec. 4.5.1) and split
-into training and validation sets by trajectory (``--split``), or, with ``--validate BAG...``, all of
-them train and the trajectories of the bags given to ``--validate`` validate (issue #13's protocol:
-identified on 100 of the lab's bags, validated on the other 28). Printed: the prediction loss at
-``--horizon`` before and after on both sets (thesis table 5.2/5.3 columns: loss, min, median) and the
-objective that was minimised. ``--out`` writes the identified parameters as a parameter YAML that ``puck_tracker
---ros-args --params-file`` and ``air-hockey eval-prediction --params-file`` accept; the split
-identification's also sets the online learning's priors from its own weight (the rim law worth the
-impacts it was fitted to, the flight's parameters with their standard errors): the configured priors are
-a stranger's table's.
+Bags (or directories holding bags) are preprocessed into trajectories (thesis sec. 4.5.1) and split into
+training and validation sets by trajectory (``--split``), or, with ``--validate BAG...``, all of them
+train and the trajectories of the bags given to ``--validate`` validate (issue #13's protocol: identified
+on 100 of the lab's bags, validated on the other 28). Printed: the prediction loss at ``--horizon`` before
+and after on both sets (thesis table 5.2/5.3 columns: loss, min, median) and the objective that was
+minimised. ``--out`` writes the identified parameters as a parameter YAML that ``puck_tracker --ros-args
+--params-file`` and ``air-hockey eval-prediction --params-file`` accept; the split identification's also
+sets the online learning's priors from its own weight (the rim law worth the impacts it was fitted to, the
+flight's parameters with their standard errors): the configured priors are a stranger's table's.
 
 ``--method split`` (the default, issue #13) fits each part of the model where it alone acts, without
 the filter and in about a second: damping, surface friction and the table acceleration by least
