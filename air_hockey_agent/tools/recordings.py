@@ -5,6 +5,7 @@ import argparse
 import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Sequence
 
 from air_hockey_agent.bags.reader import PUCK_FRAME
 from air_hockey_agent.bags.trajectories import LoadedTrajectories, load_trajectories
@@ -51,16 +52,23 @@ def load_recordings(prog: str, args: argparse.Namespace, minimum: int = 1) -> Re
         settings = load_sysid_params(args.params_file)
     except (ParameterFileError, ParameterValueError) as exc:
         raise ToolError(str(exc)) from None
-    loaded = load_trajectories(args.bags, args.topic, tracker, settings, frame=args.frame,
-                               table_frame=args.table_frame)
-    for message in loaded.errors:
-        print(f"{prog}: error: {message}", file=sys.stderr)
-    for message in loaded.warnings:
-        print(f"{prog}: warning: {message}", file=sys.stderr)
+    loaded = read_trajectories(prog, args, args.bags, tracker, settings)
     if len(loaded.trajectories) < minimum:
         raise ToolError(f"need at least {minimum} usable trajectories, found {len(loaded.trajectories)} "
                         f"in {loaded.bags} bag(s){loaded.why_none(settings)}")
     return Recordings(tracker, settings, loaded)
+
+
+def read_trajectories(prog: str, args: argparse.Namespace, bags: Sequence[Path], tracker: dict, settings: dict,
+                      label: str = "") -> LoadedTrajectories:
+    """The preprocessed trajectories of ``bags`` (read with ``args``' topic, frame and table frame); each bag
+    that cannot be used and each repair is printed as a one-line error or warning, after ``label``."""
+    loaded = load_trajectories(bags, args.topic, tracker, settings, frame=args.frame, table_frame=args.table_frame)
+    for message in loaded.errors:
+        print(f"{prog}: error: {label}{message}", file=sys.stderr)
+    for message in loaded.warnings:
+        print(f"{prog}: warning: {label}{message}", file=sys.stderr)
+    return loaded
 
 
 def report_error(prog: str, exc: Exception | str) -> int:

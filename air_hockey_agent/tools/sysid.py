@@ -36,7 +36,7 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
-from air_hockey_agent.bags.trajectories import LoadedTrajectories, load_trajectories, split_train_validation
+from air_hockey_agent.bags.trajectories import LoadedTrajectories, split_train_validation
 from air_hockey_agent.core.identification.local_fit import beyond_noise
 from air_hockey_agent.core.identification.rim_lines import recentred
 from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, identify_split, learning_priors
@@ -46,7 +46,8 @@ from air_hockey_agent.core.table import WALL_NAMES
 from air_hockey_agent.sysid_params import bounds
 from air_hockey_agent.tracker_params import TRACKER_PARAMS, without_learning
 from air_hockey_agent.tools.progress import Progress
-from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
+from air_hockey_agent.tools.recordings import (ToolError, add_recording_arguments, load_recordings, read_trajectories,
+                                              report_error)
 from air_hockey_agent.tools.sysid_report import (format_report, geometry_warnings, objective_text, rims_off,
                                                  write_params_yaml)
 from air_hockey_agent.tools.argtypes import count, number
@@ -233,13 +234,8 @@ def run(args: argparse.Namespace) -> int:
 def _validation_recordings(args: argparse.Namespace, recordings) -> LoadedTrajectories:
     """The trajectories of the ``--validate`` bags, read and cut as the training bags (their bad bags printed
     as one-line errors); raises ToolError when none is usable or a bag also trains."""
-    tracker, settings = recordings.tracker, recordings.settings
-    held_out = load_trajectories(args.validate, args.topic, tracker, settings, frame=args.frame,
-                                 table_frame=args.table_frame)
-    for message in held_out.errors:
-        print(f"{PROG}: error: --validate: {message}", file=sys.stderr)
-    for message in held_out.warnings:
-        print(f"{PROG}: warning: --validate: {message}", file=sys.stderr)
+    settings = recordings.settings
+    held_out = read_trajectories(PROG, args, args.validate, recordings.tracker, settings, label="--validate: ")
     both = sorted(_bags_of(held_out) & _bags_of(recordings.loaded))
     if both:
         raise ToolError(f"--validate {both[0]}: also a training bag (BAG_DIR); a bag validates or trains, not both")
