@@ -154,31 +154,9 @@ def _chosen_names(args: argparse.Namespace) -> tuple[list[str], str]:
 
 
 def run(args: argparse.Namespace) -> int:
-    names, problem = _chosen_names(args)
-    hebo_only = [f"--{n}" for n in HEBO_DEFAULTS if getattr(args, n) is not None]
-    if not problem and args.method == "split" and hebo_only:
-        problem = f"{hebo_only[0]}: only with --method hebo (the default method, split, fits without a search)"
-    if not problem and args.validate and args.split is not None:
-        problem = "--split: not with --validate (the bags given to --validate are the validation set)"
-    if not problem and args.method == "split" and args.cross_validate:
-        problem = "--cross-validate: only with --method hebo (split does not learn at a horizon)"
-    for name, value in HEBO_DEFAULTS.items():
-        if getattr(args, name) is None:
-            setattr(args, name, value)
-    if not problem and args.plot is not None and args.method != "split":
-        problem = "--plot: only with --method split (`air-hockey plot` shows HEBO's predictions)"
-    if not problem and args.plot is not None and args.plot.exists() and not args.plot.is_dir():
-        problem = f"--plot {args.plot} is a file; it names the directory the PNGs are written to"
-    if not problem and args.polish and all(n in UNPOLISHED for n in names):
-        problem = (f"--polish: nothing to polish (--identify {' '.join(names)}: "
-                   f"{'it stays' if len(names) == 1 else 'they stay'} as fitted)")
+    problem = _argument_problem(args)
     if problem:
         return report_error(PROG, problem)
-    args.identify = names
-    if args.out is not None and args.out.is_dir():
-        return report_error(PROG, f"--out {args.out} is a directory")
-    if args.out is not None and args.out.exists():
-        return report_error(PROG, f"--out {args.out}: exists already, not overwriting")
     try:
         recordings = load_recordings(PROG, args, minimum=1 if args.validate else 2)
         held_out = _validation_recordings(args, recordings) if args.validate else None
@@ -187,12 +165,7 @@ def run(args: argparse.Namespace) -> int:
     tracker, settings, loaded = recordings.tracker, recordings.settings, recordings.loaded
     others = () if held_out is None else (held_out,)  # the validation bags, read apart from the training ones
     tracker = without_learning(tracker)  # the law itself is identified: learning it online would rescale each candidate
-    if held_out is None:
-        train_idx, val_idx = split_train_validation(len(loaded.trajectories), args.split or DEFAULT_SPLIT, args.seed)
-        train = [loaded.trajectories[i] for i in train_idx]
-        validation = [loaded.trajectories[i] for i in val_idx]
-    else:
-        train, validation = list(loaded.trajectories), list(held_out.trajectories)
+    train, validation = _train_and_validation(args, loaded, held_out)
     if not args.json:
         print(f"{len(loaded.trajectories)} trajectories from {loaded.bags} bag(s) ({loaded.frozen} frozen frames "
               f"interpolated): {len(train)} for training, {len(validation)} for validation"
@@ -218,6 +191,53 @@ def run(args: argparse.Namespace) -> int:
         write_params_yaml(args.out, {**result["identified"], **result.get("table_geometry", {}).get("parameters", {})},
                           result["summary_line"], result.get("learning_priors", {}))
     result.pop("summary_line")
+    _print_warnings(result, settings)
+    print(json.dumps(result) if args.json else format_report(result, args.out))
+    return 2 if bad_bags else 0
+
+
+def _argument_problem(args: argparse.Namespace) -> str:
+    """The first problem with the arguments as a one-line message ('' when none); fills in the HEBO
+    defaults and the chosen names (``args.identify``)."""
+    names, problem = _chosen_names(args)
+    hebo_only = [f"--{n}" for n in HEBO_DEFAULTS if getattr(args, n) is not None]
+    if not problem and args.method == "split" and hebo_only:
+        problem = f"{hebo_only[0]}: only with --method hebo (the default method, split, fits without a search)"
+    if not problem and args.validate and args.split is not None:
+        problem = "--split: not with --validate (the bags given to --validate are the validation set)"
+    if not problem and args.method == "split" and args.cross_validate:
+        problem = "--cross-validate: only with --method hebo (split does not learn at a horizon)"
+    for name, value in HEBO_DEFAULTS.items():
+        if getattr(args, name) is None:
+            setattr(args, name, value)
+    if not problem and args.plot is not None and args.method != "split":
+        problem = "--plot: only with --method split (`air-hockey plot` shows HEBO's predictions)"
+    if not problem and args.plot is not None and args.plot.exists() and not args.plot.is_dir():
+        problem = f"--plot {args.plot} is a file; it names the directory the PNGs are written to"
+    if not problem and args.polish and all(n in UNPOLISHED for n in names):
+        problem = (f"--polish: nothing to polish (--identify {' '.join(names)}: "
+                   f"{'it stays' if len(names) == 1 else 'they stay'} as fitted)")
+    args.identify = names
+    if not problem and args.out is not None and args.out.is_dir():
+        problem = f"--out {args.out} is a directory"
+    if not problem and args.out is not None and args.out.exists():
+        problem = f"--out {args.out}: exists already, not overwriting"
+    return problem
+
+
+def _train_and_validation(args: argparse.Namespace, loaded: LoadedTrajectories,
+                          held_out: LoadedTrajectories | None) -> tuple[list, list]:
+    """The training and validation trajectories: ``loaded``'s split by ``--split`` (shuffled by ``--seed``),
+    or all of ``loaded``'s and the ``--validate`` bags' ``held_out``."""
+    if held_out is not None:
+        return list(loaded.trajectories), list(held_out.trajectories)
+    train_idx, val_idx = split_train_validation(len(loaded.trajectories), args.split or DEFAULT_SPLIT, args.seed)
+    return [loaded.trajectories[i] for i in train_idx], [loaded.trajectories[i] for i in val_idx]
+
+
+def _print_warnings(result: dict, settings: dict) -> None:
+    """The identification's warnings on stderr: values on a search bound, rims off their lines, the table's
+    geometry."""
     for phrase in result["on_bounds"]:
         print(f"{PROG}: warning: {phrase}: the search ended on the edge of its box (config/sysid.yaml bounds): "
               f"the effect may be absent, or the model or the box may not fit these recordings", file=sys.stderr)
@@ -227,8 +247,6 @@ def run(args: argparse.Namespace) -> int:
               f"mocap_table_pose{identify}", file=sys.stderr)
     for phrase in geometry_warnings(result.get("table_geometry"), settings):
         print(f"{PROG}: warning: {phrase}", file=sys.stderr)
-    print(json.dumps(result) if args.json else format_report(result, args.out))
-    return 2 if bad_bags else 0
 
 
 def _validation_recordings(args: argparse.Namespace, recordings) -> LoadedTrajectories:
