@@ -169,6 +169,8 @@ def test_directories_are_searched_for_both_kinds_of_bag(tmp_path):
     assert bags == [tmp_path / "sessions" / "a", tmp_path / "sessions" / "lab" / "b.bag", tmp_path / "c.bag"]
     assert errors == []
     assert find_bags([tmp_path / "none"])[1] == [f"{tmp_path / 'none'}: does not exist"]
+    named = tmp_path / "sessions" / "notes.txt"  # named, it is read (and the reader says it is not a bag)
+    assert find_bags([named]) == ([named], [])
 
 
 def test_the_puck_is_read_from_tf_as_the_ros1_lab_published_it(tmp_path):

@@ -87,12 +87,22 @@ def test_thesis_style_columns_are_sysids_over_the_same_trajectories(bags):
 
 def test_bad_bags_give_one_line_errors_and_exit_2_while_good_bags_count(bags, tmp_path):
     (tmp_path / "empty_dir").mkdir()
-    out = cli("eval-prediction", bags / "a", tmp_path / "missing", tmp_path / "empty_dir",
+    (tmp_path / "notes.txt").write_text("not a bag\n")
+    out = cli("eval-prediction", bags / "a", tmp_path / "missing", tmp_path / "empty_dir", tmp_path / "notes.txt",
               bags / "b", "--topic", "/optitrack/puck", "--json")
     assert out.returncode == 2
     errors = out.stderr.strip().splitlines()
-    assert len(errors) == 2 and "missing: does not exist" in errors[0] and "not a bag (neither a rosbag2 bag" in errors[1]
+    assert len(errors) == 3 and "missing: does not exist" in errors[0] and "empty_dir: no bags" in errors[1]
+    assert "notes.txt: not a bag (neither a rosbag2 bag" in errors[2]
     assert json.loads(out.stdout)["bags"] == 2
+
+
+def test_a_directory_of_bags_is_its_bags_in_path_order(bags):
+    """As sysid, noise-estimate and plot read them: the bags below a directory, sorted by path (one session,
+    so the order matters to what is learned online)."""
+    listed, searched = (cli("eval-prediction", *paths, "--json") for paths in ((bags / "a", bags / "b"), (bags,)))
+    assert listed.returncode == searched.returncode == 0, searched.stderr
+    assert json.loads(searched.stdout) == json.loads(listed.stdout) and json.loads(searched.stdout)["bags"] == 2
 
 
 def test_a_ros1_copy_of_a_bag_gives_the_same_figures(bags, tmp_path):

@@ -55,6 +55,8 @@ def find_bags(paths: Sequence[Path]) -> tuple[list[Path], list[str]]:
         elif path.is_dir():
             found = sorted([p.parent for p in path.rglob("metadata.yaml")] + list(path.rglob("*" + ROS1_SUFFIX)))
             bags.extend(found) if found else errors.append(f"{path}: no bags (rosbag2 or ROS 1) in this directory")
+        elif path.exists():
+            bags.append(path)  # not named like a bag: reading it says what it is not
         else:
             errors.append(f"{path}: does not exist")
     return bags, errors

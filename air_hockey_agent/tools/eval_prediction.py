@@ -12,14 +12,14 @@ the poses, re-initialisations per second and the normalised innovation squared (
 puck flies on past the goal line; a real one may meet a post), or through no, one, or two and more rim
 impacts.
 
-The bags are one session on one table, in the order given, as for a tracker node that keeps running:
-what the tracker learns online of the table (``rim_adaptation``, ``acceleration_adaptation`` in
-``config/tracker.yaml``) carries from one bag to the next, and every prediction uses what was learned up
-to its frame. Reported: JSON "rim_law" (the impacts learned from, the scales of the configured rim
-law and the rim parameters they give), "table_acceleration" (free-flight windows, value and std
-[m/s^2]), "spin_damping", "impact_delay" and "marker_offset" (the mocap pivot's offset from the disc's
-centre: windows, value and std [m]); a ``--params-file`` with ``enabled: false`` under both evaluates
-the configured physics alone.
+The bags are one session on one table, in the order given (a directory's bags in path order), as for a
+tracker node that keeps running: what the tracker learns online of the table (``rim_adaptation``,
+``acceleration_adaptation`` in ``config/tracker.yaml``) carries from one bag to the next, and every
+prediction uses what was learned up to its frame. Reported: JSON "rim_law" (the impacts learned from, the
+scales of the configured rim law and the rim parameters they give), "table_acceleration" (free-flight
+windows, value and std [m/s^2]), "spin_damping", "impact_delay" and "marker_offset" (the mocap pivot's
+offset from the disc's centre: windows, value and std [m]); a ``--params-file`` with ``enabled: false``
+under both evaluates the configured physics alone.
 
 And the thesis's own columns (tables 5.2-5.4; JSON "thesis_style"), computed as ``air-hockey sysid``
 reports them, of the configured physics (nothing learned): the bags preprocessed into cut trajectories (thesis sec. 4.5.1,
@@ -38,7 +38,7 @@ from air_hockey_agent.bags.reader import BagError
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
 from air_hockey_agent.core.estimation.table_learning import describe_learning, learning_report, rims_off_text
-from air_hockey_agent.bags.trajectories import bag_measurements
+from air_hockey_agent.bags.trajectories import bag_measurements, find_bags
 from air_hockey_agent.core.identification.preprocess import preprocess
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.sysid_params import load_sysid_params
@@ -53,7 +53,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("eval-prediction", help="prediction error of the puck tracker on bags",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("bags", nargs="+", type=Path, metavar="BAG",
-                        help="rosbag2 bags (directory, or its .mcap/.db3 file) or ROS 1 .bag files")
+                        help="rosbag2 bags (directory, or its .mcap/.db3 file) or ROS 1 .bag files, or directories "
+                             "of bags (searched, in path order)")
     add_pose_topic_arguments(parser)
     parser.add_argument("--horizons", type=number(0.0, low_open=True), nargs="+", default=[0.5, 1.0, 1.5], metavar="SECONDS",
                         help="prediction horizons [s] (default 0.5 1.0 1.5)")
@@ -76,8 +77,11 @@ def run(args: argparse.Namespace) -> int:
     ekf = PuckEKF.from_params(params)
     totals = EvaluationTotals(tuple(args.horizons), rest_speed=params["regime_rest_speed"])
     cut: list = []  # the bags' trajectories cut as sysid cuts them (thesis sec. 4.5.1)
-    failed = 0
-    for bag in args.bags:
+    bags, missing = find_bags(args.bags)  # a directory is searched for bags, as sysid and plot do
+    for message in missing:
+        print(f"{PROG}: error: {message}", file=sys.stderr)
+    failed = len(missing)
+    for bag in bags:
         try:
             records, measurements, warning, _ = bag_measurements(bag, args.topic, args.frame, args.table_frame, params)
         except BagError as exc:
