@@ -109,17 +109,18 @@ class AccelerationAdaptation:
 
     @property
     def value(self) -> tuple[float, float]:
-        g = self._mean()
-        return float(g[0]), float(g[1])
+        """[m/s^2] The learned table acceleration (gx, gy) (:meth:`flight_law`)."""
+        return self.flight_law()["table_acceleration"]
 
     @property
     def damping(self) -> float:
-        return max(0.0, float(self._mean()[2]))
+        """[1/s] The learned damping (:meth:`flight_law`)."""
+        return self.flight_law()["damping"]
 
     @property
     def friction_surface(self) -> float:
-        """[m/s^2] mu_s: learned (never below 0), or the configured one."""
-        return float(self._mean()[3]) if self.learns_friction else self.friction
+        """[m/s^2] mu_s: learned, or the configured one (:meth:`flight_law`)."""
+        return self.flight_law()["friction_surface"]
 
     @property
     def std(self) -> tuple[float, ...]:
@@ -172,9 +173,10 @@ class AccelerationAdaptation:
         """Windows, value and std [m/s^2] of g, the damping and its std [1/s], the surface friction and its
         std [m/s^2] (std None when it is not learned)."""
         sx, sy, sd, *sf = self.std
-        return {"windows": self.windows, "value": list(self.value), "std": [sx, sy],
-                "damping": self.damping, "damping_std": sd,
-                "friction_surface": self.friction_surface, "friction_surface_std": sf[0] if sf else None}
+        law = self.flight_law()
+        return {"windows": self.windows, "value": list(law["table_acceleration"]), "std": [sx, sy],
+                "damping": law["damping"], "damping_std": sd,
+                "friction_surface": law["friction_surface"], "friction_surface_std": sf[0] if sf else None}
 
 
 def quadratic_fit(times: list[float], poses: list) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
