@@ -16,6 +16,11 @@ SETTINGS = FilterSettings(dt=DT, q=Q, r=np.diag([1e-8, 1e-8, 1e-4]), p0=np.diag(
 START = np.array([-0.5, 0.1, 2.5, 1.7, 0.0, 8.0])  # several rim impacts in 4 s
 
 
+def noise(**imperfections) -> MocapImperfections:
+    """The stream's imperfections without stamp jitter: SETTINGS' R is the marker noise alone."""
+    return MocapImperfections(jitter_std=0.0, **imperfections)
+
+
 def run(noise, seed=0, duration=4.0, start=START):
     m = model()
     times, states = simulate_truth(m, start, duration, DT / 10)
@@ -30,22 +35,22 @@ def run(noise, seed=0, duration=4.0, start=START):
 
 
 def test_tracks_ground_truth_through_rim_impacts():
-    ekf, err, _ = run(MocapImperfections())
+    ekf, err, _ = run(noise())
     assert ekf.stats.outliers_rejected == 0 and ekf.stats.reinitialisations == 1
     assert np.median(np.hypot(err[:, 0], err[:, 1])) < 2e-4            # [m], noise is 1e-4 per axis
     assert np.percentile(np.hypot(err[20:, 2], err[20:, 3]), 95) < 0.02  # [m/s] after convergence
 
 
 def test_lost_frames_are_bridged_by_prediction():
-    ekf, err, flags = run(MocapImperfections(lost_rate=0.2))
+    ekf, err, flags = run(noise(lost_rate=0.2))
     assert ekf.stats.lost_frames > 50
     assert sum(f & FLAG_PREDICTED > 0 for f in flags) == ekf.stats.lost_frames
     assert np.max(np.hypot(err[:, 0], err[:, 1])) < 5e-3
 
 
 def test_glitches_are_rejected_and_do_not_disturb_the_estimate():
-    clean_ekf, clean_err, _ = run(MocapImperfections(), seed=4)
-    ekf, err, flags = run(MocapImperfections(glitch_rate=0.02, glitch_size=0.1), seed=4)
+    clean_ekf, clean_err, _ = run(noise(), seed=4)
+    ekf, err, flags = run(noise(glitch_rate=0.02, glitch_size=0.1), seed=4)
     assert ekf.stats.outliers_rejected >= 5
     assert ekf.stats.reinitialisations == 1
     assert np.median(np.hypot(err[:, 0], err[:, 1])) < 2 * np.median(np.hypot(clean_err[:, 0], clean_err[:, 1]))

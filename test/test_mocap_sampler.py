@@ -45,3 +45,25 @@ def test_rates_and_noise_statistics():
 
 def test_every_imperfection_has_a_parameter():
     assert set(MOCAP_FIELDS) == {f for f in MocapImperfections.__dataclass_fields__}
+
+
+def test_the_jitter_is_in_the_stamps_and_a_capture_jitter_in_the_poses():
+    """OptiTrack captures on its own clock and the stamps scatter about it (issue #13's timestamp jitter):
+    the pose is the puck's at the nominal frame time. With capture_jitter_std instead, the capture scatters
+    and its stamp is exact; the two streams draw the same times."""
+    def frames(noise):
+        sampler = MocapSampler(noise, np.random.default_rng(5))
+        return [sampler.sample_captured(k / RATE, lambda t: (t, 0.0, 0.0, 0.0)) for k in range(3000)]  # x = time
+
+    exact = dict(position_std=0.0, angle_std=0.0)
+    stamped = frames(MocapImperfections(jitter_std=2e-4, **exact))
+    captured = frames(MocapImperfections(jitter_std=0.0, capture_jitter_std=2e-4, **exact))
+    nominal = np.arange(3000) / RATE
+    assert [c for _, _, c in stamped] == pytest.approx(nominal, abs=1e-12)
+    assert [z[0] for _, z, _ in stamped] == pytest.approx(nominal, abs=1e-12)
+    assert np.std([s - c for s, _, c in stamped]) == pytest.approx(2e-4, rel=0.05)
+    assert [s for s, _, _ in captured] == [s for s, _, _ in stamped]
+    assert all(s == c == z[0] for s, z, c in captured)
+    sampler = MocapSampler(MocapImperfections(jitter_std=2e-4, **exact), np.random.default_rng(5))
+    stamp, z = sampler.sample(0.0, lambda t: (t, 0.0, 0.0, 0.0))
+    assert stamp == stamped[0][0] and np.array_equal(z, stamped[0][1])

@@ -45,7 +45,9 @@ SIM_PARAMS = TABLE_PARAMS + (
               0.01, 600.0),
 ) + ROBOT_BASE_PARAMS + tuple(
     ParamSpec(f"mocap.{name}", float, "OptiTrack stand-in imperfection (config/sim.yaml)", *MOCAP_BOUNDS[name])
-    for name in MOCAP_FIELDS)
+    for name in MOCAP_FIELDS if name != "capture_jitter_std") + (
+    ParamSpec("mocap.capture_jitter_std", float, "[s] must be 0: the stand-in captures at the simulation's ticks "
+              "(its stamps scatter by mocap.jitter_std)", 0.0, 0.0),)
 
 
 def load_sim_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:

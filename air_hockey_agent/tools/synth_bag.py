@@ -3,7 +3,8 @@
 Random shots (``config/synthetic.yaml``) are integrated with the tracker's puck model at 1 kHz and
 sampled as a 120 Hz mocap stream with noise, jitter, lost and frozen frames, glitches and dropouts.
 Topics: ``/optitrack/puck`` (geometry_msgs/PoseStamped, mocap frame; lost frames are absent) and
-``/puck/true_state`` (air_hockey_msgs/PuckState, table frame, the true state at each frame's stamp).
+``/puck/true_state`` (air_hockey_msgs/PuckState, table frame, the true state when each frame was
+captured, stamped with that time; the pose's stamp scatters about it by ``mocap.jitter_std``).
 The model's parameters come from ``config/tracker.yaml`` unless ``--params-file`` overrides them, so a
 bag with known parameters can test system identification.
 
@@ -178,7 +179,8 @@ def _messages(frames, start_time: float, table_pose):
     for f in frames:
         stamp = start_time + f.stamp
         stamp_ns = int(round(stamp * 1e9))
-        yield TRUTH_TOPIC, stamp_ns, build("air_hockey_msgs/msg/PuckState", puck_state_fields(stamp, f.truth))
+        captured = stamp if f.captured is None else start_time + f.captured  # the pose's stamp has the jitter
+        yield TRUTH_TOPIC, stamp_ns, build("air_hockey_msgs/msg/PuckState", puck_state_fields(captured, f.truth))
         if f.measurement is None:
             continue
         mx, my, myaw = table_to_mocap(*(float(v) for v in f.measurement), table_pose)

@@ -4,6 +4,11 @@ The true trajectory is the model integrated with a fine step (or another simulat
 bed, whose truth between samples is then theirs, not the model's); the mocap stream samples it at a nominal
 rate with timestamp jitter, Gaussian noise, lost frames, repeated frames and one-frame glitches
 (the imperfections of real OptiTrack recordings, issue #3).
+
+Timestamp jitter is in the stamps: the cameras capture on their own clock, at the nominal frame times, and
+the stamp the recording carries scatters about the capture (``jitter_std``), as software stamps do; the
+lab's stamps scatter by about 0.2 ms (issue #13). A stream whose capture times themselves scatter, each
+stamped exactly, is ``capture_jitter_std`` (0 by default).
 """
 from __future__ import annotations
 
@@ -23,7 +28,7 @@ class MocapImperfections:
     position_std: float = 1e-4       # [m] per axis, at rest
     position_std_per_speed: float = 0.0  # [s] std added in quadrature per m/s of puck speed
     angle_std: float = 1e-2          # [rad]
-    jitter_std: float = 2e-4         # [s] timestamp jitter
+    jitter_std: float = 2e-4         # [s] timestamp jitter: the stamp's scatter about the capture time
     lost_rate: float = 0.0           # probability that a frame is missing
     repeat_rate: float = 0.0         # probability that a frame repeats the previous pose (frozen)
     glitch_rate: float = 0.0         # probability of a one-frame glitch
@@ -34,6 +39,7 @@ class MocapImperfections:
     heavy_tail_scale: float = 1.0    # [-] (a contaminated Gaussian: seed 001's mixed-Gaussian noise)
     marker_offset_x: float = 0.0     # [m] where the rigid body's pivot sits off the disc's centre, in the
     marker_offset_y: float = 0.0     # puck's frame (it turns with the puck)
+    capture_jitter_std: float = 0.0  # [s] the capture time's scatter about the nominal frame time
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "mocap.") -> "MocapImperfections":
@@ -113,18 +119,29 @@ class MocapSampler:
     def sample(self, t: float, pose_at: Callable[[float], Sequence[float]],
                t_max: float = math.inf) -> tuple[float, np.ndarray | None] | None:
         """Frame due at nominal time ``t`` [s]: None inside a dropout, else (stamp, (x, y, theta) or None).
-        ``pose_at(stamp)`` gives the true (x, y, theta) and speed [m/s]."""
+        ``pose_at(captured)`` gives the true (x, y, theta) and speed [m/s] at the capture time (``t``, or
+        scattered by ``capture_jitter_std``; :meth:`sample_captured` returns it too)."""
+        frame = self.sample_captured(t, pose_at, t_max)
+        return None if frame is None else frame[:2]
+
+    def sample_captured(self, t: float, pose_at: Callable[[float], Sequence[float]],
+                        t_max: float = math.inf) -> tuple[float, np.ndarray | None, float] | None:
+        """:meth:`sample` with the capture time [s]: None, or (stamp, pose or None, captured)."""
         noise, rng = self.noise, self.rng
         if t < self.gap_until:
             return None
         if rng.random() < noise.gap_rate:
             self.gap_until = t + rng.uniform(0.0, noise.gap_max)
             return None
-        stamp = t + (rng.normal(0.0, noise.jitter_std) if noise.jitter_std else 0.0)
+        # a stream stamped exactly with scattered captures (capture_jitter_std alone) draws as the same
+        # stream with its scatter in the stamps (jitter_std alone), so the two differ in the poses only
+        captured = t + (rng.normal(0.0, noise.capture_jitter_std) if noise.capture_jitter_std else 0.0)
+        captured = float(np.clip(captured, 0.0, t_max))
+        stamp = captured + (rng.normal(0.0, noise.jitter_std) if noise.jitter_std else 0.0)
         stamp = float(np.clip(stamp, 0.0, t_max))
         if rng.random() < noise.lost_rate:
-            return stamp, None
-        x, y, theta, speed = pose_at(stamp)
+            return stamp, None, captured
+        x, y, theta, speed = pose_at(captured)
         std = math.hypot(noise.position_std, noise.position_std_per_speed * speed)
         if noise.heavy_tail_rate and rng.random() < noise.heavy_tail_rate:  # drawn only when on: same bags
             std *= noise.heavy_tail_scale
@@ -140,7 +157,7 @@ class MocapSampler:
             direction = rng.uniform(0.0, 2.0 * np.pi)
             z[:2] += noise.glitch_size * np.array([np.cos(direction), np.sin(direction)])
         self.previous = z
-        return stamp, z
+        return stamp, z, captured
 
 
 def mocap_stream(model: PuckModel, times: np.ndarray, states: np.ndarray, rate: float,
@@ -148,14 +165,21 @@ def mocap_stream(model: PuckModel, times: np.ndarray, states: np.ndarray, rate: 
                  state_at: StateAt | None = None) -> list[tuple[float, np.ndarray | None]]:
     """Sample a true trajectory as a mocap stream: list of (stamp [s], (x, y, theta) or None if lost).
     ``state_at(times, states, t)`` gives the truth between samples (default: the model, :func:`true_state_at`)."""
+    return [(stamp, z) for stamp, z, _ in captured_stream(model, times, states, rate, noise, rng, state_at)]
+
+
+def captured_stream(model: PuckModel, times: np.ndarray, states: np.ndarray, rate: float,
+                    noise: MocapImperfections, rng: np.random.Generator,
+                    state_at: StateAt | None = None) -> list[tuple[float, np.ndarray | None, float]]:
+    """:func:`mocap_stream` with each frame's capture time: (stamp [s], pose or None, captured [s])."""
     sampler = MocapSampler(noise, rng)
     state_at = state_at or model_state_at(model)
 
-    def pose_at(stamp: float) -> Sequence[float]:
-        x, y, vx, vy, theta, _ = state_at(times, states, stamp)
+    def pose_at(captured: float) -> Sequence[float]:
+        x, y, vx, vy, theta, _ = state_at(times, states, captured)
         return x, y, theta, math.hypot(vx, vy)
 
-    frames = (sampler.sample(k / rate, pose_at, times[-1]) for k in range(int(times[-1] * rate)))
+    frames = (sampler.sample_captured(k / rate, pose_at, times[-1]) for k in range(int(times[-1] * rate)))
     return [f for f in frames if f is not None]
 
 
@@ -175,7 +199,8 @@ def random_shot(model: PuckModel, shots: ShotRanges, rng: np.random.Generator) -
 class SyntheticFrame:
     stamp: float                     # [s] session time
     measurement: np.ndarray | None   # table frame (x, y, theta); None = lost
-    truth: np.ndarray                # true state at the stamp
+    truth: np.ndarray                # true state when the frame was captured
+    captured: float | None = None    # [s] session time of the capture (None: the stamp)
 
 
 Simulate = Callable[[np.ndarray, float], "tuple[np.ndarray, np.ndarray]"]
@@ -200,10 +225,10 @@ def synthetic_session(model: PuckModel, shots: ShotRanges, n_shots: int, rate: f
     offset = 0.0
     for _ in range(n_shots):
         times, states = simulate(random_shot(model, shots, rng), shots.duration)
-        for stamp, z in mocap_stream(model, times, states, rate, noise, rng, state_at):
-            truth = state_at(times, states, stamp)
+        for stamp, z, captured in captured_stream(model, times, states, rate, noise, rng, state_at):
+            truth = state_at(times, states, captured)
             if not model.table.contains(truth[0], truth[1], model.table.puck_radius):
                 break  # scored: the recording of this shot ends
-            session.append(SyntheticFrame(offset + stamp, z, truth))
+            session.append(SyntheticFrame(offset + stamp, z, truth, offset + captured))
         offset += shots.duration + shots.pause
     return session
