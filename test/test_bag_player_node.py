@@ -44,9 +44,16 @@ def test_replay_drives_the_tracker_on_bag_time(bag, launcher, rclpy_node):
     def t(m):
         return m.header.stamp.sec + m.header.stamp.nanosec * 1e-9
 
-    truth = {round(t(m), 6): m for m in got["truth"]}
-    errors = [np.hypot(e.x - truth[round(t(e), 6)].x, e.y - truth[round(t(e), 6)].y)
-              for e in got["estimate"][50:] if round(t(e), 6) in truth]
+    # the truth is the state at each frame's capture, stamped with it; the pose's stamp scatters about it
+    # (0.2 ms): an estimate is compared with the nearest truth carried on to the estimate's stamp
+    truth_t = np.array([t(m) for m in got["truth"]])
+
+    def error(e):
+        k = int(np.argmin(np.abs(truth_t - t(e))))
+        m, lag = got["truth"][k], t(e) - truth_t[k]
+        return np.hypot(e.x - m.x - m.vx * lag, e.y - m.y - m.vy * lag) if abs(lag) < 2e-3 else None
+
+    errors = [err for err in map(error, got["estimate"][50:]) if err is not None]
     assert len(errors) > 100 and np.median(errors) < 1e-3
     clock = [c.clock.sec + c.clock.nanosec * 1e-9 for c in got["clock"]]
     assert np.all(np.diff(clock) >= 0.0)
