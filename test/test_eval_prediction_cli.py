@@ -158,6 +158,15 @@ def test_wrong_topic_type_is_reported(bags):
     assert "/puck/true_state has type air_hockey_msgs/msg/PuckState" in out.stderr
 
 
+def test_no_usable_bag_prints_its_errors_and_no_report(bags):
+    """As sysid and noise-estimate: with no bag read there is no report (an all-empty table said nothing)."""
+    for extra in ([], ["--json"]):
+        out = cli("eval-prediction", bags / "a", bags / "b", "--topic", "/nothing", *extra)
+        assert out.returncode == 2 and out.stdout == ""
+        assert [line.endswith("no topic /nothing (topics: /optitrack/puck, /puck/true_state)")
+                for line in out.stderr.strip().splitlines()] == [True, True], out.stderr
+
+
 def test_params_file_changes_the_model_and_the_error(bags, tmp_path):
     wrong = tmp_path / "wrong.yaml"
     wrong.write_text("/**/puck_tracker:\n  ros__parameters:\n    restitution: 0.6\n")

@@ -25,7 +25,8 @@ And the thesis's own columns (tables 5.2-5.4; JSON "thesis_style"), computed as 
 reports them, of the configured physics (nothing learned): the bags preprocessed into cut trajectories (thesis sec. 4.5.1,
 ``config/sysid.yaml``), per horizon the loss (mean error over all their comparisons) and the min and
 median over trajectories of each trajectory's mean error. A bag that cannot be used gives a one-line
-error on stderr and exit code 2; the other bags are still evaluated.
+error on stderr and exit code 2; the other bags are still evaluated (and nothing is printed on stdout when
+none could be).
 """
 from __future__ import annotations
 
@@ -96,6 +97,8 @@ def run(args: argparse.Namespace) -> int:
                           params["glitch_speed"]).trajectories  # as sysid cuts them, from the poses read once
         if not args.json:
             print(f"{bag}: {len(frames)} frames", file=sys.stderr)
+    if not totals.recordings:  # each bag's one-line error said why; an all-empty report would say nothing
+        return 2
     summary = totals.summary()
     summary.update(learning_report(ekf.learning))
     delay = summary.get("impact_delay")
