@@ -29,7 +29,7 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     out = cli("eval-prediction", bags / "a", bags / "b", "--json")
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)  # the whole of stdout is one JSON document
-    assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "rejected_fraction",
+    assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "off_table_poses", "rejected_fraction",
                            "reinit_per_s", "nis", "nis_by_regime", "by_path", "rim_law", "table_acceleration",
                            "spin_damping", "impact_delay", "marker_offset", "thesis_style"}
     law = report["rim_law"]  # the bags' shots are flown with the configured physics: learning it keeps it

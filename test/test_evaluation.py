@@ -94,8 +94,24 @@ def test_glitches_are_not_used_as_ground_truth(params):
     totals = EvaluationTotals((0.5,))
     evaluate_stream(ekf, frames_of(session(ekf, seed=5, n_shots=2, noise=noise)), totals)
     s = totals.summary()
-    assert s["outliers_rejected"] > 5
+    assert s["outliers_rejected"] + s["off_table_poses"] > 5  # the gate's, and those beyond the table's margin
     assert max(totals.errors["0.5"]) < 0.1
+
+
+def test_poses_off_the_table_are_counted_apart_from_the_gates_rejections(params):
+    """A puck carried off the table (2 s of poses 0.4 m beyond a long rim) is no measurement the gate
+    rejected: its poses count as off the table, and the rejected fraction is of the poses on it."""
+    frames = frames_of(session(PuckEKF.from_params(params), seed=2, n_shots=2))  # with glitches
+    carried = frames + [(frames[-1][0] + (k + 1) / 120, np.array([0.0, 0.9, 0.0])) for k in range(240)]
+    reports = []
+    for stream in (frames, carried):
+        totals = EvaluationTotals((0.5,))
+        evaluate_stream(PuckEKF.from_params(params), stream, totals)
+        reports.append(totals.summary())
+    before, after = reports
+    assert after["off_table_poses"] == before["off_table_poses"] + 240
+    assert after["outliers_rejected"] == before["outliers_rejected"] > 0
+    assert after["rejected_fraction"] == pytest.approx(before["rejected_fraction"])
 
 
 def test_summary_of_an_empty_evaluation_has_no_statistics():

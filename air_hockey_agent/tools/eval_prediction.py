@@ -5,9 +5,11 @@ own filter code offline (:mod:`air_hockey_agent.core.estimation.evaluation`, the
 frame at which the filter has a state the position is predicted ``h`` seconds ahead and compared with the
 valid pose at ``t + h``, fused by the filter or not (marker glitches excepted), so rejecting frames does
 not make a filter look better. Reported per horizon: mean, median and 95th percentile of the error [m]
-over all comparisons and their number; frames, lost frames, rejected outliers, the rejected fraction of
-the poses, re-initialisations per second and the normalised innovation squared (NIS), also by regime
-(rest, flight, impact). Where the error comes from: the median and mean per horizon by the predicted path
+over all comparisons and their number; frames, lost frames, rejected outliers, poses off the table (JSON
+"off_table_poses": beyond ``outside_table_margin``, dropped before the gate: a puck carried off or in a
+goal, not a measurement the gate rejected), the rejected fraction of the poses on the table,
+re-initialisations per second and the normalised innovation squared (NIS), also by regime (rest, flight,
+impact). Where the error comes from: the median and mean per horizon by the predicted path
 (JSON "by_path"): started at rest (a later motion is a hit no model foresees), ended in a goal (the model's
 puck flies on past the goal line; a real one may meet a post), or through no, one, or two and more rim
 impacts.
@@ -126,8 +128,8 @@ def format_table(summary: dict) -> str:
     """Human-readable report (thesis table 5.3 layout: error per horizon in millimetres)."""
     nis, rejected, reinit = summary["nis"], summary["rejected_fraction"], summary["reinit_per_s"]
     lines = [f"bags: {summary['bags']}, frames: {summary['frames']}, lost frames: {summary['lost_frames']}, "
-             f"outliers rejected: {summary['outliers_rejected']}",
-             "filter: rejected " + ("-" if rejected is None else f"{rejected * 100:.1f} %") + " of the poses, "
+             f"outliers rejected: {summary['outliers_rejected']}, poses off the table: {summary['off_table_poses']}",
+             "filter: rejected " + ("-" if rejected is None else f"{rejected * 100:.1f} %") + " of the poses on the table, "
              + ("-" if reinit is None else f"{reinit:.2f}") + " re-initialisations per second, NIS median "
              + ("-" if nis["median"] is None else f"{nis['median']:.2f}") + " mean "
              + ("-" if nis["mean"] is None else f"{nis['mean']:.2f}") + " (consistent: 2.37, 3)",

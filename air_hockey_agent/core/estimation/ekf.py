@@ -127,7 +127,8 @@ class FilterSettings:
 class FilterStats:
     frames: int = 0
     lost_frames: int = 0
-    outliers_rejected: int = 0
+    outliers_rejected: int = 0   # poses on the table the gate rejected
+    off_table: int = 0           # poses beyond the table by more than outside_table_margin (not the puck on it)
     reinitialisations: int = 0
     repeated_frames: int = 0
 
@@ -347,7 +348,7 @@ class PuckEKF:
         if z is not None:
             z = np.asarray(z, float)
             if not self.plausible(z):
-                self.stats.outliers_rejected += 1
+                self.stats.off_table += 1
                 z, flags = None, FLAG_OUTLIER_REJECTED
         if not self.initialised:
             return flags | self._collect_for_initialisation(t, z)

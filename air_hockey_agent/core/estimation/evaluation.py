@@ -88,7 +88,8 @@ class EvaluationTotals:
     frames: int = 0
     poses: int = 0              # frames that carried a pose
     lost_frames: int = 0
-    outliers_rejected: int = 0
+    outliers_rejected: int = 0  # poses on the table the filter's gate rejected
+    off_table: int = 0          # poses beyond the table's margin, dropped before the gate (not counted as rejected)
     reinitialisations: int = 0  # beyond the first of each recording
     seconds: float = 0.0        # [s] recorded time, first to last stamp of each recording
     recordings: int = 0
@@ -110,7 +111,9 @@ class EvaluationTotals:
         nis = np.asarray(self.nis, float)
         summary = {"horizons": table, "bags": self.recordings, "frames": self.frames,
                    "lost_frames": self.lost_frames, "outliers_rejected": self.outliers_rejected,
-                   "rejected_fraction": self.outliers_rejected / self.poses if self.poses else None,
+                   "off_table_poses": self.off_table,
+                   "rejected_fraction": (self.outliers_rejected / (self.poses - self.off_table)
+                                         if self.poses > self.off_table else None),
                    "reinit_per_s": self.reinitialisations / self.seconds if self.seconds > 0 else None,
                    "nis": {k: v for k, v in _nis_stats(nis).items() if k != "n"}}  # issue #13's keys
         if self.rest_speed is not None:
@@ -248,6 +251,7 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
     totals.poses += len(records) - invalid
     totals.lost_frames += count_lost_frames(sorted(stamps), period, ekf.settings.max_prediction_gap) + invalid
     totals.outliers_rejected += ekf.stats.outliers_rejected
+    totals.off_table += ekf.stats.off_table
     totals.reinitialisations += max(0, ekf.stats.reinitialisations - 1)
     totals.seconds += (max(stamps) - min(stamps)) if stamps else 0.0
     totals.recordings += 1
