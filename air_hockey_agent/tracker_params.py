@@ -76,6 +76,8 @@ TRACKER_PARAMS = (
     ParamSpec("rim_adaptation.min_frames", int, "fused frames the window needs (a line and a spin: 3 at least)",
               3, 1000),
     ParamSpec("rim_adaptation.min_normal_speed", float, "[m/s] slower impacts are not learned from", 0.0, 10.0),
+    ParamSpec("rim_adaptation.max_impulse_disagreement", float, "[m/s] an impact whose tangential impulse from "
+              "the velocity and from the spin differ by more is not learned from", 0.0, 100.0),
     ParamSpec("rim_adaptation.max_scale", float, "[-] an impact whose ratio to the law falls beyond "
               "[1/max_scale, max_scale] is not learned from", 1.0, 100.0),
     ParamSpec("rim_adaptation.max_incoming_uncertainty", float, "[-] velocity std before an impact, fraction "
@@ -97,6 +99,16 @@ TRACKER_PARAMS = (
     ParamSpec("rim_adaptation.offset_warning", float, "[m] a rim whose impacts meet farther from its line is said "
               "to be off (table pose or size)", 0.0, 0.1),
     ParamSpec("rim_adaptation.offset_significance", float, "[-] ... and beyond this many standard errors", 0.0, 100.0),
+    ParamSpec("noise_adaptation.enabled", bool, "learn the mocap's position noise (R at rest and its growth with "
+              "the speed) from the poses"),
+    ParamSpec("noise_adaptation.window", int, "consecutive poses per quadratic fit", 4, 1000),
+    ParamSpec("noise_adaptation.max_gap_frames", float, "[frame periods] a longer interval ends a window", 1.0, 100.0),
+    ParamSpec("noise_adaptation.prior_windows", float, "weight of the configured noise, in windows", 0.0, 1e9),
+    ParamSpec("noise_adaptation.min_windows", int, "windows before the first refit", 1, 1000000),
+    ParamSpec("noise_adaptation.update_every", int, "new windows between refits", 1, 100000),
+    ParamSpec("noise_adaptation.max_windows", int, "the last windows a refit uses", 10, 10000000),
+    ParamSpec("noise_adaptation.outlier_ratio", float, "a window beyond this many times its expected variance "
+              "is left out", 1.0, 1000.0),
     ParamSpec("acceleration_adaptation.enabled", bool, "learn this table's acceleration (tilt, air film's mean) "
               "online from free flight"),
     ParamSpec("acceleration_adaptation.prior_std", float, "[m/s^2] std of the configured table_acceleration",
@@ -137,7 +149,8 @@ def without_learning(params: dict[str, Any]) -> dict[str, Any]:
     """``params`` with the configured physics kept as it is (nothing learned online of the table): what
     sysid identifies and the thesis's trajectory-level columns report (fixed parameters, thesis tables
     5.2-5.4)."""
-    return {**params, "rim_adaptation.enabled": False, "acceleration_adaptation.enabled": False}
+    return {**params, "rim_adaptation.enabled": False, "acceleration_adaptation.enabled": False,
+            "noise_adaptation.enabled": False}
 
 
 def load_tracker_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:

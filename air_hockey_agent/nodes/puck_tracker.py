@@ -78,7 +78,10 @@ class PuckTrackerNode(AirHockeyNode):
         if learning is None or learning.events < self.next_log:
             return
         self.next_log *= 10
-        self.get_logger().info(f"learned online: {describe_learning(learning.report())}")
+        report = learning.report()
+        if self.ekf.noise_learning is not None:
+            report["marker_noise"] = self.ekf.noise_learning.report()
+        self.get_logger().info(f"learned online: {describe_learning(report)}")
 
     def publish_physics(self, seconds: float) -> None:
         """``puck/physics``: the model's parameters now (learned or configured), from ``seconds``."""
@@ -134,6 +137,9 @@ class PuckTrackerNode(AirHockeyNode):
         # the service's Q is the process noise of every regime (the thesis has one)
         self.ekf.settings.q, self.ekf.settings.q_rest, self.ekf.settings.r = q, q, r
         response.success, response.message = True, "noise covariances set"
+        if len(request.measurement_covariance) and self.ekf.noise_learning is not None:
+            self.ekf.noise_learning = None  # an R set by hand is kept: the online learning would replace it
+            response.message += " (the position noise is no longer learned online)"
         return response
 
     def on_kalman_step(self, request, response):

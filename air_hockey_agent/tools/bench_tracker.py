@@ -75,11 +75,12 @@ TRACK_FRAMES = 60  # frames of each track of the stream timing (0.5 s at 120 Hz:
 
 
 def _adaptation_cost(params: dict, states: list, rng: np.random.Generator) -> dict:
-    """A mocap stream through the whole frame handling (``PuckEKF.process``) with the table learned online
-    (rim law and table acceleration) and without, on the same tracks (flown by the model from the first states, noisy poses),
-    alternated so the machine's load hits both alike: the option's own cost, issue #13."""
-    ekfs = {on: PuckEKF.from_params({**params, "rim_adaptation.enabled": on, "acceleration_adaptation.enabled": on})
-            for on in (False, True)}
+    """A mocap stream through the whole frame handling (``PuckEKF.process``) with the table and the marker
+    noise learned online (rim law, table acceleration, position noise) and without, on the same tracks (flown
+    by the model from the first states, noisy poses), alternated so the machine's load hits both alike: the
+    options' own cost, issue #13."""
+    ekfs = {on: PuckEKF.from_params({**params, "rim_adaptation.enabled": on, "acceleration_adaptation.enabled": on,
+                                     "noise_adaptation.enabled": on}) for on in (False, True)}
     model, dt = ekfs[False].model, ekfs[False].settings.dt
     times = {False: 0.0, True: 0.0}
     frames = 0
@@ -159,5 +160,6 @@ def run(args: argparse.Namespace) -> int:
         f"{kind} {frames[kind]['mean']} us ({frames[kind]['ratio_to_ekf']}x)" for kind in FILTER_KINDS))
     adapt = result["table_learning"]
     print(f"one mocap frame through the EKF's frame handling: {adapt['off_us']} us with the configured physics, "
-          f"{adapt['on_us']} us learning the table online (rim and acceleration adaptation, {adapt['ratio']}x)")
+          f"{adapt['on_us']} us learning the table and the marker noise online (rim, acceleration and noise "
+          f"adaptation, {adapt['ratio']}x)")
     return 0

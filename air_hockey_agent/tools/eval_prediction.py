@@ -19,8 +19,9 @@ tracker node that keeps running: what the tracker learns online of the table (``
 ``acceleration_adaptation`` in ``config/tracker.yaml``) carries from one bag to the next, and every
 prediction uses what was learned up to its frame. Reported: JSON "rim_law" (the impacts learned from, the
 scales of the configured rim law and the rim parameters they give), "table_acceleration" (free-flight
-windows, value and std [m/s^2]), "spin_damping", "impact_delay" and "marker_offset" (the mocap pivot's
-offset from the disc's centre: windows, value and std [m]); a ``--params-file`` with ``enabled: false``
+windows, value and std [m/s^2]), "spin_damping", "impact_delay", "marker_offset" (the mocap pivot's
+offset from the disc's centre: windows, value and std [m]) and "marker_noise" (``noise_adaptation``: windows
+collected and used, the position noise's std at rest [m] and per m/s [s]); a ``--params-file`` with ``enabled: false``
 under both evaluates the configured physics alone.
 
 And the thesis's own columns (tables 5.2-5.4; JSON "thesis_style"), computed as ``air-hockey sysid``
@@ -103,6 +104,7 @@ def run(args: argparse.Namespace) -> int:
         return 2
     summary = totals.summary()
     summary.update(learning_report(ekf.learning))
+    summary["marker_noise"] = None if ekf.noise_learning is None else ekf.noise_learning.report()
     delay = summary.get("impact_delay")
     if delay is not None and delay["rims_off"]:
         print(f"{PROG}: warning: {rims_off_text(delay['rim_offsets'], delay['rims_off'])}", file=sys.stderr)
@@ -149,7 +151,7 @@ def format_table(summary: dict) -> str:
 
 def _learning_line(summary: dict) -> str:
     """What the tracker learned online of the table over the bags (in their order, as one session)."""
-    if summary["rim_law"] is None and summary["table_acceleration"] is None:
+    if summary["rim_law"] is None and summary["table_acceleration"] is None and summary["marker_noise"] is None:
         return "learned online: nothing (rim_adaptation and acceleration_adaptation are off)"
     return "learned online over the bags: " + describe_learning(summary)
 

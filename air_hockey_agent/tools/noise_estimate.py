@@ -7,7 +7,9 @@ prediction error at ``--horizon`` is reported for the current noise, for estimat
 Q only and both (the thesis kept Q after this comparison, sec. 5.3). ``--out`` writes R and Q as a
 tracker parameter YAML. A mocap pivot off the disc's centre is not noise: the measured positions are taken
 back to the centre by the tracker's ``marker_offset`` (as configured, e.g. by ``sysid --method split``'s YAML,
-or as the filter learns it online), as the filter itself takes them.
+or as the filter learns it online), as the filter itself takes them. The filter's own learning of the
+position noise (``noise_adaptation``) is off here: the noise is this tool's to estimate (the tracker takes
+the R written by ``--out`` as the prior of that learning).
 
 ``--by-regime`` (issue #13: noise by regime) estimates R as above (or keeps it with ``--fix R``) and
 then calibrates the process noise by regime instead of eq. 3.13: Q in flight, Q at rest
@@ -29,7 +31,7 @@ from pathlib import Path
 
 import numpy as np
 
-from air_hockey_agent.core.identification.noise import calibrate_by_regime, iterate
+from air_hockey_agent.core.identification.noise import calibrate_by_regime, fixed_noise, iterate
 from air_hockey_agent.core.identification.sysid import loss_report
 from air_hockey_agent.params import yaml_value
 from air_hockey_agent.tools.files import write_text_atomic
@@ -66,7 +68,7 @@ def run(args: argparse.Namespace) -> int:
         recordings = load_recordings(PROG, args)
     except ToolError as exc:
         return report_error(PROG, exc)
-    tracker, loaded = recordings.tracker, recordings.loaded
+    tracker, loaded = fixed_noise(recordings.tracker), recordings.loaded  # the noise is this tool's to estimate
     if args.by_speed and "R" in args.fix:
         print(f"{PROG}: error: --by-speed estimates R; it cannot be combined with --fix R", file=sys.stderr)
         return 2

@@ -26,12 +26,13 @@
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from typing import Any, Mapping, Sequence
 
 import numpy as np
 
 from air_hockey_agent.core.estimation.marker_offset import centre_of
+from air_hockey_agent.core.estimation.noise_adaptation import MarkerNoiseAdaptation
 from air_hockey_agent.core.estimation.table_learning import TableLearning
 from air_hockey_agent.core.linalg3 import inverse_sym3
 from air_hockey_agent.core.puck.prediction import Prediction, predict_fast, with_impact_noise
@@ -172,6 +173,7 @@ class PuckEKF:
     # None when the last frame did not (lost, frozen, initialising): the filter's consistency check
     last_nis: float | None = None
     learning: TableLearning | None = None              # what is learned online of the table (None: nothing)
+    noise_learning: MarkerNoiseAdaptation | None = None  # the mocap's position noise learned online (None: R as set)
 
     def __post_init__(self) -> None:
         """Nothing here; a subclass with state of its own sets it up (the generated ``__init__`` calls this)."""
@@ -186,6 +188,7 @@ class PuckEKF:
         model = PuckModel(TableGeometry.from_params(params), PuckParams.from_params(params))
         ekf = kind(model, FilterSettings.from_params(params))
         ekf.learning = TableLearning.from_params(model.params, model.table, params)
+        ekf.noise_learning = MarkerNoiseAdaptation.from_params(params)
         return ekf
 
     @property
@@ -322,6 +325,8 @@ class PuckEKF:
         Returns ``FLAG_*`` bits describing what was done. A measured position is the mocap pivot's: it is
         taken back to the disc's centre by the marker offset (configured or learned) first.
         """
+        if self.noise_learning is not None:
+            self._learn_noise(t, z)
         offset = self.marker_offset
         if z is not None and (offset[0] or offset[1]):
             z = centre_of(np.asarray(z, float), offset)
@@ -340,6 +345,15 @@ class PuckEKF:
             except ValueError:  # a law the model refuses (the learning clamps its values) is not taken
                 pass
         return flags
+
+    def _learn_noise(self, t: float, z: Sequence[float] | None) -> None:
+        """Give the pose (or its absence) to the noise learning; take R's position part from it when it
+        refits (``measurement_noise`` at rest, ``measurement_noise_per_speed``)."""
+        usable = z is not None and self.plausible(z)
+        if self.noise_learning.observe(t, (z[0], z[1]) if usable else None):
+            r = self.settings.r.copy()
+            r[0, 0] = r[1, 1] = self.noise_learning.a
+            self.settings = replace(self.settings, r=r, r_per_speed=math.sqrt(self.noise_learning.b))
 
     def _process(self, t: float, z: Sequence[float] | None) -> int:
         self.stats.frames += 1

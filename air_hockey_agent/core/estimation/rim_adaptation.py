@@ -84,6 +84,9 @@ class AdaptationSettings:
     friction_max: float = 1.0  # [-] the largest
     fall_width_count: int = 0  # fall widths tried, evenly up to fall_width_max (0: the configured one only)
     fall_width_max: float = 0.0  # [m/s] the widest fall tried
+    # [m/s] an impact whose two measures of the tangential impulse (from the tangential velocity and from
+    # the spin) differ by more than this is left out: one of its fits is off
+    max_impulse_disagreement: float = math.inf
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AdaptationSettings":
@@ -370,7 +373,9 @@ class RimAdaptation:
         """Learn from one impact (incoming ``before``, vn < 0; outgoing ``after``); False when it is left
         out (too slow, not leaving the rim, a normal speed beyond ``max_scale`` times the law's or a
         tangential impulse, from vb or from the spin, beyond ``max_scale`` times the larger of either
-        form's at scale 1: a hit, not the rim)."""
+        form's at scale 1: a hit, not the rim; or the two measures of its tangential impulse, from vb and
+        from the spin, apart by more than ``max_impulse_disagreement``: one contact's impulse moves both
+        alike, so one of the fits is off)."""
         vb, vn, omega = before
         if -vn < self.settings.min_normal_speed or after[1] <= 0.0:
             return False
@@ -387,6 +392,8 @@ class RimAdaptation:
             return False
         largest = max(abs(model), abs(stick))  # of either form's impulse at scale 1
         if largest > 1e-9 and max(abs(seen[0]), abs(seen[1])) > bound * largest:
+            return False
+        if abs(seen[0] - seen[1]) > self.settings.max_impulse_disagreement:
             return False
         self.impacts += 1
         x = self._regressors(vn)

@@ -32,6 +32,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from air_hockey_agent.core.identification.local_fit import fit_positions, paths_meet
+from air_hockey_agent.core.estimation.noise_adaptation import describe_noise
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe, outgoing_fit,
                                                              rim_frame)
 from air_hockey_agent.core.estimation.delay_adaptation import DelayAdaptation
@@ -423,6 +424,9 @@ def describe_learning(report: dict) -> str:
         (ox, oy), (sx, sy) = offset["value"], offset["std"]
         parts.append(f"marker offset ({ox * 1e3:+.2f} +- {sx * 1e3:.2f}, {oy * 1e3:+.2f} +- {sy * 1e3:.2f}) mm from "
                      f"{offset['windows']} window{'' if offset['windows'] == 1 else 's'}")
+    noise = report.get("marker_noise")
+    if noise is not None and noise["windows"]:
+        parts.append(describe_noise(noise))
     return "; ".join(parts)
 
 

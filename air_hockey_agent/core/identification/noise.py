@@ -64,11 +64,17 @@ def position_noise_by_speed(residuals: np.ndarray, speeds: np.ndarray, rounds: i
     return r0, float(np.sqrt(k2))
 
 
+def fixed_noise(params: Mapping[str, Any]) -> dict:
+    """``params`` with the noise as set (``noise_adaptation`` off): the noise being estimated or calibrated
+    here is the iteration's, not one the filter learns underneath it."""
+    return {**params, "noise_adaptation.enabled": False}
+
+
 def estimate_once(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory],
                   by_speed: bool = False) -> NoiseEstimate:
     """One pass of eq. 3.12 and 3.13 with the filter configured by ``params``; with ``by_speed`` the
     position noise is split into its value at rest and its growth with the filter's speed estimate."""
-    ekf = PuckEKF.from_params(params)
+    ekf = PuckEKF.from_params(fixed_noise(params))
     meas_res, proc_res, speeds = [], [], []
     for traj in trajectories:
         ekf.reset()
@@ -131,7 +137,7 @@ class RegimeCalibration:
 
 def regime_nis(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory]) -> dict:
     """NIS of every gated frame of ``trajectories``, by regime (rest / flight / impact)."""
-    totals = filter_pass_totals(params, trajectories, params["regime_rest_speed"])
+    totals = filter_pass_totals(fixed_noise(params), trajectories, params["regime_rest_speed"])
     nis, regimes = np.asarray(totals.nis, float), np.asarray(totals.nis_regimes)
     return {r: nis[regimes == r] for r in REGIMES}
 
