@@ -109,6 +109,8 @@ TRACKER_PARAMS = (
     ParamSpec("noise_adaptation.max_windows", int, "the last windows a refit uses", 10, 10000000),
     ParamSpec("noise_adaptation.outlier_ratio", float, "a window beyond this many times its expected variance "
               "is left out", 1.0, 1000.0),
+    ParamSpec("noise_adaptation.angle_outlier_ratio", float, "a window beyond this many times the angle noise "
+              "variance is left out of it", 1.0, 1000.0),
     ParamSpec("acceleration_adaptation.enabled", bool, "learn this table's acceleration (tilt, air film's mean) "
               "online from free flight"),
     ParamSpec("acceleration_adaptation.prior_std", float, "[m/s^2] std of the configured table_acceleration",

@@ -347,13 +347,13 @@ class PuckEKF:
         return flags
 
     def _learn_noise(self, t: float, z: Sequence[float] | None) -> None:
-        """Give the pose (or its absence) to the noise learning; take R's position part from it when it
-        refits (``measurement_noise`` at rest, ``measurement_noise_per_speed``)."""
+        """Give the pose (or its absence) to the noise learning; take R from it when it refits
+        (``measurement_noise`` at rest and its angle term, ``measurement_noise_per_speed``)."""
         usable = z is not None and self.plausible(z)
-        if self.noise_learning.observe(t, (z[0], z[1]) if usable else None):
-            r = self.settings.r.copy()
-            r[0, 0] = r[1, 1] = self.noise_learning.a
-            self.settings = replace(self.settings, r=r, r_per_speed=math.sqrt(self.noise_learning.b))
+        if self.noise_learning.observe(t, z if usable else None):
+            learned = self.noise_learning
+            r = np.diag([learned.a, learned.a, learned.angle])
+            self.settings = replace(self.settings, r=r, r_per_speed=math.sqrt(learned.b))
 
     def _process(self, t: float, z: Sequence[float] | None) -> int:
         self.stats.frames += 1

@@ -11,13 +11,16 @@ over ``window`` consecutive poses (no lost frame among them) the positions are f
 time per axis, a motion no puck departs from measurably in a few frames (0.1 m/s^2 of unmodelled
 acceleration moves it 3 um in 75 ms) unless a rim, a hit or a glitch acts, and the residuals' sum of
 squares over both axes, divided by its 2 (window - 3) degrees of freedom, is an unbiased sample of the
-noise variance at the window's speed. The windows do not overlap.
+noise variance at the window's speed; the angle's, unwrapped, over its window - 3, one of the angle noise
+(R's third term: a constant, as configured). The windows do not overlap.
 
 ``a`` and ``b`` are refitted every ``update_every`` new windows, once there are ``min_windows``, by
 iteratively reweighted least squares over the last ``max_windows`` windows (each weighted by its expected
 variance's inverse square; windows beyond ``outlier_ratio`` times their expected variance, those with a
 rim impact, a hit or a glitch, left out), with the configured values as a prior worth ``prior_windows``
-windows, half at rest and half at ``PRIOR_SPEED``.
+windows, half at rest and half at ``PRIOR_SPEED``; the angle noise as the mean of its samples within
+``angle_outlier_ratio`` times it (a rim impact's or a hand's turn of the spin left out), the configured
+value worth ``prior_windows`` windows.
 """
 from __future__ import annotations
 
@@ -26,6 +29,8 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+
+from air_hockey_agent.core.puck.model import wrap_angle
 
 PRIOR_SPEED = 2.0      # [m/s] where the prior's second half of pseudo-windows sits (the lab's shots: 2-5 m/s)
 IRLS_ITERATIONS = 4    # reweightings of the fit (the weights settle in two or three)
@@ -43,6 +48,7 @@ class NoiseAdaptationSettings:
     update_every: int = 10          # new windows between refits
     max_windows: int = 3000         # the last windows the fit uses
     outlier_ratio: float = 3.0      # a window beyond this many times its expected variance is left out
+    angle_outlier_ratio: float = 4.0  # ... of its angle variance (6 degrees of freedom)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "noise_adaptation.") -> "NoiseAdaptationSettings":
@@ -51,39 +57,41 @@ class NoiseAdaptationSettings:
                    min_windows=int(params[prefix + "min_windows"]),
                    update_every=int(params[prefix + "update_every"]),
                    max_windows=int(params[prefix + "max_windows"]),
-                   outlier_ratio=float(params[prefix + "outlier_ratio"]))
+                   outlier_ratio=float(params[prefix + "outlier_ratio"]),
+                   angle_outlier_ratio=float(params[prefix + "angle_outlier_ratio"]))
 
 
-def window_sample(stamps: Sequence[float], positions: Sequence[Sequence[float]]) -> tuple[float, float]:
-    """(noise variance sample [m^2], speed [m/s]) of one window: the quadratic fit's residual sum of
-    squares over x and y divided by its 2 (n - 3) degrees of freedom, and the fit's speed at the window's
-    middle. ``stamps`` (n,) [s], ``positions`` (n, 2) [m], n >= 4. Normal equations in plain floats (a
-    few microseconds for a handful of points, where a general least-squares call takes tens)."""
+def window_sample(stamps: Sequence[float], poses: Sequence[Sequence[float]]) -> tuple[float, float, float]:
+    """(position noise variance sample [m^2], speed [m/s], angle noise variance sample [rad^2]) of one
+    window: the quadratic fits' residual sums of squares, over x and y divided by their 2 (n - 3) degrees
+    of freedom and of the (unwrapped) angle by its n - 3, and the position fit's speed at the window's
+    middle. ``stamps`` (n,) [s], ``poses`` (n, 3) x, y [m], theta [rad], n >= 4. Normal equations in
+    plain floats (a few microseconds for a handful of points, where a general least-squares call takes
+    tens)."""
     n = len(stamps)
     mid = sum(stamps) / n
     s1 = s2 = s3 = s4 = 0.0
-    bx = [0.0, 0.0, 0.0]
-    by = [0.0, 0.0, 0.0]
-    sxx = syy = 0.0
-    for t, (x, y) in zip(stamps, positions):
+    rhs = [[0.0, 0.0, 0.0] for _ in range(3)]  # per coordinate: sums of value, u value, u^2 value
+    squares = [0.0, 0.0, 0.0]
+    angle, previous = 0.0, poses[0][2]
+    for t, (x, y, theta) in zip(stamps, poses):
+        angle += wrap_angle(theta - previous)  # unwrapped from the window's first angle
+        previous = theta
         u = t - mid
         u2 = u * u
         s1 += u
         s2 += u2
         s3 += u2 * u
         s4 += u2 * u2
-        bx[0] += x
-        bx[1] += u * x
-        bx[2] += u2 * x
-        by[0] += y
-        by[1] += u * y
-        by[2] += u2 * y
-        sxx += x * x
-        syy += y * y
+        for k, value in enumerate((x, y, angle)):
+            rhs[k][0] += value
+            rhs[k][1] += u * value
+            rhs[k][2] += u2 * value
+            squares[k] += value * value
     gram = ((float(n), s1, s2), (s1, s2, s3), (s2, s3, s4))
-    cx, cy = _solve3(gram, bx), _solve3(gram, by)  # value, rate, half the acceleration
-    rss = (sxx - sum(c * b for c, b in zip(cx, bx))) + (syy - sum(c * b for c, b in zip(cy, by)))
-    return max(rss, 0.0) / (2 * (n - 3)), math.hypot(cx[1], cy[1])
+    coefs = [_solve3(gram, b) for b in rhs]  # per coordinate: value, rate, half the acceleration
+    rss = [max(sq - sum(c * b for c, b in zip(coef, b_)), 0.0) for sq, coef, b_ in zip(squares, coefs, rhs)]
+    return (rss[0] + rss[1]) / (2 * (n - 3)), math.hypot(coefs[0][1], coefs[1][1]), rss[2] / (n - 3)
 
 
 def _solve3(m: tuple, rhs: Sequence[float]) -> tuple[float, float, float]:
@@ -125,52 +133,66 @@ def fit_noise(variances: np.ndarray, speeds: np.ndarray, prior: tuple[float, flo
     return float(a), float(b), int(used.sum())
 
 
+def fit_angle_noise(variances: np.ndarray, prior: float, prior_windows: float, outlier_ratio: float) -> float:
+    """The angle noise variance [rad^2]: the mean of the window samples within ``outlier_ratio`` times the
+    estimate (a rim impact's or a hand's turn left out), with ``prior`` worth ``prior_windows`` windows."""
+    value = prior
+    for _ in range(IRLS_ITERATIONS):
+        used = variances[variances <= outlier_ratio * max(value, MIN_VARIANCE)]
+        value = (float(used.sum()) + prior_windows * prior) / (len(used) + prior_windows) if len(used) else prior
+    return max(value, MIN_VARIANCE)
+
+
 class MarkerNoiseAdaptation:
     """Learns ``a`` and ``b`` (module docstring) from every plausible pose the filter is given."""
 
-    def __init__(self, settings: NoiseAdaptationSettings, a0: float, b0: float, frame_period: float) -> None:
-        self.settings, self.prior = settings, (float(a0), float(b0))
-        self.a, self.b = float(a0), float(b0)
+    def __init__(self, settings: NoiseAdaptationSettings, a0: float, b0: float, frame_period: float,
+                 angle0: float = 0.0) -> None:
+        self.settings, self.prior, self.angle_prior = settings, (float(a0), float(b0)), float(angle0)
+        self.a, self.b, self.angle = float(a0), float(b0), float(angle0)
         self.frame_period = float(frame_period)
         self.windows_used = 0
         self._stamps: list[float] = []
-        self._positions: list[tuple[float, float]] = []
+        self._poses: list[tuple[float, float, float]] = []
         self._variances = np.zeros(settings.max_windows)  # ring buffers of the windows' samples
         self._speeds = np.zeros(settings.max_windows)
+        self._angle_variances = np.zeros(settings.max_windows)
         self._count = 0                                     # windows collected (the buffers hold the last)
         self._new = 0
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "MarkerNoiseAdaptation | None":
-        """None unless ``noise_adaptation.enabled``; the prior is ``measurement_noise``'s position part and
-        ``measurement_noise_per_speed``."""
+        """None unless ``noise_adaptation.enabled``; the prior is ``measurement_noise`` (its position part at
+        rest and its angle part) and ``measurement_noise_per_speed``."""
         if not params["noise_adaptation.enabled"]:
             return None
         return cls(NoiseAdaptationSettings.from_params(params), float(params["measurement_noise"][0]),
-                   float(params["measurement_noise_per_speed"]) ** 2, 1.0 / float(params["frequency"]))
+                   float(params["measurement_noise_per_speed"]) ** 2, 1.0 / float(params["frequency"]),
+                   float(params["measurement_noise"][2]))
 
     @property
     def windows(self) -> int:
         """Windows collected so far (the last ``max_windows`` are kept)."""
         return self._count
 
-    def observe(self, t: float, position: Sequence[float] | None) -> bool:
-        """Take a pose at ``t`` [s] (table frame x, y [m]; None: a lost or implausible frame, which ends the
-        window). Returns True when ``a`` and ``b`` were refitted."""
-        if position is None:
+    def observe(self, t: float, pose: Sequence[float] | None) -> bool:
+        """Take a pose at ``t`` [s] (table frame x, y [m], theta [rad]; None: a lost or implausible frame,
+        which ends the window). Returns True when the noise was refitted."""
+        if pose is None:
             self._clear()
             return False
         if self._stamps and not (0.0 < t - self._stamps[-1] <= self.settings.max_gap_frames * self.frame_period):
             self._clear()  # a lost frame, a repeated or earlier stamp, a new track
-        elif self._positions and position[0] == self._positions[-1][0] and position[1] == self._positions[-1][1]:
+        elif self._poses and pose[0] == self._poses[-1][0] and pose[1] == self._poses[-1][1]:
             self._clear()  # a frozen frame repeats the pose: no sample of the noise
             return False
         self._stamps.append(float(t))
-        self._positions.append((float(position[0]), float(position[1])))
+        self._poses.append((float(pose[0]), float(pose[1]), float(pose[2])))
         if len(self._stamps) < self.settings.window:
             return False
         slot = self._count % self.settings.max_windows
-        self._variances[slot], self._speeds[slot] = window_sample(self._stamps, self._positions)
+        self._variances[slot], self._speeds[slot], self._angle_variances[slot] = window_sample(self._stamps,
+                                                                                               self._poses)
         self._count += 1
         self._clear()
         self._new += 1
@@ -180,19 +202,22 @@ class MarkerNoiseAdaptation:
         kept = min(self._count, self.settings.max_windows)
         self.a, self.b, self.windows_used = fit_noise(self._variances[:kept], self._speeds[:kept], self.prior,
                                                       self.settings.prior_windows, self.settings.outlier_ratio)
+        self.angle = fit_angle_noise(self._angle_variances[:kept], self.angle_prior, self.settings.prior_windows,
+                                     self.settings.angle_outlier_ratio)
         return True
 
     def _clear(self) -> None:
         self._stamps.clear()
-        self._positions.clear()
+        self._poses.clear()
 
     def report(self) -> dict:
         """JSON-ready: windows collected and used, and the learned noise (std at rest [m], per m/s [s])."""
         return {"windows": self.windows, "used": self.windows_used, "at_rest_m": math.sqrt(self.a),
-                "per_speed_s": math.sqrt(self.b)}
+                "per_speed_s": math.sqrt(self.b), "angle_rad": math.sqrt(self.angle)}
 
 
 def describe_noise(report: dict) -> str:
     """A :meth:`MarkerNoiseAdaptation.report` in words."""
     return (f"marker noise {report['at_rest_m'] * 1e3:.3f} mm at rest, {report['per_speed_s'] * 1e3:.3f} mm per m/s "
-            f"in quadrature, from {report['used']} of {report['windows']} windows")
+            f"in quadrature, angle {report['angle_rad'] * 1e3:.2f} mrad, from {report['used']} of "
+            f"{report['windows']} windows")
