@@ -1,5 +1,5 @@
-"""The mocap's position noise learned online from the poses themselves (issue #13 item 2: noise identified
-from data, the filter kept calibrated).
+"""The mocap's noise (position and angle) learned online from the poses themselves (issue #13 item 2: noise
+identified from data, the filter kept calibrated).
 
 The marker noise is modelled as the filter's R models it: a variance ``a`` [m^2] per axis at rest that
 grows with the speed v [m/s] as ``a + b v^2`` (``b`` = ``measurement_noise_per_speed`` squared, [s^2]:
@@ -7,7 +7,7 @@ marker blur and timestamp jitter). A filter whose R is too small rejects good fr
 lab's symptoms with the old filter; on the test bed with twice its marker noise the defaults rejected 17 %
 of the poses and read a NIS median of 6.2); one whose R is too large smooths too much and reads a NIS far
 below the chi-square. What the noise is follows from the poses alone, whatever the filter makes of them:
-over ``window`` consecutive poses (no lost frame among them) the positions are fitted by a quadratic in
+over ``window`` consecutive poses (intervals up to ``max_gap_frames`` frame periods) the positions are fitted by a quadratic in
 time per axis, a motion no puck departs from measurably in a few frames (0.1 m/s^2 of unmodelled
 acceleration moves it 3 um in 75 ms) unless a rim, a hit or a glitch acts, and the residuals' sum of
 squares over both axes, divided by its 2 (window - 3) degrees of freedom, is an unbiased sample of the
@@ -39,7 +39,7 @@ MIN_VARIANCE = 1e-12   # [m^2] a floor for the expected variance in the weights 
 
 @dataclass(frozen=True)
 class NoiseAdaptationSettings:
-    """``noise_adaptation.*`` in config/tracker.yaml (sources there)."""
+    """``noise_adaptation.*`` in config/tracker.yaml (sources there; the defaults here are its values)."""
 
     window: int = 9                 # consecutive poses per quadratic fit
     max_gap_frames: float = 2.5     # [frame periods] a longer interval between two poses ends the window
