@@ -71,8 +71,7 @@ def window_sample(stamps: Sequence[float], poses: Sequence[Sequence[float]]) -> 
     n = len(stamps)
     mid = sum(stamps) / n
     s1 = s2 = s3 = s4 = 0.0
-    rhs = [[0.0, 0.0, 0.0] for _ in range(3)]  # per coordinate: sums of value, u value, u^2 value
-    squares = [0.0, 0.0, 0.0]
+    x0 = x1 = x2 = y0 = y1 = y2 = a0 = a1 = a2 = sxx = syy = saa = 0.0
     angle, previous = 0.0, poses[0][2]
     for t, (x, y, theta) in zip(stamps, poses):
         angle += wrap_angle(theta - previous)  # unwrapped from the window's first angle
@@ -83,15 +82,24 @@ def window_sample(stamps: Sequence[float], poses: Sequence[Sequence[float]]) -> 
         s2 += u2
         s3 += u2 * u
         s4 += u2 * u2
-        for k, value in enumerate((x, y, angle)):
-            rhs[k][0] += value
-            rhs[k][1] += u * value
-            rhs[k][2] += u2 * value
-            squares[k] += value * value
+        x0 += x
+        x1 += u * x
+        x2 += u2 * x
+        y0 += y
+        y1 += u * y
+        y2 += u2 * y
+        a0 += angle
+        a1 += u * angle
+        a2 += u2 * angle
+        sxx += x * x
+        syy += y * y
+        saa += angle * angle
     gram = ((float(n), s1, s2), (s1, s2, s3), (s2, s3, s4))
-    coefs = [_solve3(gram, b) for b in rhs]  # per coordinate: value, rate, half the acceleration
-    rss = [max(sq - sum(c * b for c, b in zip(coef, b_)), 0.0) for sq, coef, b_ in zip(squares, coefs, rhs)]
-    return (rss[0] + rss[1]) / (2 * (n - 3)), math.hypot(coefs[0][1], coefs[1][1]), rss[2] / (n - 3)
+    cx, cy, ca = _solve3(gram, (x0, x1, x2)), _solve3(gram, (y0, y1, y2)), _solve3(gram, (a0, a1, a2))
+    rss_x = sxx - (cx[0] * x0 + cx[1] * x1 + cx[2] * x2)  # residual sums of squares of the least squares fits
+    rss_y = syy - (cy[0] * y0 + cy[1] * y1 + cy[2] * y2)
+    rss_a = saa - (ca[0] * a0 + ca[1] * a1 + ca[2] * a2)
+    return max(rss_x + rss_y, 0.0) / (2 * (n - 3)), math.hypot(cx[1], cy[1]), max(rss_a, 0.0) / (n - 3)
 
 
 def _solve3(m: tuple, rhs: Sequence[float]) -> tuple[float, float, float]:
