@@ -78,10 +78,7 @@ class PuckTrackerNode(AirHockeyNode):
         if learning is None or learning.events < self.next_log:
             return
         self.next_log *= 10
-        report = learning.report()
-        if self.ekf.noise_learning is not None:
-            report["marker_noise"] = self.ekf.noise_learning.report()
-        self.get_logger().info(f"learned online: {describe_learning(report)}")
+        self.get_logger().info(f"learned online: {describe_learning(self.ekf.learning_report())}")
 
     def publish_physics(self, seconds: float) -> None:
         """``puck/physics``: the model's parameters now (learned or configured), from ``seconds``."""
@@ -139,7 +136,7 @@ class PuckTrackerNode(AirHockeyNode):
         response.success, response.message = True, "noise covariances set"
         if len(request.measurement_covariance) and self.ekf.noise_learning is not None:
             self.ekf.noise_learning = None  # an R set by hand is kept: the online learning would replace it
-            response.message += " (the position noise is no longer learned online)"
+            response.message += " (the marker noise is no longer learned online)"
         return response
 
     def on_kalman_step(self, request, response):

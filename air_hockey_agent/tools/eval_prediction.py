@@ -21,7 +21,7 @@ prediction uses what was learned up to its frame. Reported: JSON "rim_law" (the 
 scales of the configured rim law and the rim parameters they give), "table_acceleration" (free-flight
 windows, value and std [m/s^2]), "spin_damping", "impact_delay", "marker_offset" (the mocap pivot's
 offset from the disc's centre: windows, value and std [m]) and "marker_noise" (``noise_adaptation``: windows
-collected and used, the position noise's std at rest [m] and per m/s [s]); a ``--params-file`` with ``enabled: false``
+collected and used, the position noise's std at rest [m] and per m/s [s], the angle's [rad]); a ``--params-file`` with ``enabled: false``
 under both evaluates the configured physics alone.
 
 And the thesis's own columns (tables 5.2-5.4; JSON "thesis_style"), computed as ``air-hockey sysid``
@@ -41,7 +41,7 @@ from pathlib import Path
 from air_hockey_agent.bags.reader import BagError
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
-from air_hockey_agent.core.estimation.table_learning import describe_learning, learning_report, rims_off_text
+from air_hockey_agent.core.estimation.table_learning import describe_learning, rims_off_text
 from air_hockey_agent.bags.trajectories import bag_measurements, find_bags
 from air_hockey_agent.core.identification.preprocess import preprocess
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
@@ -103,8 +103,7 @@ def run(args: argparse.Namespace) -> int:
     if not totals.recordings:  # each bag's one-line error said why; an all-empty report would say nothing
         return 2
     summary = totals.summary()
-    summary.update(learning_report(ekf.learning))
-    summary["marker_noise"] = None if ekf.noise_learning is None else ekf.noise_learning.report()
+    summary.update(ekf.learning_report())
     delay = summary.get("impact_delay")
     if delay is not None and delay["rims_off"]:
         print(f"{PROG}: warning: {rims_off_text(delay['rim_offsets'], delay['rims_off'])}", file=sys.stderr)
@@ -152,7 +151,7 @@ def format_table(summary: dict) -> str:
 def _learning_line(summary: dict) -> str:
     """What the tracker learned online of the table over the bags (in their order, as one session)."""
     if summary["rim_law"] is None and summary["table_acceleration"] is None and summary["marker_noise"] is None:
-        return "learned online: nothing (rim_adaptation and acceleration_adaptation are off)"
+        return "learned online: nothing (rim_adaptation, acceleration_adaptation and noise_adaptation are off)"
     return "learned online over the bags: " + describe_learning(summary)
 
 

@@ -33,7 +33,7 @@ import numpy as np
 
 from air_hockey_agent.core.estimation.marker_offset import centre_of
 from air_hockey_agent.core.estimation.noise_adaptation import MarkerNoiseAdaptation
-from air_hockey_agent.core.estimation.table_learning import TableLearning
+from air_hockey_agent.core.estimation.table_learning import TableLearning, learning_report
 from air_hockey_agent.core.linalg3 import inverse_sym3
 from air_hockey_agent.core.puck.prediction import Prediction, predict_fast, with_impact_noise
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, wrap_angle
@@ -173,7 +173,7 @@ class PuckEKF:
     # None when the last frame did not (lost, frozen, initialising): the filter's consistency check
     last_nis: float | None = None
     learning: TableLearning | None = None              # what is learned online of the table (None: nothing)
-    noise_learning: MarkerNoiseAdaptation | None = None  # the mocap's position noise learned online (None: R as set)
+    noise_learning: MarkerNoiseAdaptation | None = None  # the mocap's noise learned online (None: R as set)
 
     def __post_init__(self) -> None:
         """Nothing here; a subclass with state of its own sets it up (the generated ``__init__`` calls this)."""
@@ -196,6 +196,13 @@ class PuckEKF:
         """(rim impacts, free-flight windows) the model has learned from online so far; (0, 0) without
         learning: what changes whenever the model's physics does, short of ``set_model_params``."""
         return self.learning.counts if self.learning is not None else (0, 0)
+
+    def learning_report(self) -> dict:
+        """What was learned online: the table's (:func:`~.table_learning.learning_report`, its keys None when
+        nothing is) and ``"marker_noise"`` (:meth:`MarkerNoiseAdaptation.report`, None when not learned)."""
+        report = learning_report(self.learning)
+        report["marker_noise"] = None if self.noise_learning is None else self.noise_learning.report()
+        return report
 
     def set_model_params(self, params: PuckParams) -> None:
         """Use ``params`` (validated: ValueError, filter unchanged); what was learned online restarts from them."""

@@ -52,13 +52,7 @@ class NoiseAdaptationSettings:
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "noise_adaptation.") -> "NoiseAdaptationSettings":
-        return cls(window=int(params[prefix + "window"]), max_gap_frames=float(params[prefix + "max_gap_frames"]),
-                   prior_windows=float(params[prefix + "prior_windows"]),
-                   min_windows=int(params[prefix + "min_windows"]),
-                   update_every=int(params[prefix + "update_every"]),
-                   max_windows=int(params[prefix + "max_windows"]),
-                   outlier_ratio=float(params[prefix + "outlier_ratio"]),
-                   angle_outlier_ratio=float(params[prefix + "angle_outlier_ratio"]))
+        return cls(**{name: params[prefix + name] for name in cls.__dataclass_fields__})
 
 
 def window_sample(stamps: Sequence[float], poses: Sequence[Sequence[float]]) -> tuple[float, float, float]:
