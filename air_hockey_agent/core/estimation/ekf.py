@@ -18,10 +18,10 @@
   ``ACQUISITION_FRAMES`` of a track whose fit agrees with the measurement noise, the rejected run after
   an event; seed 003's batch estimate), with the fit's covariance.
 * what is learned online of the table (``rim_adaptation.*``, ``acceleration_adaptation.*``,
-  :mod:`.table_learning`): after each frame handled without a rejection or restart the frame goes to
-  the learning, which scales the configured rim law from the impacts it sees and estimates the table's
-  acceleration from free flight; the model (and every prediction) then uses what was learned. It
-  survives :meth:`PuckEKF.reset` (it is the table's, not the track's).
+  :mod:`.table_learning`): after each frame handled without a restart the frame goes to the learning
+  (a rejected one as a frame without a pose), which scales the configured rim law from the impacts it
+  sees and estimates the table's acceleration from free flight; the model (and every prediction) then
+  uses what was learned. It survives :meth:`PuckEKF.reset` (it is the table's, not the track's).
 """
 from __future__ import annotations
 
@@ -341,8 +341,7 @@ class PuckEKF:
             return self._process(t, z)
         x, p, stamp, initialised = self.x, self.P, self.stamp, self.initialised  # steps replace, not change, x and P
         flags = self._process(t, z)
-        if not (initialised and self.initialised and stamp is not None) or flags & (FLAG_OUTLIER_REJECTED |
-                                                                                    FLAG_REINITIALISED):
+        if not (initialised and self.initialised and stamp is not None) or flags & FLAG_REINITIALISED:
             self.learning.forget()
             return flags
         learned = self.learning.after_frame(self.model, t, z if flags & FLAG_MEASUREMENT_USED else None, x, p, stamp)

@@ -20,8 +20,11 @@ module the frame and the state it predicted from:
   ``spin_prior_std`` is 0, and their measured positions the mocap pivot's offset from the disc's centre
   (:mod:`.marker_offset`) unless ``marker_offset_prior_std`` is 0.
 
-A rejected frame, a re-initialisation or a restart ends any watch or window (a hit). What was learned
-stays: it is the table's, not the track's.
+A re-initialisation or a restart ends any watch or window (a hit). A frame the gate rejects does not:
+it gives the window nothing, but the puck flew on (a marker glitch, or a filter not yet right about the
+table: a window ended at every rejection left a filter that rejected often, as one with the pivot's
+offset still unlearned, with no whole window to learn the offset from). What was learned stays: it is
+the table's, not the track's.
 """
 from __future__ import annotations
 
@@ -278,8 +281,8 @@ class TableLearning:
 
     def after_frame(self, model: PuckModel, t: float, z, before: np.ndarray, p: np.ndarray,
                     stamp: float) -> PuckParams | None:
-        """Frame ``t`` [s] was handled without a rejection or restart; ``z`` is its fused pose (None if it
-        fused none), ``before`` / ``p`` the state and covariance at the previous frame ``stamp`` [s].
+        """Frame ``t`` [s] was handled without a restart; ``z`` is its fused pose (None if it fused none:
+        lost or rejected), ``before`` / ``p`` the state and covariance at the previous frame ``stamp`` [s].
         Returns the parameters to use from now on when something was learned, else None."""
         dt = t - stamp
         state = before[:4].tolist()
