@@ -111,6 +111,16 @@ TRACKER_PARAMS = (
               "is left out", 1.0, 1000.0),
     ParamSpec("noise_adaptation.angle_outlier_ratio", float, "a window beyond this many times the angle noise "
               "variance is left out of it", 1.0, 1000.0),
+    ParamSpec("process_noise_adaptation.enabled", bool, "learn the scale of process_noise's velocity terms from "
+              "free-flight frames' position NIS"),
+    ParamSpec("process_noise_adaptation.block", int, "free-flight frames per update", 10, 1000000),
+    ParamSpec("process_noise_adaptation.gain", float, "[-] exponent of a block's correction", 0.01, 1.0),
+    ParamSpec("process_noise_adaptation.min_scale", float, "[-] smallest scale of the configured velocity terms",
+              1e-6, 1.0),
+    ParamSpec("process_noise_adaptation.max_scale", float, "[-] largest scale of the configured velocity terms",
+              1.0, 1e6),
+    ParamSpec("process_noise_adaptation.clear_of_rims", float, "[s] of travel from the rims a free-flight frame "
+              "keeps, either way", 0.0, 10.0),
     ParamSpec("acceleration_adaptation.enabled", bool, "learn this table's acceleration (tilt, air film's mean) "
               "online from free flight"),
     ParamSpec("acceleration_adaptation.prior_std", float, "[m/s^2] std of the configured table_acceleration",
@@ -152,7 +162,7 @@ def without_learning(params: dict[str, Any]) -> dict[str, Any]:
     sysid identifies and the thesis's trajectory-level columns report (fixed parameters, thesis tables
     5.2-5.4)."""
     return {**params, "rim_adaptation.enabled": False, "acceleration_adaptation.enabled": False,
-            "noise_adaptation.enabled": False}
+            "noise_adaptation.enabled": False, "process_noise_adaptation.enabled": False}
 
 
 def load_tracker_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:

@@ -26,12 +26,17 @@ def finite_difference_jacobian(m: PuckModel, state: np.ndarray, dt: float, h: fl
     return jac
 
 
-def session_on_testbed(ekf, shots: int, seed: int, **mocap):
-    """A session on the test bed with config/synthetic.yaml's shots, effects and mocap (``mocap``: fields of
-    MocapImperfections set otherwise), as synth-bag --source testbed writes it."""
+def session_on_testbed(ekf, shots: int, seed: int, testbed: dict | None = None, **mocap):
+    """A session on the test bed with config/synthetic.yaml's shots, effects and mocap (``testbed``: its
+    ``testbed.*`` effects, ``mocap``: fields of MocapImperfections, set otherwise), as synth-bag --source
+    testbed writes it."""
     from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
-    return _session(ekf, shots, seed, lambda cfg, rng: testbed_shots(
-        TableEffects.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"], cfg["fine_dt"], rng), mocap)
+
+    def shots_of(cfg, rng):
+        cfg = {**cfg, **{f"testbed.{name}": value for name, value in (testbed or {}).items()}}
+        return testbed_shots(TableEffects.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"], cfg["fine_dt"],
+                             rng)
+    return _session(ekf, shots, seed, shots_of, mocap)
 
 
 def session_on_mujoco(ekf, shots: int, seed: int):

@@ -31,7 +31,8 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     report = json.loads(out.stdout)  # the whole of stdout is one JSON document
     assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "off_table_poses", "rejected_fraction",
                            "reinit_per_s", "nis", "nis_by_regime", "by_path", "rim_law", "table_acceleration",
-                           "spin_damping", "impact_delay", "marker_offset", "marker_noise", "thesis_style"}
+                           "spin_damping", "impact_delay", "marker_offset", "marker_noise", "process_noise",
+                           "thesis_style"}
     law = report["rim_law"]  # the bags' shots are flown with the configured physics: learning it keeps it
     assert set(law) == {"impacts", "restitution_scale", "fall_scale", "knee", "fall_width", "tangential_scale",
                         "stick_fraction", "friction_rim", "tangential_form", "params"}
@@ -52,6 +53,9 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert sum(o["impacts"] for o in delay["rim_offsets"].values()) == delay["impacts"]
     offset = report["marker_offset"]  # the bags' pivot is the disc's centre
     assert set(offset) == {"windows", "value", "std"} and max(map(abs, offset["value"])) < 3e-4
+    process = report["process_noise"]  # the model's own flight: nothing is missing, the scale does not grow
+    assert set(process) == {"blocks", "scale", "acceleration_std_m_s2"} and process["blocks"] >= 3
+    assert process["scale"] <= 1.0 and process["acceleration_std_m_s2"] == pytest.approx(0.03 * process["scale"] ** 0.5)
     assert set(report["nis"]) == {"median", "mean"}
     assert set(report["by_path"]) == set(report["horizons"])
     for key, paths in report["by_path"].items():

@@ -134,9 +134,16 @@ class PuckTrackerNode(AirHockeyNode):
         # the service's Q is the process noise of every regime (the thesis has one)
         self.ekf.settings.q, self.ekf.settings.q_rest, self.ekf.settings.r = q, q, r
         response.success, response.message = True, "noise covariances set"
+        stopped = []
         if len(request.measurement_covariance) and self.ekf.noise_learning is not None:
             self.ekf.noise_learning = None  # an R set by hand is kept: the online learning would replace it
-            response.message += " (the marker noise is no longer learned online)"
+            stopped.append("the marker noise")
+        if len(request.process_covariance) and self.ekf.process_noise_learning is not None:
+            self.ekf.process_noise_learning = None  # as a Q set by hand
+            stopped.append("the flight process noise")
+        if stopped:
+            verb = "is" if len(stopped) == 1 else "are"
+            response.message += f" ({' and '.join(stopped)} {verb} no longer learned online)"
         return response
 
     def on_kalman_step(self, request, response):

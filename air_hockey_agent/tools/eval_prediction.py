@@ -20,9 +20,11 @@ tracker node that keeps running: what the tracker learns online of the table (``
 prediction uses what was learned up to its frame. Reported: JSON "rim_law" (the impacts learned from, the
 scales of the configured rim law and the rim parameters they give), "table_acceleration" (free-flight
 windows, value and std [m/s^2]), "spin_damping", "impact_delay", "marker_offset" (the mocap pivot's
-offset from the disc's centre: windows, value and std [m]) and "marker_noise" (``noise_adaptation``: windows
-collected and used, the position noise's std at rest [m] and per m/s [s], the angle's [rad]); a ``--params-file`` with ``enabled: false``
-under both evaluates the configured physics alone.
+offset from the disc's centre: windows, value and std [m]), "marker_noise" (``noise_adaptation``: windows
+collected and used, the position noise's std at rest [m] and per m/s [s], the angle's [rad]) and
+"process_noise" (``process_noise_adaptation``: blocks of free-flight frames learned from, the scale of the
+configured velocity terms and the acceleration std they stand for [m/s^2]); a ``--params-file`` with
+``enabled: false`` under both table learnings evaluates the configured physics alone.
 
 And the thesis's own columns (tables 5.2-5.4; JSON "thesis_style"), computed as ``air-hockey sysid``
 reports them, of the configured physics (nothing learned): the bags preprocessed into cut trajectories (thesis sec. 4.5.1,
@@ -150,8 +152,9 @@ def format_table(summary: dict) -> str:
 
 def _learning_line(summary: dict) -> str:
     """What the tracker learned online of the table over the bags (in their order, as one session)."""
-    if summary["rim_law"] is None and summary["table_acceleration"] is None and summary["marker_noise"] is None:
-        return "learned online: nothing (rim_adaptation, acceleration_adaptation and noise_adaptation are off)"
+    if all(summary[key] is None for key in ("rim_law", "table_acceleration", "marker_noise", "process_noise")):
+        return ("learned online: nothing (rim_adaptation, acceleration_adaptation, noise_adaptation and "
+                "process_noise_adaptation are off)")
     return "learned online over the bags: " + describe_learning(summary)
 
 

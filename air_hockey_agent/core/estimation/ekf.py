@@ -22,6 +22,9 @@
   (a rejected one as a frame without a pose), which scales the configured rim law from the impacts it
   sees and estimates the table's acceleration from free flight; the model (and every prediction) then
   uses what was learned. It survives :meth:`PuckEKF.reset` (it is the table's, not the track's).
+* the noise learned online: R from the poses themselves (``noise_adaptation``,
+  :mod:`.noise_adaptation`) and the scale of Q's flight velocity terms from the free-flight frames'
+  position NIS (``process_noise_adaptation``, :mod:`.process_noise_adaptation`).
 """
 from __future__ import annotations
 
@@ -33,6 +36,7 @@ import numpy as np
 
 from air_hockey_agent.core.estimation.marker_offset import centre_of
 from air_hockey_agent.core.estimation.noise_adaptation import MarkerNoiseAdaptation
+from air_hockey_agent.core.estimation.process_noise_adaptation import ProcessNoiseAdaptation
 from air_hockey_agent.core.estimation.table_learning import TableLearning, learning_report
 from air_hockey_agent.core.linalg3 import inverse_sym3
 from air_hockey_agent.core.puck.prediction import Prediction, predict_fast, with_impact_noise
@@ -174,6 +178,7 @@ class PuckEKF:
     last_nis: float | None = None
     learning: TableLearning | None = None              # what is learned online of the table (None: nothing)
     noise_learning: MarkerNoiseAdaptation | None = None  # the mocap's noise learned online (None: R as set)
+    process_noise_learning: ProcessNoiseAdaptation | None = None  # flight Q learned online (None: Q as set)
 
     def __post_init__(self) -> None:
         """Nothing here; a subclass with state of its own sets it up (the generated ``__init__`` calls this)."""
@@ -189,6 +194,7 @@ class PuckEKF:
         ekf = kind(model, FilterSettings.from_params(params))
         ekf.learning = TableLearning.from_params(model.params, model.table, params)
         ekf.noise_learning = MarkerNoiseAdaptation.from_params(params)
+        ekf.process_noise_learning = ProcessNoiseAdaptation.from_params(params)
         return ekf
 
     @property
@@ -199,9 +205,12 @@ class PuckEKF:
 
     def learning_report(self) -> dict:
         """What was learned online: the table's (:func:`~.table_learning.learning_report`, its keys None when
-        nothing is) and ``"marker_noise"`` (:meth:`MarkerNoiseAdaptation.report`, None when not learned)."""
+        nothing is), ``"marker_noise"`` (:meth:`MarkerNoiseAdaptation.report`) and ``"process_noise"``
+        (:meth:`ProcessNoiseAdaptation.report`), each None when not learned."""
         report = learning_report(self.learning)
         report["marker_noise"] = None if self.noise_learning is None else self.noise_learning.report()
+        report["process_noise"] = (None if self.process_noise_learning is None
+                                   else self.process_noise_learning.report())
         return report
 
     def set_model_params(self, params: PuckParams) -> None:
@@ -405,6 +414,8 @@ class PuckEKF:
         (sxx, sxy, _), (_, syy, _), (_, _, saa) = s.tolist()
         yx, yy, ya = y.tolist()
         position_d2 = (syy * yx * yx - 2.0 * sxy * yx * yy + sxx * yy * yy) / (sxx * syy - sxy * sxy)
+        if self.process_noise_learning is not None:
+            self._learn_process_noise(position_d2)
         if position_d2 <= self.settings.gate_threshold:
             self._pending.clear()
             if ya * ya <= self.settings.angle_gate_threshold * saa:
@@ -419,6 +430,20 @@ class PuckEKF:
             self._initialise_from_pending()
             return FLAG_OUTLIER_REJECTED | FLAG_REINITIALISED | FLAG_MEASUREMENT_USED
         return FLAG_OUTLIER_REJECTED | FLAG_PREDICTED
+
+    def _learn_process_noise(self, position_d2: float) -> None:
+        """Give a free-flight frame's position distance to the process noise learning (a puck at
+        ``rest_speed`` or faster, clear of the rims: :mod:`.process_noise_adaptation`); take Q from it
+        when a block completes."""
+        learning = self.process_noise_learning
+        x, y, vx, vy = self.x[:4].tolist()
+        table, travel = self.model.table, learning.settings.clear_of_rims
+        if (math.hypot(vx, vy) < self.settings.rest_speed or abs(x) + abs(vx) * travel >= table.x_limit
+                or abs(y) + abs(vy) * travel >= table.y_limit):
+            return
+        q = learning.observe(position_d2)
+        if q is not None:
+            self.settings = replace(self.settings, q=q)
 
     def _update_position_only(self, y: np.ndarray, s: np.ndarray, angle: float) -> None:
         """Fuse the position innovation ``y`` (covariance ``s``) alone; restart angle and spin from the

@@ -36,6 +36,7 @@ import numpy as np
 
 from air_hockey_agent.core.identification.local_fit import fit_positions, paths_meet
 from air_hockey_agent.core.estimation.noise_adaptation import describe_noise
+from air_hockey_agent.core.estimation.process_noise_adaptation import describe_process_noise
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe, outgoing_fit,
                                                              rim_frame)
 from air_hockey_agent.core.estimation.delay_adaptation import DelayAdaptation
@@ -430,6 +431,9 @@ def describe_learning(report: dict) -> str:
     noise = report.get("marker_noise")
     if noise is not None and noise["windows"]:
         parts.append(describe_noise(noise))
+    process = report.get("process_noise")
+    if process is not None and process["blocks"]:
+        parts.append(describe_process_noise(process))
     return "; ".join(parts)
 
 

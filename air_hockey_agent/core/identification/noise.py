@@ -65,9 +65,9 @@ def position_noise_by_speed(residuals: np.ndarray, speeds: np.ndarray, rounds: i
 
 
 def fixed_noise(params: Mapping[str, Any]) -> dict:
-    """``params`` with the noise as set (``noise_adaptation`` off): the noise being estimated or calibrated
-    here is the iteration's, not one the filter learns underneath it."""
-    return {**params, "noise_adaptation.enabled": False}
+    """``params`` with the noise as set (``noise_adaptation`` and ``process_noise_adaptation`` off): the
+    noise being estimated or calibrated here is the iteration's, not one the filter learns underneath it."""
+    return {**params, "noise_adaptation.enabled": False, "process_noise_adaptation.enabled": False}
 
 
 def estimate_once(params: Mapping[str, Any], trajectories: Sequence[GridTrajectory],
