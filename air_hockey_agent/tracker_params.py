@@ -111,14 +111,17 @@ TRACKER_PARAMS = (
               "is left out", 1.0, 1000.0),
     ParamSpec("noise_adaptation.angle_outlier_ratio", float, "a window beyond this many times the angle noise "
               "variance is left out of it", 1.0, 1000.0),
-    ParamSpec("process_noise_adaptation.enabled", bool, "learn the scale of process_noise's velocity terms from "
-              "free-flight frames' position NIS"),
-    ParamSpec("process_noise_adaptation.block", int, "free-flight frames per update", 10, 1000000),
+    ParamSpec("process_noise_adaptation.enabled", bool, "learn the scales of the process noise by regime (flight, "
+              "rest, rim impacts) from the gated frames' position NIS"),
+    ParamSpec("process_noise_adaptation.block", int, "free-flight (and resting) frames per update", 10, 1000000),
+    ParamSpec("process_noise_adaptation.impact_block", int, "impact-regime frames per update", 10, 1000000),
+    ParamSpec("process_noise_adaptation.impact_frames", int, "gated frames after a model impact that belong to "
+              "the impact regime", 1, 100),
     ParamSpec("process_noise_adaptation.gain", float, "[-] exponent of a block's correction", 0.01, 1.0),
-    ParamSpec("process_noise_adaptation.min_scale", float, "[-] smallest scale of the configured velocity terms",
-              1e-6, 1.0),
-    ParamSpec("process_noise_adaptation.max_scale", float, "[-] largest scale of the configured velocity terms",
-              1.0, 1e6),
+    ParamSpec("process_noise_adaptation.min_scale", float, "[-] smallest scale of a regime's configured noise "
+              "(variance)", 1e-6, 1.0),
+    ParamSpec("process_noise_adaptation.max_scale", float, "[-] largest scale of a regime's configured noise "
+              "(variance)", 1.0, 1e6),
     ParamSpec("process_noise_adaptation.clear_of_rims", float, "[s] of travel from the rims a free-flight frame "
               "keeps, either way", 0.0, 10.0),
     ParamSpec("acceleration_adaptation.enabled", bool, "learn this table's acceleration (tilt, air film's mean) "

@@ -54,8 +54,10 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     offset = report["marker_offset"]  # the bags' pivot is the disc's centre
     assert set(offset) == {"windows", "value", "std"} and max(map(abs, offset["value"])) < 3e-4
     process = report["process_noise"]  # the model's own flight: nothing is missing, the scale does not grow
-    assert set(process) == {"blocks", "scale", "acceleration_std_m_s2"} and process["blocks"] >= 3
-    assert process["scale"] <= 1.0 and process["acceleration_std_m_s2"] == pytest.approx(0.03 * process["scale"] ** 0.5)
+    assert set(process) == {"flight", "rest", "impact"} and process["flight"]["blocks"] >= 3
+    flight = process["flight"]
+    assert flight["scale"] <= 1.0 and flight["acceleration_std_m_s2"] == pytest.approx(0.03 * flight["scale"] ** 0.5)
+    assert set(process["impact"]) == {"blocks", "scale", "impact_noise", "impact_contact_time_s"}
     assert set(report["nis"]) == {"median", "mean"}
     assert set(report["by_path"]) == set(report["horizons"])
     for key, paths in report["by_path"].items():

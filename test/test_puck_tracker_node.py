@@ -114,7 +114,7 @@ def test_services_answer_and_refuse_bad_requests(tracker, rclpy_node):
     assert set_r.success and "(the marker noise is no longer learned online)" in set_r.message  # an R set by hand
     set_q = call(SetNoiseCovariance, "/set_noise_covariance", process_covariance=list(np.diag([1e-10, 1e-10, 1e-7, 1e-7,
                                                                                               1e-6, 1e-6]).ravel()))
-    assert set_q.success and "(the flight process noise is no longer learned online)" in set_q.message  # a Q too
+    assert set_q.success and "(the process noise is no longer learned online)" in set_q.message  # a Q too
     assert call(ResetFilter, "/reset").success
     from builtin_interfaces.msg import Time
     responses = [call(KalmanStep, "/kalman_step", stamp=Time(sec=10, nanosec=int(k * DT * 1e9)), has_measurement=True,

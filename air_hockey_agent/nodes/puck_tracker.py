@@ -140,7 +140,7 @@ class PuckTrackerNode(AirHockeyNode):
             stopped.append("the marker noise")
         if len(request.process_covariance) and self.ekf.process_noise_learning is not None:
             self.ekf.process_noise_learning = None  # as a Q set by hand
-            stopped.append("the flight process noise")
+            stopped.append("the process noise")
         if stopped:
             verb = "is" if len(stopped) == 1 else "are"
             response.message += f" ({' and '.join(stopped)} {verb} no longer learned online)"

@@ -178,7 +178,8 @@ class PuckEKF:
     last_nis: float | None = None
     learning: TableLearning | None = None              # what is learned online of the table (None: nothing)
     noise_learning: MarkerNoiseAdaptation | None = None  # the mocap's noise learned online (None: R as set)
-    process_noise_learning: ProcessNoiseAdaptation | None = None  # flight Q learned online (None: Q as set)
+    process_noise_learning: ProcessNoiseAdaptation | None = None  # Q by regime learned online (None: as set)
+    _frames_since_impact: int = 1 << 30                # gated frames since the model last put a rim impact
 
     def __post_init__(self) -> None:
         """Nothing here; a subclass with state of its own sets it up (the generated ``__init__`` calls this)."""
@@ -279,14 +280,25 @@ class PuckEKF:
             res = self.model.step(self.x, dt)
             self.x = res.state
             p = res.jacobian @ self.P @ res.jacobian.T + q
-            self.P = with_impact_noise(p, self.x, res.impacts, self.settings.impact_noise,
-                                       self.settings.impact_contact_time)
+            self.P = self._with_impact_noise(p, self.x, res.impacts)
         else:
             pred = predict_fast(self.model, self.x, self.P, dt, self.settings.dt, self.settings.q,
                                 impact_noise=self.settings.impact_noise,
                                 impact_contact_time=self.settings.impact_contact_time)
             self.x, self.P = pred.state, pred.covariance
+            self._impacts_met(pred.impacts)
         self.stamp = t
+
+    def _with_impact_noise(self, p: np.ndarray, x: np.ndarray, impacts: list) -> np.ndarray:
+        """``p`` with the impact noise of a step that met ``impacts`` (:func:`with_impact_noise`), counted
+        for the impact regime."""
+        self._impacts_met(impacts)
+        return with_impact_noise(p, x, impacts, self.settings.impact_noise, self.settings.impact_contact_time)
+
+    def _impacts_met(self, impacts: list) -> None:
+        """A step the model put ``impacts`` in: the next gated frames are the impact regime's."""
+        if impacts:
+            self._frames_since_impact = 0
 
     def residual(self, z: np.ndarray, state: np.ndarray | None = None) -> np.ndarray:
         """Measurement minus the measured part of the current state (or of ``state``), ``z - h(x)``, angle
@@ -432,18 +444,26 @@ class PuckEKF:
         return FLAG_OUTLIER_REJECTED | FLAG_PREDICTED
 
     def _learn_process_noise(self, position_d2: float) -> None:
-        """Give a free-flight frame's position distance to the process noise learning (a puck at
-        ``rest_speed`` or faster, clear of the rims: :mod:`.process_noise_adaptation`); take Q from it
+        """Give a gated frame's position distance to the process noise learning
+        (:mod:`.process_noise_adaptation`) by its regime: *impact* for the ``impact_frames`` after a model
+        impact, *rest* below ``rest_speed``, *flight* clear of the rims (else none); take the noise from it
         when a block completes."""
         learning = self.process_noise_learning
+        since, self._frames_since_impact = self._frames_since_impact, self._frames_since_impact + 1
         x, y, vx, vy = self.x[:4].tolist()
         table, travel = self.model.table, learning.settings.clear_of_rims
-        if (math.hypot(vx, vy) < self.settings.rest_speed or abs(x) + abs(vx) * travel >= table.x_limit
-                or abs(y) + abs(vy) * travel >= table.y_limit):
+        if since < learning.settings.impact_frames:
+            regime = "impact"
+        elif math.hypot(vx, vy) < self.settings.rest_speed:
+            regime = "rest"
+        elif abs(x) + abs(vx) * travel < table.x_limit and abs(y) + abs(vy) * travel < table.y_limit:
+            regime = "flight"
+        else:
             return
-        q = learning.observe(position_d2)
-        if q is not None:
-            self.settings = replace(self.settings, q=q)
+        if learning.observe(regime, position_d2):
+            noise, contact = learning.impact()
+            self.settings = replace(self.settings, q=learning.q("flight"), q_rest=learning.q("rest"),
+                                    impact_noise=noise, impact_contact_time=contact)
 
     def _update_position_only(self, y: np.ndarray, s: np.ndarray, angle: float) -> None:
         """Fuse the position innovation ``y`` (covariance ``s``) alone; restart angle and spin from the

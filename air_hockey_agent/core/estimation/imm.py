@@ -85,6 +85,7 @@ class PuckIMM(PuckEKF):
         """What mode ``mode`` adds to the common process noise in a step ``res`` of ``dt`` [s]: an impact's
         noise (the rim mode's larger), and for the contact mode its velocity change."""
         ratio = self.settings.imm_rim_impact_noise if mode == _RIM else self.settings.impact_noise
+        self._impacts_met(res.impacts)
         extra = with_impact_noise(0.0, res.state, res.impacts, ratio, self.settings.impact_contact_time)
         return extra + self._contact_noise(dt) if mode == _CONTACT else extra
 

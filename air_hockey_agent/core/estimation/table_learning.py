@@ -432,7 +432,7 @@ def describe_learning(report: dict) -> str:
     if noise is not None and noise["windows"]:
         parts.append(describe_noise(noise))
     process = report.get("process_noise")
-    if process is not None and process["blocks"]:
+    if process is not None and describe_process_noise(process):
         parts.append(describe_process_noise(process))
     return "; ".join(parts)
 

@@ -28,7 +28,6 @@ import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import MEASURED, SINGLE_STEP_LIMIT, PuckEKF
 from air_hockey_agent.core.puck.model import wrap_angle
-from air_hockey_agent.core.puck.prediction import with_impact_noise
 
 ANGLE = 4  # state index of theta (its differences are wrapped)
 
@@ -58,8 +57,7 @@ class PuckUKF(PuckEKF):
         spread = deviations - mean_offset
         p = (spread.T * wc) @ spread + self.settings.process_noise(points[0]) * (dt / self.settings.dt)
         self.x = x
-        self.P = with_impact_noise(0.5 * (p + p.T), x, stepped[0].impacts, self.settings.impact_noise,
-                                   self.settings.impact_contact_time)
+        self.P = self._with_impact_noise(0.5 * (p + p.T), x, stepped[0].impacts)
         self.stamp = t
 
     def _sigma_points(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
