@@ -23,8 +23,8 @@
   sees and estimates the table's acceleration from free flight; the model (and every prediction) then
   uses what was learned. It survives :meth:`PuckEKF.reset` (it is the table's, not the track's).
 * the noise learned online: R from the poses themselves (``noise_adaptation``,
-  :mod:`.noise_adaptation`) and the scale of Q's flight velocity terms from the free-flight frames'
-  position NIS (``process_noise_adaptation``, :mod:`.process_noise_adaptation`).
+  :mod:`.noise_adaptation`) and the process noise by regime (flight, rest, rim impacts) from the gated
+  frames' position NIS (``process_noise_adaptation``, :mod:`.process_noise_adaptation`).
 """
 from __future__ import annotations
 

@@ -105,8 +105,7 @@ class ProcessNoiseAdaptation:
 
     def observe(self, regime: str, distance: float) -> bool:
         """Take a gated frame's position innovation distance (squared Mahalanobis, 2 dof) in ``regime``
-        (one of ``REGIMES``). True when that regime's noise changed (read :meth:`q`, :meth:`q_rest`,
-        :meth:`impact`)."""
+        (one of ``REGIMES``). True when that regime's noise changed (read :meth:`q` and :meth:`impact`)."""
         return self.scales[regime].observe(distance, self.settings)
 
     def q(self, regime: str = "flight") -> np.ndarray:
