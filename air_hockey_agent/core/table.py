@@ -73,6 +73,11 @@ class TableGeometry:
         r = self.puck_radius
         return post_position(contact, self.x_limit + r, self.goal_mouth + r)
 
+    def clear_of_rims(self, x: float, y: float, vx: float, vy: float, seconds: float) -> bool:
+        """True when a puck centre at (x, y) [m] moving at (vx, vy) [m/s] reaches no rim line flying
+        straight for ``seconds`` [s], either way."""
+        return abs(x) + abs(vx) * seconds < self.x_limit and abs(y) + abs(vy) * seconds < self.y_limit
+
     def contains(self, x: float, y: float, margin: float = 0.0) -> bool:
         """True when the puck centre is on the table, up to ``margin`` beyond the rims [m]."""
         return abs(x) <= self.length / 2 + margin and abs(y) <= self.width / 2 + margin

@@ -451,12 +451,11 @@ class PuckEKF:
         learning = self.process_noise_learning
         since, self._frames_since_impact = self._frames_since_impact, self._frames_since_impact + 1
         x, y, vx, vy = self.x[:4].tolist()
-        table, travel = self.model.table, learning.settings.clear_of_rims
         if since < learning.settings.impact_frames:
             regime = "impact"
         elif math.hypot(vx, vy) < self.settings.rest_speed:
             regime = "rest"
-        elif abs(x) + abs(vx) * travel < table.x_limit and abs(y) + abs(vy) * travel < table.y_limit:
+        elif self.model.table.clear_of_rims(x, y, vx, vy, learning.settings.clear_of_rims):
             regime = "flight"
         else:
             return

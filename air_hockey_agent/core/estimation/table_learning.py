@@ -225,7 +225,6 @@ class TableLearning:
         self.delay = None if rim is None else DelayAdaptation(base.impact_delay, rim.prior_impacts, rim.max_delay,
                                                               rim.offset_warning, rim.offset_significance)
         self.windows = 0  # free-flight windows learned from (the acceleration's, the spin's or both)
-        self.limits = (table.x_limit, table.y_limit)  # [m] largest |x|, |y| of the centre off the rims
         self._watch: _ImpactWatch | None = None
         self._times: list[float] = []   # the free-flight window being collected
         self._poses: list = []          # its poses, the position taken back to the centre (as fused)
@@ -275,11 +274,6 @@ class TableLearning:
             self.acceleration.commit()
         self._times, self._poses, self._pivots, self._halfway, self._counted = [], [], [], False, False
 
-    def clear_of_rims(self, px: float, py: float, vx: float, vy: float, dt: float) -> bool:
-        """True when a puck at (px, py) [m] with velocity (vx, vy) [m/s] reaches no rim line flying straight
-        for ``dt`` [s]."""
-        return abs(px) + abs(vx) * dt < self.limits[0] and abs(py) + abs(vy) * dt < self.limits[1]
-
     def after_frame(self, model: PuckModel, t: float, z, before: np.ndarray, p: np.ndarray,
                     stamp: float) -> PuckParams | None:
         """Frame ``t`` [s] was handled without a restart; ``z`` is its fused pose (None if it fused none:
@@ -288,7 +282,7 @@ class TableLearning:
         dt = t - stamp
         state = before[:4].tolist()
         vx, vy = state[2], state[3]
-        hit = None if dt <= 0.0 or self.clear_of_rims(*state, dt) else model.first_impact(*state, dt)
+        hit = None if dt <= 0.0 or self.table.clear_of_rims(*state, dt) else model.first_impact(*state, dt)
         learned = False
         if hit is not None:
             learned |= self._end_window()  # its frames all came before the impact
