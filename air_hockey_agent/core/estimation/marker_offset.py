@@ -7,9 +7,11 @@ centre, its measured velocity swings by ``omega |o|`` (10 mm/s at 10 rad/s and 1
 acceleration by ``omega^2 |o|``. The filter takes each measured position back to the centre with the
 measured angle (its noise, 9.5 mrad, moves the correction by 1 % of ``|o|``).
 
-The offset is learned online from free-flight windows (:class:`MarkerOffsetAdaptation`): per window the
+The offset is learned online from free-flight windows, in one Gaussian with the flight law
+(:class:`~air_hockey_agent.core.estimation.table_learning.AccelerationAdaptation`): per window the
 positions are a parabola in time per axis plus ``R(theta_i) o``; with each window's parabola projected
-out, the windows' normal equations in ``o`` add up. A puck that does not turn gives nothing (its
+out, the windows' normal equations in ``o`` add up, and the parabola's acceleration depends on ``o`` by
+:func:`offset_sensitivity`. A puck that does not turn gives nothing (its
 ``R(theta) o`` is a constant the parabola takes), a spinning one pins ``o`` down. ``sysid --method
 split`` identifies it the same way (:func:`~air_hockey_agent.core.identification.split.identify_offset`), and
 the evaluation compares a measured position with the pivot at the predicted angle
@@ -44,6 +46,20 @@ def centres_of(poses: np.ndarray, offset: Sequence[float]) -> np.ndarray:
     return np.column_stack([poses[:, 0] - cos * ox + sin * oy, poses[:, 1] - sin * ox - cos * oy, poses[:, 2]])
 
 
+def offset_sensitivity(times: Sequence[float], thetas: Sequence[float]) -> np.ndarray:
+    """``M`` (2, 2) [1/s^2]: a window's positions taken back to the centre by an offset o' (puck frame)
+    while the pivot sits at o have their quadratic fit's acceleration (table frame) off by ``M (o - o')``,
+    ``M = sum_i w_i R(theta_i)`` with ``w`` the fit's acceleration weights (the times about the window's
+    middle, as :func:`~air_hockey_agent.core.estimation.table_learning.quadratic_fit`). A puck turning
+    slowly over the window circles its centre like an acceleration of ``omega^2 |o - o'|`` (0.2 m/s^2 at
+    10 rad/s and 2 mm); one that does not turn gives 0 (its offset is a constant shift)."""
+    tau = np.asarray(times, float) - 0.5 * (times[0] + times[-1])
+    x = np.column_stack([np.ones_like(tau), tau, 0.5 * tau * tau])
+    weights = np.linalg.solve(x.T @ x, x.T)[2]
+    c, s = float(weights @ np.cos(thetas)), float(weights @ np.sin(thetas))
+    return np.array([[c, -s], [s, c]])
+
+
 def offset_normal_equations(times: Sequence[float], poses: np.ndarray) -> tuple[np.ndarray, np.ndarray, float]:
     """One window's information on the offset: ``(N, b, residual_variance)`` with ``N o = b`` the least
     squares of the pivot positions ``poses`` (n, 3: x, y, theta) at ``times`` [s] against a parabola per
@@ -69,41 +85,3 @@ def offset_normal_equations(times: Sequence[float], poses: np.ndarray) -> tuple[
         residual += float(r @ r)
     dof = max(1, 2 * len(tau) - 8)
     return normal, rhs, residual / dof
-
-
-class MarkerOffsetAdaptation:
-    """Gaussian estimate of the marker offset ``o`` [m] (puck frame) from free-flight windows, with the
-    configured offset as prior (std ``prior_std`` per axis). It is used as soon as learned: an offset held
-    back until it stood out of its uncertainty was never learned, as the filter's gate then refuses
-    a spinning puck's circling positions and the flight learning's gate its windows."""
-
-    def __init__(self, configured: Sequence[float], prior_std: float) -> None:
-        self.windows = 0
-        self._information = np.eye(2) / prior_std ** 2
-        self._weighted = self._information @ np.asarray(configured, float)
-        self.value = (float(configured[0]), float(configured[1]))  # [m] the posterior mean (read every frame)
-
-    @property
-    def std(self) -> tuple[float, float]:
-        s = np.sqrt(np.diag(np.linalg.inv(self._information)))
-        return float(s[0]), float(s[1])
-
-    def observe(self, times: Sequence[float], poses: np.ndarray) -> bool:
-        """Learn from one window's pivot positions (n, 3: x, y, theta) [m, m, rad] at ``times`` [s] (a
-        window of a puck that hardly turns adds next to no information); False without a fit. The caller
-        passes only windows the table alone moved (the flight learning's gate)."""
-        if len(times) < 5:
-            return False
-        normal, rhs, variance = offset_normal_equations(times, poses)
-        if variance <= 0.0:
-            return False
-        self._information = self._information + normal / variance
-        self._weighted = self._weighted + rhs / variance
-        o = np.linalg.solve(self._information, self._weighted)
-        self.value = (float(o[0]), float(o[1]))
-        self.windows += 1
-        return True
-
-    def report(self) -> dict:
-        """Windows, value and std [m] of the offset (puck frame)."""
-        return {"windows": self.windows, "value": list(self.value), "std": list(self.std)}

@@ -18,7 +18,12 @@ module the frame and the state it predicted from:
   for what the constant cannot follow (an uneven air film), so the estimate is the mean over windows
   across the table; the same windows' angles give the spin's decay (:mod:`.spin_adaptation`) unless
   ``spin_prior_std`` is 0, and their measured positions the mocap pivot's offset from the disc's centre
-  (:mod:`.marker_offset`) unless ``marker_offset_prior_std`` is 0.
+  (:mod:`.marker_offset`) unless ``marker_offset_prior_std`` is 0, in the same Gaussian as the flight
+  law: a spinning puck's circling about a wrongly known pivot looks like an acceleration, so each
+  window's acceleration depends on the offset too, and the windows learned from before the offset was
+  known are put right as it becomes known (learned apart, on a table whose pivot was 2.2 mm off, the
+  first windows taught the flight law a wrong acceleration that then refused the right windows for
+  seven shots).
 
 A re-initialisation or a restart ends any watch or window (a hit). A frame the gate rejects does not:
 it gives the window nothing, but the puck flew on (a marker glitch, or a filter not yet right about the
@@ -40,7 +45,7 @@ from air_hockey_agent.core.estimation.process_noise_adaptation import describe_p
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, describe, outgoing_fit,
                                                              rim_frame)
 from air_hockey_agent.core.estimation.delay_adaptation import DelayAdaptation
-from air_hockey_agent.core.estimation.marker_offset import MarkerOffsetAdaptation, centres_of, pivot_shift
+from air_hockey_agent.core.estimation.marker_offset import centres_of, offset_normal_equations, offset_sensitivity, pivot_shift
 from air_hockey_agent.core.estimation.spin_adaptation import SpinAdaptation, describe_spin
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams, flight_acceleration
 from air_hockey_agent.core.table import FIRST_POST, WALL_NORMALS, TableGeometry
@@ -75,35 +80,89 @@ class AccelerationSettings:
 
 
 class AccelerationAdaptation:
-    """Gaussian estimate of the table acceleration g = (gx, gy) [m/s^2], the damping d [1/s] and the
-    surface friction mu_s [m/s^2] from free-flight windows: each window's acceleration a at velocity v is
-    ``g - d v - mu_s v/|v|`` (eq. 3.1 with the table acceleration), linear in (gx, gy, d, mu_s). Fitting d
-    too keeps a wrong configured damping out of g when the shots share a direction (a human's); fitting
-    mu_s keeps a constant deceleration out of d, which would otherwise take it as d + mu_s / |v| at the
-    session's typical speed and mispredict faster and slower pucks. With ``friction_prior_std`` 0, mu_s
-    stays as configured and only (gx, gy, d) are fitted."""
+    """Gaussian estimate of the table acceleration g = (gx, gy) [m/s^2], the damping d [1/s], the
+    surface friction mu_s [m/s^2] and the marker offset o [m] (puck frame) from free-flight windows: each
+    window's acceleration a at velocity v, fitted to its positions taken back to the centre by the offset
+    known so far o', is ``g - d v - mu_s v/|v| + M (o - o')`` (eq. 3.1 with the table acceleration; ``M``
+    the fit's sensitivity to the offset, :func:`~.marker_offset.offset_sensitivity`), linear in (gx, gy,
+    d, mu_s, ox, oy); what a window's positions leave once its parabola is projected out adds the offset's
+    own equations (:func:`~.marker_offset.offset_normal_equations`). Fitting d too keeps a wrong configured
+    damping out of g when the shots share a direction (a human's); fitting mu_s keeps a constant
+    deceleration out of d, which would otherwise take it as d + mu_s / |v| at the session's typical speed
+    and mispredict faster and slower pucks. With ``friction_prior_std`` 0, mu_s stays as configured; with
+    ``marker_offset_prior_std`` 0, so does the offset (``offset``, the configured one)."""
 
-    def __init__(self, base: PuckParams, settings: AccelerationSettings) -> None:
+    def __init__(self, base: PuckParams, settings: AccelerationSettings,
+                 offset: tuple[float, float] = (0.0, 0.0)) -> None:
         self.settings, self.friction = settings, base.friction_surface
         self.learns_friction = settings.friction_prior_std > 0.0
+        self.learns_offset = settings.marker_offset_prior_std > 0.0
         self.windows = 0  # windows learned from
         self.fits = 0     # fits learned from (a window's provisional one, then its whole one)
+        self.offset_windows = 0  # windows whose own offset equations were learned from
         self._provisional: tuple[np.ndarray, np.ndarray] | None = None  # the window in progress's first fit
         stds = [settings.prior_std] * 2 + [settings.damping_prior_std]
         prior = [*base.table_acceleration, base.damping]
         if self.learns_friction:
             stds.append(settings.friction_prior_std)
             prior.append(base.friction_surface)
+        self._offset_at = len(stds)  # where (ox, oy) sit in the parameters, when learned
+        if self.learns_offset:
+            stds += [settings.marker_offset_prior_std] * 2
+            prior += [float(offset[0]), float(offset[1])]
+        self._configured_offset = (float(offset[0]), float(offset[1]))
         self._information = np.diag(np.array(stds) ** -2.0)
         self._weighted = self._information @ np.array(prior)
+        self._mean_now = np.array(prior)
 
     def _mean(self) -> np.ndarray:
+        """The posterior mean (kept from the last change: the offset is read every frame)."""
+        return self._mean_now
+
+    def _solve(self) -> np.ndarray:
         """The posterior mean; where its mu_s is below 0 (a friction cannot push), the mean of the rest
         given mu_s = 0, so that the others do not keep what they took on to balance a negative mu_s."""
         mean = np.linalg.solve(self._information, self._weighted)
         if self.learns_friction and mean[3] < 0.0:
-            mean = np.append(np.linalg.solve(self._information[:3, :3], self._weighted[:3]), 0.0)
+            rest = [i for i in range(len(mean)) if i != 3]
+            mean[rest] = np.linalg.solve(self._information[np.ix_(rest, rest)], self._weighted[rest])
+            mean[3] = 0.0
         return mean
+
+    @property
+    def offset(self) -> tuple[float, float]:
+        """[m] The marker offset (puck frame): learned, or the configured one."""
+        if not self.learns_offset:
+            return self._configured_offset
+        o = self._mean_now[self._offset_at:]
+        return float(o[0]), float(o[1])
+
+    @property
+    def offset_covariance(self) -> np.ndarray:
+        """[m^2] The learned offset's covariance (2, 2)."""
+        at = self._offset_at
+        return np.linalg.inv(self._information)[at:at + 2, at:at + 2]
+
+    def observe_offset(self, times, pivots: np.ndarray) -> bool:
+        """Learn the offset's own equations from one whole window's pivot positions (n, 3: x, y, theta)
+        [m, m, rad] at ``times`` [s], what its parabolas leave (a puck that hardly turns adds next to
+        nothing); False without a fit. The caller passes only windows :meth:`observe` accepted."""
+        if not self.learns_offset or len(times) < 5:
+            return False
+        normal, rhs, variance = offset_normal_equations(times, pivots)
+        if variance <= 0.0:
+            return False
+        at = self._offset_at
+        self._information[at:at + 2, at:at + 2] += normal / variance
+        self._weighted[at:at + 2] += rhs / variance
+        self._mean_now = self._solve()
+        self.offset_windows += 1
+        return True
+
+    def offset_report(self) -> dict:
+        """Windows, value and std [m] of the offset (puck frame)."""
+        std = np.sqrt(np.diag(self.offset_covariance))
+        return {"windows": self.offset_windows, "value": list(self.offset), "std": [float(std[0]), float(std[1])]}
 
     def flight_law(self) -> dict[str, Any]:
         """The learned ``table_acceleration`` (gx, gy) [m/s^2], ``damping`` [1/s] (never below 0) and
@@ -130,15 +189,16 @@ class AccelerationAdaptation:
     @property
     def std(self) -> tuple[float, ...]:
         """Standard errors of (gx, gy, d[, mu_s])."""
-        return tuple(float(s) for s in np.sqrt(np.diag(np.linalg.inv(self._information))))
+        return tuple(float(s) for s in np.sqrt(np.diag(np.linalg.inv(self._information)))[:self._offset_at])
 
     def observe(self, acceleration: np.ndarray, variance: np.ndarray, velocity: np.ndarray,
-                provisional: bool = False) -> bool:
+                provisional: bool = False, sensitivity: np.ndarray | None = None) -> bool:
         """Learn from one window's acceleration [m/s^2] (x, y), its fit's variance per axis and the
-        velocity [m/s]; False when it is left out: farther than ``gate`` from what is known (a hand or a
-        mallet moved the puck, not the table). A ``provisional`` fit (the window's first part, for an
-        early estimate) is replaced by the window's next fit; one that is left out leaves the provisional
-        fit learned."""
+        velocity [m/s], the fit made with the offset known now (``sensitivity``: the fit's acceleration
+        per metre of offset, 2 x 2, when the offset is learned); False when it is left out: farther than
+        ``gate`` from what is known (a hand or a mallet moved the puck, not the table). A ``provisional``
+        fit (the window's first part, for an early estimate) is replaced by the window's next fit; one
+        that is left out leaves the provisional fit learned."""
         earlier, self._provisional = self._provisional, None
         if earlier is not None:
             self._add(earlier, -1.0)
@@ -152,6 +212,10 @@ class AccelerationAdaptation:
             design = np.array([[1.0, 0.0, -vx], [0.0, 1.0, -vy]])
         noise = np.asarray(variance, float) + self.settings.field_std ** 2
         unexplained = np.asarray(acceleration, float) - known
+        if self.learns_offset:  # a = ... + M (o - o'): M o' back on the measured side
+            m = np.zeros((2, 2)) if sensitivity is None else np.asarray(sensitivity, float)
+            design = np.hstack([design, m])
+            unexplained = unexplained + m @ np.array(self.offset)
         innovation = unexplained - design @ self._mean()
         spread = np.diag(noise) + design @ np.linalg.inv(self._information) @ design.T
         if float(innovation @ np.linalg.solve(spread, innovation)) > self.settings.gate:
@@ -173,6 +237,7 @@ class AccelerationAdaptation:
     def _add(self, contribution: tuple[np.ndarray, np.ndarray], sign: float) -> None:
         self._information = self._information + sign * contribution[0]
         self._weighted = self._weighted + sign * contribution[1]
+        self._mean_now = self._solve()
 
     def report(self) -> dict:
         """Windows, value and std [m/s^2] of g, the damping and its std [1/s], the surface friction and its
@@ -214,10 +279,10 @@ class TableLearning:
                  marker_offset: tuple[float, float] = (0.0, 0.0)) -> None:
         self.base, self.table = base, table
         self.configured_offset = (float(marker_offset[0]), float(marker_offset[1]))  # [m] puck frame
-        self.offset = (MarkerOffsetAdaptation(self.configured_offset, acceleration.marker_offset_prior_std)
-                       if acceleration is not None and acceleration.marker_offset_prior_std > 0.0 else None)
         self.rim = None if rim is None else RimAdaptation(base, table, rim)
-        self.acceleration = None if acceleration is None else AccelerationAdaptation(base, acceleration)
+        self.acceleration = (None if acceleration is None
+                             else AccelerationAdaptation(base, acceleration, self.configured_offset))
+        self.learns_offset = self.acceleration is not None and self.acceleration.learns_offset
         self.angle_variance = angle_variance  # [rad^2] the measured angle's noise (R's last entry)
         self.spin = (SpinAdaptation(base.spin_damping, acceleration.spin_prior_std, acceleration.spin_gate,
                                     angle_variance)
@@ -261,7 +326,7 @@ class TableLearning:
     @property
     def marker_offset(self) -> tuple[float, float]:
         """[m] The pivot's offset from the centre (puck frame): learned, or the configured one."""
-        return self.offset.value if self.offset is not None else self.configured_offset
+        return self.acceleration.offset if self.learns_offset else self.configured_offset
 
     def forget(self) -> None:
         """The track broke (a hit, a restart): drop the impact being watched and the flight window."""
@@ -335,8 +400,8 @@ class TableLearning:
             return self._end_window()
         self._times.append(t)
         self._poses.append(z)
-        if self.offset is not None:
-            dx, dy = pivot_shift(float(z[2]), self.offset.value)
+        if self.learns_offset:
+            dx, dy = pivot_shift(float(z[2]), self.acceleration.offset)
             self._pivots.append((z[0] + dx, z[1] + dy, z[2]))
         span = t - self._times[0]
         if span >= settings.window:
@@ -358,13 +423,16 @@ class TableLearning:
         times, poses = self._times, self._poses
         if self.acceleration is None or len(times) < self.acceleration.settings.min_frames:
             return False
-        if self.offset is not None:  # the positions taken back with the offset learned so far
+        sensitivity = None
+        if self.learns_offset:  # the positions taken back with the offset learned so far
             pivots = np.array(self._pivots)
-            poses = centres_of(pivots, self.offset.value)
+            poses = centres_of(pivots, self.acceleration.offset)
+            sensitivity = offset_sensitivity(times, pivots[:, 2])
         fit = quadratic_fit(times, poses)
-        learned = fit is not None and self.acceleration.observe(*fit, provisional=provisional)
-        if self.offset is not None and learned and not provisional:  # a window the table alone moved
-            self.offset.observe(times, pivots)
+        learned = fit is not None and self.acceleration.observe(*fit, provisional=provisional,
+                                                                sensitivity=sensitivity)
+        if self.learns_offset and learned and not provisional:  # a window the table alone moved
+            self.acceleration.observe_offset(times, pivots)
         if self.spin is not None and not provisional:
             learned |= self.spin.observe(times, [pose[2] for pose in poses])
         self.windows += int(learned and not self._counted)
@@ -386,8 +454,10 @@ class TableLearning:
         (windows, value and std [m/s^2], the damping and surface friction), ``spin_damping`` (windows,
         value and std [1/s]), ``impact_delay`` and ``marker_offset`` (windows, value and std [m]), each
         None when not learned."""
-        parts = (self.rim, self.acceleration, self.spin, self.delay, self.offset)
-        return {key: None if part is None else part.report() for key, part in zip(REPORT_KEYS, parts)}
+        parts = (self.rim, self.acceleration, self.spin, self.delay)
+        report = {key: None if part is None else part.report() for key, part in zip(REPORT_KEYS, parts)}
+        report["marker_offset"] = self.acceleration.offset_report() if self.learns_offset else None
+        return report
 
 
 def learning_report(learning: TableLearning | None) -> dict:
