@@ -99,6 +99,10 @@ TRACKER_PARAMS = (
     ParamSpec("rim_adaptation.offset_warning", float, "[m] a rim whose impacts meet farther from its line is said "
               "to be off (table pose or size)", 0.0, 0.1),
     ParamSpec("rim_adaptation.offset_significance", float, "[-] ... and beyond this many standard errors", 0.0, 100.0),
+    ParamSpec("rim_adaptation.rederive_impacts", int, "the first impacts whose outgoing fits are derived again when "
+              "the learned flight law moves (0: never)", 0, 10000),
+    ParamSpec("rim_adaptation.rederive_tolerance", float, "[m/s^2] how far the flight law's acceleration at those "
+              "impacts' speeds moves before they are derived again", 0.0, 10.0),
     ParamSpec("noise_adaptation.enabled", bool, "learn the mocap's position noise (R at rest and its growth with "
               "the speed) from the poses"),
     ParamSpec("noise_adaptation.window", int, "consecutive poses per quadratic fit", 4, 1000),

@@ -87,6 +87,8 @@ class AdaptationSettings:
     # [m/s] an impact whose two measures of the tangential impulse (from the tangential velocity and from
     # the spin) differ by more than this is left out: one of its fits is off
     max_impulse_disagreement: float = math.inf
+    rederive_impacts: int = 0        # the first impacts derived again when the flight law moves (0: never)
+    rederive_tolerance: float = 0.0  # [m/s^2] how far that law's acceleration moves first
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AdaptationSettings":

@@ -259,6 +259,17 @@ def quadratic_fit(times: list[float], poses: list) -> tuple[np.ndarray, np.ndarr
     return None if fit is None else (fit.a, fit.a_gain * fit.variance, fit.v)
 
 
+def _flight_law_of(p: PuckParams) -> tuple[float, float, float, float]:
+    """(damping [1/s], surface friction [m/s^2], gx, gy [m/s^2]): what an outgoing fit takes of ``p``."""
+    return p.damping, p.friction_surface, float(p.table_acceleration[0]), float(p.table_acceleration[1])
+
+
+def _outgoing(watch: "_ImpactWatch", p: PuckParams):
+    """The watched impact's outgoing fit (:func:`~.rim_adaptation.outgoing_fit`) with the flight law of ``p``."""
+    return outgoing_fit(watch.times, watch.poses, watch.t,
+                        flight_acceleration(p.damping, p.friction_surface, p.table_acceleration), p.spin_damping)
+
+
 @dataclass
 class _ImpactWatch:
     """A rim impact the model put between two frames, awaiting the fused frames after it."""
@@ -291,6 +302,11 @@ class TableLearning:
                                                               rim.offset_warning, rim.offset_significance)
         self.windows = 0  # free-flight windows learned from (the acceleration's, the spin's or both)
         self._watch: _ImpactWatch | None = None
+        # the first impacts watched, kept to be derived again as the flight law is learned (None: beyond
+        # rim_adaptation.rederive_impacts, no more), the flight law they were last derived with, their top speed
+        self._kept: list[_ImpactWatch] | None = [] if rim is not None and rim.rederive_impacts > 0 else None
+        self._kept_law: tuple[float, float, float, float] | None = None
+        self._kept_speed = 0.0
         self._times: list[float] = []   # the free-flight window being collected
         self._poses: list = []          # its poses, the position taken back to the centre (as fused)
         self._pivots: list = []         # and as measured (the pivot's), kept while the offset is learned
@@ -381,13 +397,45 @@ class TableLearning:
         if len(watch.times) < settings.min_frames:
             return False
         p = model.params
-        fit = outgoing_fit(watch.times, watch.poses, watch.t,
-                           flight_acceleration(p.damping, p.friction_surface, p.table_acceleration), p.spin_damping)
-        if fit is None or not self.rim.observe(watch.before, (*rim_frame(watch.wall, fit.vx, fit.vy), fit.omega)):
+        fit = _outgoing(watch, p)
+        if fit is None:
+            return False
+        self._keep(watch, p)
+        if not self.rim.observe(watch.before, (*rim_frame(watch.wall, fit.vx, fit.vy), fit.omega)):
             return False
         met = paths_meet(WALL_NORMALS[watch.wall], *watch.path, fit.position, np.array([fit.vx, fit.vy]))
         if met is not None:  # how far beyond the rim line the paths meet: a compliant rim's delay
             self.delay.observe(met[1] + self.table.wall_offset(watch.wall), -watch.before[1], watch.wall)
+        return True
+
+    def _keep(self, watch: _ImpactWatch, p: PuckParams) -> None:
+        """Keep an impact about to be learned from (derived with the flight law of ``p``) while there is room."""
+        if self._kept is None:
+            return
+        if len(self._kept) >= self.rim.settings.rederive_impacts:
+            self._kept = None  # the law is learned by now: what was derived stays
+            return
+        self._kept.append(watch)
+        self._kept_law = self._kept_law or _flight_law_of(p)
+        self._kept_speed = max(self._kept_speed, math.hypot(watch.before[0], watch.before[1]))
+
+    def _rederive(self) -> bool:
+        """Derive the kept impacts again, in order, into a new rim law when the learned flight law's
+        acceleration at their speeds has moved by ``rederive_tolerance`` since they were; True if so."""
+        if not self._kept:
+            return False
+        p = self.params()
+        law, old = _flight_law_of(p), self._kept_law
+        moved = (math.hypot(law[2] - old[2], law[3] - old[3]) + abs(law[0] - old[0]) * self._kept_speed
+                 + abs(law[1] - old[1]))
+        if moved < self.rim.settings.rederive_tolerance:
+            return False
+        rim = RimAdaptation(self.base, self.table, self.rim.settings)
+        for watch in self._kept:
+            fit = _outgoing(watch, p)
+            if fit is not None:
+                rim.observe(watch.before, (*rim_frame(watch.wall, fit.vx, fit.vy), fit.omega))
+        self.rim, self._kept_law = rim, law
         return True
 
     def _fly(self, t: float, z, speed: float) -> bool:
@@ -431,6 +479,8 @@ class TableLearning:
         fit = quadratic_fit(times, poses)
         learned = fit is not None and self.acceleration.observe(*fit, provisional=provisional,
                                                                 sensitivity=sensitivity)
+        if learned and not provisional:  # the flight law moved: the first impacts derived with it again
+            self._rederive()
         if self.learns_offset and learned and not provisional:  # a window the table alone moved
             self.acceleration.observe_offset(times, pivots)
         if self.spin is not None and not provisional:
