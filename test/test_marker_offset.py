@@ -9,7 +9,7 @@ import pytest
 from air_hockey_agent.core.estimation.ekf import FLAG_OUTLIER_REJECTED, PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream, prediction_series
 from air_hockey_agent.core.estimation.marker_offset import centre_of, centres_of, offset_sensitivity, pivot_shift
-from air_hockey_agent.core.estimation.table_learning import AccelerationAdaptation, AccelerationSettings, quadratic_fit
+from air_hockey_agent.core.estimation.flight_adaptation import AccelerationAdaptation, AccelerationSettings, quadratic_fit
 from air_hockey_agent.core.puck.model import PuckParams
 from air_hockey_agent.tracker_params import load_tracker_params
 from model_fixtures import session_on_testbed
@@ -67,7 +67,8 @@ def test_a_windows_acceleration_fitted_with_a_wrong_offset_is_off_by_the_sensiti
     centre = np.column_stack([0.1 + 1.2 * t + 0.025 * t * t, -0.2 + 0.4 * t])
     pivots = np.column_stack([centre + np.array([pivot_shift(th, TRUE_OFFSET) for th in theta]), theta])
     assumed = (0.0005, 0.0003)
-    error = quadratic_fit(list(t), centres_of(pivots, assumed))[0] - quadratic_fit(list(t), centres_of(pivots, TRUE_OFFSET))[0]
+    fitted = {o: quadratic_fit(list(t), centres_of(pivots, o))[0] for o in (assumed, TRUE_OFFSET)}
+    error = fitted[assumed] - fitted[TRUE_OFFSET]
     expected = offset_sensitivity(t, theta) @ (np.array(TRUE_OFFSET) - assumed)
     assert np.allclose(error, expected, atol=1e-9) and np.linalg.norm(expected) > 0.01
 

@@ -11,7 +11,7 @@ from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, _filte
 from air_hockey_agent.core.estimation.rim_adaptation import (AdaptationSettings, RimAdaptation, fall_regressors, fall_width,
                                                              outgoing_fit, scaled_params)
 from air_hockey_agent.core.estimation.spin_adaptation import SpinAdaptation
-from air_hockey_agent.core.estimation.table_learning import AccelerationAdaptation, AccelerationSettings, quadratic_fit
+from air_hockey_agent.core.estimation.flight_adaptation import AccelerationAdaptation, AccelerationSettings, quadratic_fit
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.puck.real_table import TableEffects, real_rim_impact
 from air_hockey_agent.tracker_params import without_learning, load_tracker_params

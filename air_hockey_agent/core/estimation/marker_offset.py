@@ -8,7 +8,7 @@ acceleration by ``omega^2 |o|``. The filter takes each measured position back to
 measured angle (its noise, 9.5 mrad, moves the correction by 1 % of ``|o|``).
 
 The offset is learned online from free-flight windows, in one Gaussian with the flight law
-(:class:`~air_hockey_agent.core.estimation.table_learning.AccelerationAdaptation`): per window the
+(:class:`~air_hockey_agent.core.estimation.flight_adaptation.AccelerationAdaptation`): per window the
 positions are a parabola in time per axis plus ``R(theta_i) o``; with each window's parabola projected
 out, the windows' normal equations in ``o`` add up, and the parabola's acceleration depends on ``o`` by
 :func:`offset_sensitivity`. A puck that does not turn gives nothing (its
@@ -50,7 +50,7 @@ def offset_sensitivity(times: Sequence[float], thetas: Sequence[float]) -> np.nd
     """``M`` (2, 2) [1/s^2]: a window's positions taken back to the centre by an offset o' (puck frame)
     while the pivot sits at o have their quadratic fit's acceleration (table frame) off by ``M (o - o')``,
     ``M = sum_i w_i R(theta_i)`` with ``w`` the fit's acceleration weights (the times about the window's
-    middle, as :func:`~air_hockey_agent.core.estimation.table_learning.quadratic_fit`). A puck turning
+    middle, as :func:`~air_hockey_agent.core.estimation.flight_adaptation.quadratic_fit`). A puck turning
     slowly over the window circles its centre like an acceleration of ``omega^2 |o - o'|`` (0.2 m/s^2 at
     10 rad/s and 2 mm); one that does not turn gives 0 (its offset is a constant shift)."""
     tau = np.asarray(times, float) - 0.5 * (times[0] + times[-1])
