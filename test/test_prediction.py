@@ -84,7 +84,8 @@ def test_the_compiled_mean_lets_a_puck_into_the_goal_and_bounces_it_off_the_rim_
     m = model()
     into_goal, beside = (np.array([0.5, y, 2.0, 0.0, 0.0, 0.0]) for y in (0.0, 0.3))
     scored = predict_fast(m, into_goal, None, 0.5, DT, Q)
-    assert not scored.impacts and scored.state[0] > m.table.x_limit
+    assert not scored.impacts and m.table.scored_x < scored.state[0] < m.table.scored_x + 2.0 * DT
+    assert scored.state[2:4].tolist() == [0.0, 0.0]  # in the goal it stays (the model's step, held in the goal)
     bounced = predict_fast(m, beside, None, 0.5, DT, Q)
     assert [i[1] for i in bounced.impacts] == [WALL_FAR] and bounced.state[2] < 0.0
 

@@ -156,6 +156,25 @@ def test_goal_opening_has_no_rim():
     assert s[0] > TABLE.length / 2  # left the table through the goal
 
 
+def test_a_puck_a_radius_past_the_goal_face_has_scored_and_stays():
+    """Through the opening and a radius past the face (no post within reach) the puck stays where it is,
+    its velocity and spin 0 from then on (a goal swallows it), in the step and its Jacobian; a step before
+    it still flies."""
+    m = model()
+    s = np.array([X - 0.004, 0.02, 1.5, 0.1, 0.1, 5.0])
+    path = [s]
+    for _ in range(40):
+        path.append(m.step(path[-1], DT).state)
+    scored = [p for p in path if abs(p[0]) > TABLE.scored_x]
+    assert TABLE.scored_x == pytest.approx(TABLE.length / 2 + TABLE.puck_radius)
+    assert scored and scored[0][0] - TABLE.scored_x < 1.5 * DT * 1.01  # held within a step of the line
+    assert all(np.allclose(p, scored[1]) for p in scored[1:]) and scored[1][2:4].tolist() == [0.0, 0.0]
+    flying = next(p for p in path if TABLE.x_limit < p[0] < TABLE.scored_x)
+    assert m.step(flying, DT).state[2] > 1.0
+    jac = m.step(scored[0], DT).jacobian
+    assert np.allclose(jac, finite_difference_jacobian(m, scored[0], DT)) and not jac[2:4].any()
+
+
 @pytest.mark.parametrize("y, degrees, scores", [(0.0, 0.0, True), (0.05, 6.0, True), (0.047, 70.0, False),
                                                 (-0.047, -70.0, False), (0.09, 11.0, False), (0.08, 30.0, False),
                                                 (0.0, 60.0, True), (0.11, 0.0, False), (0.1, 10.0, False)])

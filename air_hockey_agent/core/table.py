@@ -63,6 +63,12 @@ class TableGeometry:
         nx, ny = WALL_NORMALS[wall]
         return nx * x + ny * y + self.wall_offset(wall)
 
+    @property
+    def scored_x(self) -> float:
+        """|x| [m] beyond which a puck centre is a radius past a goal line's face: in the goal, out of every
+        post's reach (the model holds it there)."""
+        return self.x_limit + 2.0 * self.puck_radius
+
     def in_goal_mouth(self, y: float) -> bool:
         """True when a puck centre at this y passes through a goal opening."""
         return abs(y) < self.goal_mouth

@@ -19,8 +19,8 @@ wrote; the shots are human hits from rest as on the test bed (``testbed.hit_dela
 
 ``--source sim`` takes the truth from the pybullet table instead (``config/sim.yaml``, the puck alone
 at the simulation's physics rate): the same shots and imperfections, with the simulation's physics
-(its own air film, rim impact coefficients and goals: a puck in a goal stops there, where the
-tracker's model lets it fly on); use it to measure model error and to identify the tracker's
+(its own air film, rim impact coefficients and goals: a puck in a goal stops there, as the
+tracker's model holds it a radius past the face); use it to measure model error and to identify the tracker's
 parameters for the simulation.
 """
 from __future__ import annotations

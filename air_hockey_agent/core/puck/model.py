@@ -11,6 +11,9 @@ One step of length ``dt`` (thesis eq. 3.1, with the surface friction acting alon
   end beside the opening) is, when the puck's edge reaches it before its centre is past the rim's face:
   the same impact with the normal from the post to the centre (a corner contact,
   :func:`~air_hockey_agent.core.table.post_contact_time`); a puck whose centre passes the face is in the goal.
+  One whose centre is a radius past the face (no post within its reach) has scored and stays where it is,
+  its velocity and spin 0 (a real goal swallows the puck; flying on it would be metres from anywhere a
+  puck can be measured).
   A compliant rim (``impact_delay`` s > 0) takes the impact s after the touch, the puck flying on into the rim
   meanwhile, so the paths before and after meet s |vn| beyond its line (0: the thesis's rigid rim).
 * decay: ``v <- v - dt (d v + mu_s v/|v|)``, i.e. speed ``|v| <- max(a |v| - dt mu_s, 0)`` with
@@ -42,6 +45,7 @@ from air_hockey_agent.core.table import (FIRST_POST, POST_COUNT, SHORT_WALLS, WA
 TWO_PI = 2.0 * math.pi
 MAX_IMPACTS_PER_STEP = 4  # a corner gives two; more means a degenerate state
 _IDENTITY7 = np.eye(7)  # marker for "no event yet" (never modified)
+_SCORED_JACOBIAN = np.diag([1.0, 1.0, 0.0, 0.0, 1.0, 0.0])  # a puck in a goal stays (never modified)
 
 
 def wrap_angle(angle: float) -> float:
@@ -199,6 +203,7 @@ class PuckModel:
         self.params = params
         self._offsets = tuple(table.wall_offset(w) for w in range(4))
         self._half_goal = table.goal_mouth + table.puck_radius  # as the compiled prediction computes it
+        self._scored_x = table.scored_x
         self._posts = {w: tuple(c for c in range(FIRST_POST, FIRST_POST + POST_COUNT) if contact_rim(c) == w)
                        for w in SHORT_WALLS}
 
@@ -300,6 +305,8 @@ class PuckModel:
     def step(self, state: np.ndarray, dt: float, with_jacobian: bool = True) -> StepResult:
         """Advance ``state`` by ``dt`` seconds (one model step, eq. 3.1-3.4)."""
         x, y, vx, vy, th, om = as_floats(state)
+        if abs(x) > self._scored_x:  # in a goal: it stays (velocity and spin 0, whatever they were)
+            return StepResult(np.array([x, y, 0.0, 0.0, th, 0.0]), _SCORED_JACOBIAN if with_jacobian else None, ())
         first = self.first_impact(x, y, vx, vy, dt)
         if first is None:  # the common case: straight flight, cheap Jacobian
             nvx, nvy, jd = self.decay(vx, vy, dt)

@@ -361,6 +361,16 @@ def _matmul(a: np.ndarray, b: np.ndarray, out: np.ndarray) -> None:
 
 
 @njit(cache=True)
+def _propagate_scored(cov: np.ndarray, q: np.ndarray, q_scale: float) -> None:
+    """``cov <- f cov f^T + q_scale q`` (in place) for a puck in a goal: ``f`` keeps position and angle and
+    zeroes velocity and spin."""
+    for i in range(6):
+        for j in range(6):
+            kept = i in (0, 1, 4) and j in (0, 1, 4)
+            cov[i, j] = (cov[i, j] if kept else 0.0) + q_scale * q[i, j]
+
+
+@njit(cache=True)
 def _propagate(f: np.ndarray, cov: np.ndarray, q: np.ndarray, q_scale: float, tmp: np.ndarray) -> None:
     """``cov <- f cov f^T + q_scale q`` (6x6, in place; ``tmp`` 6x6 scratch)."""
     _matmul(f, cov, tmp)
@@ -415,13 +425,18 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
     n_samples = steps // sample_every if sample_every > 0 else 0
     samples, sample_covs = np.empty((n_samples, SAMPLE_COLUMNS)), np.empty((n_samples, n_cov, n_cov))
     ux, uy, speed, room = _room(p, x, y, vx, vy)
+    scored_x = p[P_X_LIMIT] + 2.0 * p[P_RADIUS]  # TableGeometry.scored_x
     count = taken = 0
     for i in range(steps + 1):
         h = dt if i < steps else remainder
         if h == 0.0:
             break
         x0, y0, vx0, vy0, before = x, y, vx, vy, count
-        if flat and h * speed < room - GLIDE_MARGIN:
+        if abs(x) > scored_x:  # in a goal: it stays (:meth:`.model.PuckModel.step`)
+            vx, vy, om, speed = 0.0, 0.0, 0.0, 0.0
+            if with_cov:
+                _propagate_scored(p_now, q, h / dt)
+        elif flat and h * speed < room - GLIDE_MARGIN:
             keep, mu_h, spin_keep = 1.0 - h * p[P_DAMPING], h * p[P_FRICTION_SURFACE], 1.0 - h * p[P_SPIN_DAMPING]
             if with_cov:  # from the speed and direction kept here
                 d00, d01, d11 = _decay_jacobian(keep, mu_h, speed, ux, uy)
