@@ -103,6 +103,9 @@ TRACKER_PARAMS = (
               "the learned flight law moves (0: never)", 0, 10000),
     ParamSpec("rim_adaptation.rederive_tolerance", float, "[m/s^2] how far the flight law's acceleration at those "
               "impacts' speeds moves before they are derived again", 0.0, 10.0),
+    ParamSpec("rim_adaptation.rederive_incoming", float, "[m/s^2] an impact derived again whose flight law when "
+              "watched was off by more than this at its speed takes its incoming velocity from a line fit "
+              "before it instead of the filter's state", 0.0, 10.0),
     ParamSpec("noise_adaptation.enabled", bool, "learn the mocap's position noise (R at rest and its growth with "
               "the speed) from the poses"),
     ParamSpec("noise_adaptation.window", int, "consecutive poses per quadratic fit", 4, 1000),

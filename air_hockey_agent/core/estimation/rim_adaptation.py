@@ -89,6 +89,7 @@ class AdaptationSettings:
     max_impulse_disagreement: float = math.inf
     rederive_impacts: int = 0        # the first impacts derived again when the flight law moves (0: never)
     rederive_tolerance: float = 0.0  # [m/s^2] how far that law's acceleration moves first
+    rederive_incoming: float = math.inf  # [m/s^2] ... and beyond which a line fit gives the incoming velocity
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "AdaptationSettings":

@@ -62,6 +62,12 @@ def _flight_law_of(p: PuckParams) -> tuple[float, float, float, float]:
     return p.damping, p.friction_surface, float(p.table_acceleration[0]), float(p.table_acceleration[1])
 
 
+def _law_moved(old: tuple, new: tuple, speed: float) -> float:
+    """[m/s^2] How far the acceleration of flight law ``old`` is from ``new``'s (:func:`_flight_law_of`) at
+    ``speed`` [m/s], at most."""
+    return math.hypot(new[2] - old[2], new[3] - old[3]) + abs(new[0] - old[0]) * speed + abs(new[1] - old[1])
+
+
 def _outgoing(watch: "_ImpactWatch", p: PuckParams):
     """The watched impact's outgoing fit (:func:`~.rim_adaptation.outgoing_fit`) with the flight law of ``p``."""
     return outgoing_fit(watch.times, watch.poses, watch.t,
@@ -78,6 +84,8 @@ class _ImpactWatch:
     path: tuple = ()      # the incoming straight path at the impact time: position, velocity (x, y) [m, m/s]
     times: list = field(default_factory=list)
     poses: list = field(default_factory=list)
+    law: tuple = ()       # the flight law when it was watched (:func:`_flight_law_of`)
+    earlier: tuple = ([], [])  # the flight window's frames before it (times, poses), kept to derive it again
 
 
 class TableLearning:
@@ -164,8 +172,11 @@ class TableLearning:
         hit = None if dt <= 0.0 or self.table.clear_of_rims(*state, dt) else model.first_impact(*state, dt)
         learned = False
         if hit is not None:
+            earlier = (self._times, self._poses)
             learned |= self._end_window()  # its frames all came before the impact
             self._watch = self._new_watch(before, p, stamp, hit) if self.rim is not None else None
+            if self._watch is not None and self._kept is not None:
+                self._watch.law, self._watch.earlier = _flight_law_of(model.params), earlier
         if z is not None:
             if self._watch is not None and t > self._watch.t:
                 learned |= self._watch_rim(model, t, z)
@@ -223,18 +234,31 @@ class TableLearning:
         if not self._kept:
             return False
         p = self.params()
-        law, old = _flight_law_of(p), self._kept_law
-        moved = (math.hypot(law[2] - old[2], law[3] - old[3]) + abs(law[0] - old[0]) * self._kept_speed
-                 + abs(law[1] - old[1]))
-        if moved < self.rim.settings.rederive_tolerance:
+        law = _flight_law_of(p)
+        if _law_moved(self._kept_law, law, self._kept_speed) < self.rim.settings.rederive_tolerance:
             return False
         rim = RimAdaptation(self.base, self.table, self.rim.settings)
         for watch in self._kept:
             fit = _outgoing(watch, p)
             if fit is not None:
-                rim.observe(watch.before, (*rim_frame(watch.wall, fit.vx, fit.vy), fit.omega))
+                rim.observe(self._incoming(watch, p, law), (*rim_frame(watch.wall, fit.vx, fit.vy), fit.omega))
         self.rim, self._kept_law = rim, law
         return True
+
+    def _incoming(self, watch: _ImpactWatch, p: PuckParams, law: tuple) -> tuple:
+        """The watched impact's incoming (vb, vn, omega): the filter's state before it, or, when the flight
+        law then was off by more than ``rederive_incoming`` at its speed (the filter lagged), a line fit of
+        the rim window's frames before it with the law ``p`` learned since (:func:`_outgoing`'s fit, run
+        forward to the impact)."""
+        settings, then = self.rim.settings, watch.law
+        off = _law_moved(then, law, math.hypot(watch.before[0], watch.before[1]))
+        times, poses = watch.earlier
+        near = [i for i, t in enumerate(times) if t >= watch.t - settings.window]
+        if off <= settings.rederive_incoming or len(near) < settings.min_frames:
+            return watch.before
+        fit = _outgoing(_ImpactWatch(watch.t, watch.wall, watch.before, times=[times[i] for i in near],
+                                     poses=[poses[i] for i in near]), p)
+        return watch.before if fit is None else (*rim_frame(watch.wall, fit.vx, fit.vy), fit.omega)
 
     def _fly(self, t: float, z, speed: float) -> bool:
         """Collect frame ``t`` of a puck at ``speed`` [m/s] into the flight window. The window's first half
