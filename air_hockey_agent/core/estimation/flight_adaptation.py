@@ -73,11 +73,16 @@ class AccelerationAdaptation:
         self._configured_offset = (float(offset[0]), float(offset[1]))
         self._information = np.diag(np.array(stds) ** -2.0)
         self._weighted = self._information @ np.array(prior)
-        self._mean_now = np.array(prior)
+        self._set_mean(np.array(prior))
 
     def _mean(self) -> np.ndarray:
         """The posterior mean (kept from the last change: the offset is read every frame)."""
         return self._mean_now
+
+    def _set_mean(self, mean: np.ndarray) -> None:
+        self._mean_now = mean
+        o = mean[self._offset_at:] if self.learns_offset else self._configured_offset
+        self._offset_now = (float(o[0]), float(o[1]))
 
     def _solve(self) -> np.ndarray:
         """The posterior mean; where its mu_s is below 0 (a friction cannot push), the mean of the rest
@@ -92,10 +97,7 @@ class AccelerationAdaptation:
     @property
     def offset(self) -> tuple[float, float]:
         """[m] The marker offset (puck frame): learned, or the configured one."""
-        if not self.learns_offset:
-            return self._configured_offset
-        o = self._mean_now[self._offset_at:]
-        return float(o[0]), float(o[1])
+        return self._offset_now
 
     @property
     def offset_covariance(self) -> np.ndarray:
@@ -115,7 +117,7 @@ class AccelerationAdaptation:
         at = self._offset_at
         self._information[at:at + 2, at:at + 2] += normal / variance
         self._weighted[at:at + 2] += rhs / variance
-        self._mean_now = self._solve()
+        self._set_mean(self._solve())
         self.offset_windows += 1
         return True
 
@@ -197,7 +199,7 @@ class AccelerationAdaptation:
     def _add(self, contribution: tuple[np.ndarray, np.ndarray], sign: float) -> None:
         self._information = self._information + sign * contribution[0]
         self._weighted = self._weighted + sign * contribution[1]
-        self._mean_now = self._solve()
+        self._set_mean(self._solve())
 
     def report(self) -> dict:
         """Windows, value and std [m/s^2] of g, the damping and its std [1/s], the surface friction and its

@@ -233,10 +233,11 @@ class TableLearning:
         acceleration at their speeds has moved by ``rederive_tolerance`` since they were; True if so."""
         if not self._kept:
             return False
-        p = self.params()
-        law = _flight_law_of(p)
+        flight = self.acceleration.flight_law()  # as self.params() takes it (a window was just learned)
+        law = (flight["damping"], flight["friction_surface"], *flight["table_acceleration"])
         if _law_moved(self._kept_law, law, self._kept_speed) < self.rim.settings.rederive_tolerance:
             return False
+        p = self.params()
         rim = RimAdaptation(self.base, self.table, self.rim.settings)
         for watch in self._kept:
             fit = _outgoing(watch, p)
