@@ -46,6 +46,13 @@ def centres_of(poses: np.ndarray, offset: Sequence[float]) -> np.ndarray:
     return np.column_stack([poses[:, 0] - cos * ox + sin * oy, poses[:, 1] - sin * ox - cos * oy, poses[:, 2]])
 
 
+def _parabola_design(times: Sequence[float]) -> np.ndarray:
+    """(n, 3) The columns 1, tau, tau^2 / 2 of a per-axis parabola, ``tau`` the times [s] about the window's
+    middle."""
+    tau = np.asarray(times, float) - 0.5 * (times[0] + times[-1])
+    return np.column_stack([np.ones_like(tau), tau, 0.5 * tau * tau])
+
+
 def offset_sensitivity(times: Sequence[float], thetas: Sequence[float]) -> np.ndarray:
     """``M`` (2, 2) [1/s^2]: a window's positions taken back to the centre by an offset o' (puck frame)
     while the pivot sits at o have their quadratic fit's acceleration (table frame) off by ``M (o - o')``,
@@ -53,8 +60,7 @@ def offset_sensitivity(times: Sequence[float], thetas: Sequence[float]) -> np.nd
     middle, as :func:`~air_hockey_agent.core.estimation.flight_adaptation.quadratic_fit`). A puck turning
     slowly over the window circles its centre like an acceleration of ``omega^2 |o - o'|`` (0.2 m/s^2 at
     10 rad/s and 2 mm); one that does not turn gives 0 (its offset is a constant shift)."""
-    tau = np.asarray(times, float) - 0.5 * (times[0] + times[-1])
-    x = np.column_stack([np.ones_like(tau), tau, 0.5 * tau * tau])
+    x = _parabola_design(times)
     weights = np.linalg.solve(x.T @ x, x.T)[2]
     c, s = float(weights @ np.cos(thetas)), float(weights @ np.sin(thetas))
     return np.array([[c, -s], [s, c]])
@@ -65,9 +71,8 @@ def offset_normal_equations(times: Sequence[float], poses: np.ndarray) -> tuple[
     squares of the pivot positions ``poses`` (n, 3: x, y, theta) at ``times`` [s] against a parabola per
     axis plus ``R(theta) o`` (the parabolas projected out), unweighted; the residual variance [m^2] per
     coordinate of the joint fit."""
-    tau = np.asarray(times, float) - 0.5 * (times[0] + times[-1])
     poses = np.asarray(poses, float)
-    x = np.column_stack([np.ones_like(tau), tau, 0.5 * tau * tau])
+    x = _parabola_design(times)
     gram_inv = np.linalg.inv(x.T @ x)
 
     def project(v: np.ndarray) -> np.ndarray:  # what a parabola in tau cannot take of v (n, ...)
@@ -83,5 +88,5 @@ def offset_normal_equations(times: Sequence[float], poses: np.ndarray) -> tuple[
     for axis, b in enumerate(columns):
         r = project(poses[:, axis] - b @ offset)
         residual += float(r @ r)
-    dof = max(1, 2 * len(tau) - 8)
+    dof = max(1, 2 * len(x) - 8)
     return normal, rhs, residual / dof

@@ -57,9 +57,15 @@ from air_hockey_agent.core.table import FIRST_POST, WALL_NORMALS, TableGeometry
 REPORT_KEYS = ("rim_law", "table_acceleration", "spin_damping", "impact_delay", "marker_offset")  # report's, in order
 
 
-def _flight_law_of(p: PuckParams) -> tuple[float, float, float, float]:
-    """(damping [1/s], surface friction [m/s^2], gx, gy [m/s^2]): what an outgoing fit takes of ``p``."""
-    return p.damping, p.friction_surface, float(p.table_acceleration[0]), float(p.table_acceleration[1])
+def _flight_law_of(damping: float, friction_surface: float, table_acceleration) -> tuple[float, float, float, float]:
+    """(damping [1/s], surface friction [m/s^2], gx, gy [m/s^2]): what an outgoing fit takes of a flight law
+    (a :class:`PuckParams`' or :meth:`AccelerationAdaptation.flight_law`'s)."""
+    return damping, friction_surface, float(table_acceleration[0]), float(table_acceleration[1])
+
+
+def _law_of(p: PuckParams) -> tuple[float, float, float, float]:
+    """:func:`_flight_law_of` the parameters ``p``."""
+    return _flight_law_of(p.damping, p.friction_surface, p.table_acceleration)
 
 
 def _law_moved(old: tuple, new: tuple, speed: float) -> float:
@@ -68,9 +74,11 @@ def _law_moved(old: tuple, new: tuple, speed: float) -> float:
     return math.hypot(new[2] - old[2], new[3] - old[3]) + abs(new[0] - old[0]) * speed + abs(new[1] - old[1])
 
 
-def _outgoing(watch: "_ImpactWatch", p: PuckParams):
-    """The watched impact's outgoing fit (:func:`~.rim_adaptation.outgoing_fit`) with the flight law of ``p``."""
-    return outgoing_fit(watch.times, watch.poses, watch.t,
+def _line_at_impact(times: list, poses: list, t_impact: float, p: PuckParams):
+    """A line fit of ``poses`` at ``times`` [s] taken to the impact at ``t_impact`` [s] with the flight law of
+    ``p`` (:func:`~.rim_adaptation.outgoing_fit`): the frames after it give the outgoing path, those before
+    it the incoming one."""
+    return outgoing_fit(times, poses, t_impact,
                         flight_acceleration(p.damping, p.friction_surface, p.table_acceleration), p.spin_damping)
 
 
@@ -85,7 +93,7 @@ class _ImpactWatch:
     times: list = field(default_factory=list)
     poses: list = field(default_factory=list)
     law: tuple = ()       # the flight law when it was watched (:func:`_flight_law_of`)
-    earlier: tuple = ([], [])  # the flight window's frames before it (times, poses), kept to derive it again
+    earlier: tuple = ((), ())  # the flight window's frames before it (times, poses), kept to derive it again
 
 
 class TableLearning:
@@ -176,7 +184,7 @@ class TableLearning:
             learned |= self._end_window()  # its frames all came before the impact
             self._watch = self._new_watch(before, p, stamp, hit) if self.rim is not None else None
             if self._watch is not None and self._kept is not None:
-                self._watch.law, self._watch.earlier = _flight_law_of(model.params), earlier
+                self._watch.law, self._watch.earlier = _law_of(model.params), earlier
         if z is not None:
             if self._watch is not None and t > self._watch.t:
                 learned |= self._watch_rim(model, t, z)
@@ -206,7 +214,7 @@ class TableLearning:
         if len(watch.times) < settings.min_frames:
             return False
         p = model.params
-        fit = _outgoing(watch, p)
+        fit = _line_at_impact(watch.times, watch.poses, watch.t, p)
         if fit is None:
             return False
         self._keep(watch, p)
@@ -225,7 +233,7 @@ class TableLearning:
             self._kept = None  # the law is learned by now: what was derived stays
             return
         self._kept.append(watch)
-        self._kept_law = self._kept_law or _flight_law_of(p)
+        self._kept_law = self._kept_law or _law_of(p)
         self._kept_speed = max(self._kept_speed, math.hypot(watch.before[0], watch.before[1]))
 
     def _rederive(self) -> bool:
@@ -233,14 +241,13 @@ class TableLearning:
         acceleration at their speeds has moved by ``rederive_tolerance`` since they were; True if so."""
         if not self._kept:
             return False
-        flight = self.acceleration.flight_law()  # as self.params() takes it (a window was just learned)
-        law = (flight["damping"], flight["friction_surface"], *flight["table_acceleration"])
+        law = _flight_law_of(**self.acceleration.flight_law())  # as self.params() takes it (a window was learned)
         if _law_moved(self._kept_law, law, self._kept_speed) < self.rim.settings.rederive_tolerance:
             return False
         p = self.params()
         rim = RimAdaptation(self.base, self.table, self.rim.settings)
         for watch in self._kept:
-            fit = _outgoing(watch, p)
+            fit = _line_at_impact(watch.times, watch.poses, watch.t, p)
             if fit is not None:
                 rim.observe(self._incoming(watch, p, law), (*rim_frame(watch.wall, fit.vx, fit.vy), fit.omega))
         self.rim, self._kept_law = rim, law
@@ -249,16 +256,14 @@ class TableLearning:
     def _incoming(self, watch: _ImpactWatch, p: PuckParams, law: tuple) -> tuple:
         """The watched impact's incoming (vb, vn, omega): the filter's state before it, or, when the flight
         law then was off by more than ``rederive_incoming`` at its speed (the filter lagged), a line fit of
-        the rim window's frames before it with the law ``p`` learned since (:func:`_outgoing`'s fit, run
-        forward to the impact)."""
+        the rim window's frames before it with the law ``p`` learned since, taken to the impact."""
         settings, then = self.rim.settings, watch.law
         off = _law_moved(then, law, math.hypot(watch.before[0], watch.before[1]))
         times, poses = watch.earlier
         near = [i for i, t in enumerate(times) if t >= watch.t - settings.window]
         if off <= settings.rederive_incoming or len(near) < settings.min_frames:
             return watch.before
-        fit = _outgoing(_ImpactWatch(watch.t, watch.wall, watch.before, times=[times[i] for i in near],
-                                     poses=[poses[i] for i in near]), p)
+        fit = _line_at_impact([times[i] for i in near], [poses[i] for i in near], watch.t, p)
         return watch.before if fit is None else (*rim_frame(watch.wall, fit.vx, fit.vy), fit.omega)
 
     def _fly(self, t: float, z, speed: float) -> bool:
@@ -302,10 +307,10 @@ class TableLearning:
         fit = quadratic_fit(times, poses)
         learned = fit is not None and self.acceleration.observe(*fit, provisional=provisional,
                                                                 sensitivity=sensitivity)
-        if learned and not provisional:  # the flight law moved: the first impacts derived with it again
-            self._rederive()
-        if self.learns_offset and learned and not provisional:  # a window the table alone moved
-            self.acceleration.observe_offset(times, pivots)
+        if learned and not provisional:  # a window the table alone moved
+            self._rederive()  # the flight law moved: the first impacts derived with it again
+            if self.learns_offset:
+                self.acceleration.observe_offset(times, pivots)
         if self.spin is not None and not provisional:
             learned |= self.spin.observe(times, [pose[2] for pose in poses])
         self.windows += int(learned and not self._counted)
