@@ -10,9 +10,9 @@ over all comparisons and their number; frames, lost frames, rejected outliers, p
 goal, not a measurement the gate rejected), the rejected fraction of the poses on the table,
 re-initialisations per second and the normalised innovation squared (NIS), also by regime (rest, flight,
 impact). Where the error comes from: the median and mean per horizon by the predicted path
-(JSON "by_path"): started at rest (a later motion is a hit no model foresees), ended in a goal (the model holds
-a puck a radius past the goal line's face; a real one may meet a post or the goal's sides), or through no, one, or two and more rim
-impacts.
+(JSON "by_path"): started at rest (a later motion is a hit no model foresees), ended in a goal (the model
+holds a puck a radius past the goal line's face; a real one may meet a post or the goal's sides), or
+through no, one, or two and more rim impacts.
 
 The bags are one session on one table, in the order given (a directory's bags in path order), as for a
 tracker node that keeps running: what the tracker learns online of the table (``rim_adaptation``,
