@@ -11,6 +11,7 @@ def node_parameters() -> dict[str, frozenset[str]]:
     from air_hockey_agent.agent_params import AGENT_PARAMS
     from air_hockey_agent.motion_params import MOTION_PARAMS
     from air_hockey_agent.referee_params import REFEREE_PARAMS
+    from air_hockey_agent.reference_params import REFERENCE_PARAMS
     from air_hockey_agent.sim.params import SIM_PARAMS
     from air_hockey_agent.strategy_params import STRATEGY_PARAMS
     from air_hockey_agent.sysid_params import SYSID_PARAMS
@@ -21,8 +22,9 @@ def node_parameters() -> dict[str, frozenset[str]]:
     specs = {"puck_tracker": TRACKER_NODE_PARAMS, "tactics": AGENT_PARAMS, "trajectory_generator": MOTION_PARAMS,
              "referee": REFEREE_PARAMS, "table_sim": SIM_PARAMS, "strategy_test": STRATEGY_PARAMS,
              "visualizer": VISUALIZER_PARAMS,
-             # the tools' own sections (config/sysid.yaml, synthetic.yaml, game.yaml)
-             "sysid": SYSID_PARAMS, "synth_bag": SESSION_PARAMS, "game": GAME_PARAMS}
+             # the tools' own sections (config/sysid.yaml, synthetic.yaml, game.yaml, reference_filter.yaml)
+             "sysid": SYSID_PARAMS, "synth_bag": SESSION_PARAMS, "game": GAME_PARAMS,
+             "reference_filter": REFERENCE_PARAMS}
     try:  # the two tool nodes keep their declarations next to their code (rclpy)
         from air_hockey_agent.nodes.bag_player import PLAYER_PARAMS
         from air_hockey_agent.nodes.prediction_optimizer import OPTIMIZER_PARAMS

@@ -191,6 +191,36 @@ def test_bad_params_file_is_a_one_line_error(bags, tmp_path):
     assert "restitution" in out.stderr
 
 
+def test_the_reference_filter_on_the_same_bags_gives_its_figures_and_the_ratio(bags, tmp_path):
+    """--reference: the challenge-style filter on the same bags and definition (the same valid poses: its
+    comparisons differ only by the frames before the tracker's first state); the tracker's median as a ratio
+    to its; its own figures change with config/reference_filter.yaml's values given by --params-file."""
+    out = cli("eval-prediction", bags / "a", "--reference", "--json")
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout)
+    reference = report["reference"]
+    assert set(reference) == {"filter", "horizons", "rejected_fraction", "reinit_per_s", "nis", "median_ratio"}
+    assert reference["rejected_fraction"] == 0.0 and set(reference["nis"]) == {"median", "mean"}
+    for key, ours in report["horizons"].items():
+        theirs = reference["horizons"][key]
+        assert 0 <= theirs["n"] - ours["n"] <= 20
+        assert reference["median_ratio"][key] == pytest.approx(ours["median_m"] / theirs["median_m"])
+        assert reference["median_ratio"][key] < 1.0  # its damping, rims and spin are not the bags' table's
+    tuned = tmp_path / "reference.yaml"
+    tuned.write_text("/**/reference_filter:\n  ros__parameters:\n    damping: [0.125, 0.125]\n    rim:\n"
+                     "      restitution: 0.96\n")
+    closer = json.loads(cli("eval-prediction", bags / "a", "--reference", "--json", "--params-file", tuned).stdout)
+    assert closer["horizons"] == report["horizons"]  # the tracker ignores the reference's section
+    assert closer["reference"]["horizons"]["1.0"]["median_m"] < 0.8 * reference["horizons"]["1.0"]["median_m"]
+    text = cli("eval-prediction", bags / "a", "--reference")
+    assert text.returncode == 0 and "tracker / reference median" in text.stdout
+    bad = tmp_path / "bad_reference.yaml"
+    bad.write_text("/**/reference_filter:\n  ros__parameters:\n    damping: [0.1]\n")
+    out = cli("eval-prediction", bags / "a", "--reference", "--params-file", bad)
+    assert out.returncode == 2 and out.stderr.strip().splitlines() == [
+        "air-hockey eval-prediction: error: reference filter: parameter 'damping' needs 2 values, got 1"]
+
+
 def test_human_readable_table(bags):
     out = cli("eval-prediction", bags / "a")
     assert out.returncode == 0

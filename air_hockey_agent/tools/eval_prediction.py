@@ -32,6 +32,12 @@ reports them, of the configured physics (nothing learned): the bags preprocessed
 median over trajectories of each trajectory's mean error. A bag that cannot be used gives a one-line
 error on stderr and exit code 2; the other bags are still evaluated (and nothing is printed on stdout when
 none could be).
+
+With ``--reference``, the reference filter (``config/reference_filter.yaml``: a linear Kalman filter built as
+the Air Hockey Challenge baseline's tracker is described in REFERENCE_FACTS sec. 1, with its identified
+constants; :mod:`air_hockey_agent.core.estimation.reference_filter`) is evaluated on the same bags, on the
+same definition and against the same valid poses, and each horizon's median error is also given as the
+tracker's ratio to the reference's (JSON "reference", its "median_ratio"; issue #13's target: at most 0.7).
 """
 from __future__ import annotations
 
@@ -43,10 +49,12 @@ from pathlib import Path
 from air_hockey_agent.bags.reader import BagError
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
+from air_hockey_agent.core.estimation.reference_filter import ReferenceFilter
 from air_hockey_agent.core.estimation.table_learning import describe_learning, rims_off_text
 from air_hockey_agent.bags.trajectories import bag_measurements, find_bags
 from air_hockey_agent.core.identification.preprocess import preprocess
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.reference_params import load_reference_params
 from air_hockey_agent.sysid_params import load_sysid_params
 from air_hockey_agent.tracker_params import without_learning, load_tracker_params
 from air_hockey_agent.tools.argtypes import number
@@ -65,7 +73,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--horizons", type=number(0.0, low_open=True), nargs="+", default=[0.5, 1.0, 1.5], metavar="SECONDS",
                         help="prediction horizons [s] (default 0.5 1.0 1.5)")
     parser.add_argument("--params-file", type=Path, action="append", default=[],
-                        help="tracker parameter YAML (as for puck_tracker --params-file); may be repeated")
+                        help="tracker parameter YAML (as for puck_tracker --params-file; a /**/reference_filter section "
+                             "for --reference); may be repeated")
+    parser.add_argument("--reference", action="store_true",
+                        help="also evaluate the reference filter (config/reference_filter.yaml: the challenge "
+                             "baseline's tracker as REFERENCE_FACTS describes it) and give the medians' ratio")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)
 
@@ -80,8 +92,15 @@ def run(args: argparse.Namespace) -> int:
     except (ParameterFileError, ParameterValueError) as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return 2
+    try:
+        reference = (ReferenceFilter.from_params(load_reference_params(args.params_file), params)
+                     if args.reference else None)
+    except (ParameterFileError, ParameterValueError) as exc:  # say whose: the tracker has a damping too
+        print(f"{PROG}: error: reference filter: {exc}", file=sys.stderr)
+        return 2
     ekf = PuckEKF.from_params(params)
     totals = EvaluationTotals(tuple(args.horizons), rest_speed=params["regime_rest_speed"])
+    reference_totals = EvaluationTotals(tuple(args.horizons))
     cut: list = []  # the bags' trajectories cut as sysid cuts them (thesis sec. 4.5.1)
     bags, missing = find_bags(args.bags)  # a directory is searched for bags, as sysid and plot do
     for message in missing:
@@ -98,6 +117,8 @@ def run(args: argparse.Namespace) -> int:
             print(f"{PROG}: warning: {bag}: {warning}", file=sys.stderr)
         frames = [(r.stamp, m) for r, m in zip(records, measurements)]
         evaluate_stream(ekf, frames, totals)
+        if reference is not None:
+            evaluate_stream(reference, frames, reference_totals)
         cut += preprocess([r.stamp for r in records], measurements, ekf.settings.dt, preprocessing,
                           params["glitch_speed"]).trajectories  # as sysid cuts them, from the poses read once
         if not args.json:
@@ -110,6 +131,8 @@ def run(args: argparse.Namespace) -> int:
     if delay is not None and delay["rims_off"]:
         print(f"{PROG}: warning: {rims_off_text(delay['rim_offsets'], delay['rims_off'])}", file=sys.stderr)
     summary["thesis_style"] = thesis_style(params, cut, args.horizons)
+    if reference is not None:
+        summary["reference"] = reference_report(reference_totals.summary(), summary["horizons"])
     print(json.dumps(summary) if args.json else format_table(summary))
     return 2 if failed else 0
 
@@ -125,6 +148,16 @@ def thesis_style(params: dict, trajectories: list, horizons) -> dict:
         out[key] = ({"loss_m": r.loss, "min_m": r.min, "median_m": r.median, "n": r.comparisons} if r.comparisons
                     else {"loss_m": None, "min_m": None, "median_m": None, "n": 0})
     return out
+
+
+def reference_report(reference: dict, ours: dict) -> dict:
+    """The reference filter's figures (per horizon, rejected fraction, re-initialisations per second, NIS)
+    and per horizon the ratio of the tracker's median error to the reference's (None where either has none)."""
+    ratio = {key: (ours[key]["median_m"] / r["median_m"] if ours[key]["n"] and r["n"] and r["median_m"] > 0.0
+                   else None) for key, r in reference["horizons"].items()}
+    return {"filter": "config/reference_filter.yaml (the challenge baseline's tracker, REFERENCE_FACTS 1)",
+            "horizons": reference["horizons"], "rejected_fraction": reference["rejected_fraction"],
+            "reinit_per_s": reference["reinit_per_s"], "nis": reference["nis"], "median_ratio": ratio}
 
 
 def format_table(summary: dict) -> str:
@@ -147,7 +180,26 @@ def format_table(summary: dict) -> str:
         else:
             lines.append(f"{key:>11} {'-':>10} {'-':>12} {'-':>9} {0:>8}")
     return "\n".join(lines + [_learning_line(summary)] + _path_table(summary["by_path"])
-                     + _thesis_table(summary["thesis_style"]))
+                     + _thesis_table(summary["thesis_style"]) + _reference_table(summary.get("reference")))
+
+
+def _reference_table(reference: dict | None) -> list[str]:
+    """The reference filter's errors [mm] per horizon and the tracker's median as a ratio to its."""
+    if reference is None:
+        return []
+    nis, reinit = reference["nis"], reference["reinit_per_s"]
+    lines = [f"reference filter, {reference['filter']}: "
+             + ("-" if reinit is None else f"{reinit:.2f}") + " re-initialisations per second, NIS median "
+             + ("-" if nis["median"] is None else f"{nis['median']:.2f}") + " mean "
+             + ("-" if nis["mean"] is None else f"{nis['mean']:.2f}"),
+             f"{'horizon [s]':>11} {'mean [mm]':>10} {'median [mm]':>12} {'p95 [mm]':>9} {'n':>8} "
+             f"{'tracker / reference median':>27}"]
+    for key, s in reference["horizons"].items():
+        ratio = reference["median_ratio"][key]
+        cells = ([f"{s[f] * 1e3:.2f}" for f in ("mean_m", "median_m", "p95_m")] if s["n"] else ["-"] * 3)
+        lines.append(f"{key:>11} {cells[0]:>10} {cells[1]:>12} {cells[2]:>9} {s['n']:>8} "
+                     + ("-" if ratio is None else f"{ratio:.3f}").rjust(27))
+    return lines
 
 
 def _learning_line(summary: dict) -> str:

@@ -520,3 +520,9 @@ class PuckEKF:
         return predict_fast(self.model, self.x, self.P, horizon, self.settings.dt, self.settings.q,
                             lines=lines, sample_every=sample_every, impact_noise=self.settings.impact_noise,
                             impact_contact_time=self.settings.impact_contact_time)
+
+    def predict_from(self, model: PuckModel, x: np.ndarray, p: np.ndarray | None, horizon: float) -> Prediction:
+        """Prediction ``horizon`` [s] ahead of a recorded state ``x`` (covariance ``p`` or None) with the model
+        the filter had there (its physics as learned by then): the evaluation's (:mod:`.evaluation`; the
+        configured process noise, no impact noise)."""
+        return predict_fast(model, x, p, horizon, self.settings.dt, self.settings.q)

@@ -29,7 +29,6 @@ import numpy as np
 from air_hockey_agent.core.estimation.ekf import FilterStats, PuckEKF
 from air_hockey_agent.core.estimation.marker_offset import centre_of, pivot_shift
 from air_hockey_agent.core.puck.model import PuckModel
-from air_hockey_agent.core.puck.prediction import predict_fast
 
 Frame = tuple[float, "Sequence[float] | None"]  # (stamp [s], table-frame (x, y, theta) or None if lost)
 
@@ -234,7 +233,7 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
             j = _nearest(truth_t, start.t + h)
             if j is None or abs(truth_t[j] - (start.t + h)) > tolerance or truth_t[j] <= start.t:
                 continue
-            pred = predict_fast(start.model, start.x, start.P, truth_t[j] - start.t, ekf.settings.dt, ekf.settings.q)
+            pred = ekf.predict_from(start.model, start.x, start.P, truth_t[j] - start.t)
             residual = truth[j].z[:2] - pred.state[:2] - pivot_shift(float(pred.state[4]), start.offset)
             errors.append(float(np.hypot(*residual)))
             if totals.rest_speed is not None:
@@ -299,8 +298,7 @@ def prediction_series(ekf: PuckEKF, frames: Iterable[Frame], horizon: float) -> 
     for k, stamp in enumerate(t):
         j = _nearest(start_t, stamp - horizon)
         if j is not None and start_t[j] < stamp and abs(start_t[j] - (stamp - horizon)) <= tolerance:
-            predicted[k] = predict_fast(starts[j].model, starts[j].x, None, stamp - start_t[j], ekf.settings.dt,
-                                        ekf.settings.q).state
+            predicted[k] = ekf.predict_from(starts[j].model, starts[j].x, None, stamp - start_t[j]).state
     centres = [centre_of(r.z, r.offset) for r in measured]  # as the estimates and predictions: the disc's centre
     return PredictionSeries(horizon, np.array(t), np.array(centres).reshape(-1, 3),
                             estimated, predicted)
