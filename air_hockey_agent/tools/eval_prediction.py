@@ -83,21 +83,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    if any(h <= 0.0 for h in args.horizons):
-        print(f"{PROG}: error: --horizons must be positive, got {args.horizons}", file=sys.stderr)
+    loaded = _load_parameters(args)
+    if loaded is None:
         return 2
-    try:
-        params = load_tracker_params(args.params_file)
-        preprocessing = load_sysid_params(args.params_file)
-    except (ParameterFileError, ParameterValueError) as exc:
-        print(f"{PROG}: error: {exc}", file=sys.stderr)
-        return 2
-    try:
-        reference = (ReferenceFilter.from_params(load_reference_params(args.params_file), params)
-                     if args.reference else None)
-    except (ParameterFileError, ParameterValueError) as exc:  # say whose: the tracker has a damping too
-        print(f"{PROG}: error: reference filter: {exc}", file=sys.stderr)
-        return 2
+    params, preprocessing, reference = loaded
     ekf = PuckEKF.from_params(params)
     totals = EvaluationTotals(tuple(args.horizons), rest_speed=params["regime_rest_speed"])
     reference_totals = EvaluationTotals(tuple(args.horizons))
@@ -125,16 +114,44 @@ def run(args: argparse.Namespace) -> int:
             print(f"{bag}: {len(frames)} frames", file=sys.stderr)
     if not totals.recordings:  # each bag's one-line error said why; an all-empty report would say nothing
         return 2
+    summary = _summary(ekf, totals, params, cut, args.horizons)
+    if reference is not None:
+        summary["reference"] = reference_report(reference_totals.summary(), summary["horizons"])
+    print(json.dumps(summary) if args.json else format_table(summary))
+    return 2 if failed else 0
+
+
+def _load_parameters(args: argparse.Namespace) -> tuple | None:
+    """(tracker parameters, preprocessing parameters, the reference filter or None), or None after a
+    one-line error."""
+    if any(h <= 0.0 for h in args.horizons):
+        print(f"{PROG}: error: --horizons must be positive, got {args.horizons}", file=sys.stderr)
+        return None
+    try:
+        params = load_tracker_params(args.params_file)
+        preprocessing = load_sysid_params(args.params_file)
+    except (ParameterFileError, ParameterValueError) as exc:
+        print(f"{PROG}: error: {exc}", file=sys.stderr)
+        return None
+    try:
+        reference = (ReferenceFilter.from_params(load_reference_params(args.params_file), params)
+                     if args.reference else None)
+    except (ParameterFileError, ParameterValueError) as exc:  # say whose: the tracker has a damping too
+        print(f"{PROG}: error: reference filter: {exc}", file=sys.stderr)
+        return None
+    return params, preprocessing, reference
+
+
+def _summary(ekf: PuckEKF, totals: EvaluationTotals, params: dict, cut: list, horizons) -> dict:
+    """The report: the totals' figures, what was learned online (warning of rims off their lines) and the
+    thesis-style columns over the ``cut`` trajectories."""
     summary = totals.summary()
     summary.update(ekf.learning_report())
     delay = summary.get("impact_delay")
     if delay is not None and delay["rims_off"]:
         print(f"{PROG}: warning: {rims_off_text(delay['rim_offsets'], delay['rims_off'])}", file=sys.stderr)
-    summary["thesis_style"] = thesis_style(params, cut, args.horizons)
-    if reference is not None:
-        summary["reference"] = reference_report(reference_totals.summary(), summary["horizons"])
-    print(json.dumps(summary) if args.json else format_table(summary))
-    return 2 if failed else 0
+    summary["thesis_style"] = thesis_style(params, cut, horizons)
+    return summary
 
 
 def thesis_style(params: dict, trajectories: list, horizons) -> dict:
