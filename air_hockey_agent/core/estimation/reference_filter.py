@@ -103,6 +103,66 @@ class ReferenceModel:
         q[np.ix_(_VELOCITY_SPIN, _VELOCITY_SPIN)] = to_local.T @ self.settings.rim_noise @ to_local
         return _drift((1.0 - fraction) * dt) @ f_rim @ _drift(fraction * dt), q, wall
 
+    def propagate(self, x: np.ndarray, dt: float, steps: int) -> tuple[np.ndarray, list]:
+        """The state after ``steps`` steps of ``dt`` [s] from ``x`` and the rims met on the way ((step, wall)),
+        as :meth:`step` gives them one by one, but the flight between impacts in closed form."""
+        x = np.array(x, float)
+        impacts, k = [], 0
+        while k < steps:
+            if self._held(x, dt):
+                break  # a held state is held for good
+            clear = min(self._clear_steps(x, dt), steps - k)
+            if clear > 0:
+                x, k = self._fly(x, dt, clear), k + clear
+                continue
+            f, _, wall = self.step(x, dt)
+            x = f @ x
+            x[4] = wrap_angle(x[4])
+            k += 1
+            if wall is not None:
+                impacts.append((k, wall))
+        return x, impacts
+
+    def _held(self, x: np.ndarray, dt: float) -> bool:
+        t = self.table
+        if abs(x[1]) < 0.5 * t.goal_width:
+            return abs(x[0] + x[2] * dt) > t.x_limit
+        return abs(x[0]) > t.x_limit or abs(x[1]) > t.y_limit
+
+    def _clear_steps(self, x: np.ndarray, dt: float) -> int | float:
+        """Whole flight steps from ``x`` that surely end inside the rim lines (one step short of the first
+        that might not, against rounding; inf when the damping stops the puck first)."""
+        clear = math.inf
+        for axis, limit in ((0, self.table.x_limit), (1, self.table.y_limit)):
+            v = x[axis + 2]
+            if v == 0.0:
+                continue
+            a = 1.0 - dt * self.settings.damping[axis]
+            if a <= 0.0:
+                return 0
+            room = limit - (x[axis] if v > 0.0 else -x[axis])  # to the rim line ahead
+            per_step = dt * abs(v)
+            if a == 1.0:
+                crossing = math.floor(room / per_step) + 1
+            else:
+                c = room * (1.0 - a) / per_step
+                if c >= 1.0:
+                    continue  # it stops short of that rim line
+                crossing = math.floor(math.log1p(-c) / math.log(a)) + 1
+            clear = min(clear, max(crossing - 2, 0))
+        return clear
+
+    def _fly(self, x: np.ndarray, dt: float, n: int) -> np.ndarray:
+        """``n`` flight steps in closed form: v_n = a^n v, p_n = p + dt v (1 - a^n) / (1 - a), a = 1 - dt d."""
+        out = x.copy()
+        for axis in (0, 1):
+            a = 1.0 - dt * self.settings.damping[axis]
+            power = a ** n
+            out[axis] += dt * x[axis + 2] * (n if a == 1.0 else (1.0 - power) / (1.0 - a))
+            out[axis + 2] = x[axis + 2] * power
+        out[4] = wrap_angle(x[4] + n * dt * x[5])
+        return out
+
     def _flight(self, dt: float) -> np.ndarray:
         f = _drift(dt)
         f[2, 2] = 1.0 - dt * self.settings.damping[0]
@@ -204,9 +264,13 @@ class ReferenceFilter:
 
     def _propagate(self, x: np.ndarray, p: np.ndarray | None, horizon: float) -> tuple:
         """State (and covariance unless None) ``horizon`` [s] on, in model steps (the last one shorter),
-        and the impacts met: (time [s], wall, x, y, sliding False)."""
+        and the impacts met: (time [s], wall, x, y, sliding False; without covariance x, y are the state's
+        at the horizon)."""
         steps = max(1, round(horizon / self.settings.dt))
         dt = horizon / steps
+        if p is None:  # the evaluation's predictions: the flight between impacts in closed form
+            x, met = self.model.propagate(x, dt, steps)
+            return x, None, [(k * dt, wall, float(x[0]), float(x[1]), False) for k, wall in met]
         impacts = []
         for k in range(steps):
             f, q, wall = self.model.step(x, dt)
