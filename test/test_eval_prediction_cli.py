@@ -221,6 +221,24 @@ def test_the_reference_filter_on_the_same_bags_gives_its_figures_and_the_ratio(b
         "air-hockey eval-prediction: error: reference filter: parameter 'damping' needs 2 values, got 1"]
 
 
+def test_per_bag_rows_add_up_to_the_session(bags):
+    """--per-bag: a row per bag in session order whose frames and comparisons add up to the report's."""
+    out = cli("eval-prediction", bags / "a", bags / "b", "--per-bag", "--json")
+    assert out.returncode == 0, out.stderr
+    report = json.loads(out.stdout)
+    rows = report["per_bag"]
+    assert [Path(row["bag"]).name for row in rows] == ["a", "b"]
+    assert set(rows[0]) == {"bag", "frames", "horizons", "rejected_fraction", "reinit_per_s", "nis_median"}
+    assert sum(row["frames"] for row in rows) == report["frames"]
+    for key, total in report["horizons"].items():
+        assert sum(row["horizons"][key]["n"] for row in rows) == total["n"]
+        low, high = sorted(row["horizons"][key]["median_m"] for row in rows)
+        assert low <= total["median_m"] <= high
+    text = cli("eval-prediction", bags / "a", bags / "b", "--per-bag", "--reference")
+    assert text.returncode == 0 and "per bag, in session order" in text.stdout
+    assert "reference median [mm]" in text.stdout and text.stdout.rstrip().endswith(str(bags / "b"))
+
+
 def test_human_readable_table(bags):
     out = cli("eval-prediction", bags / "a")
     assert out.returncode == 0

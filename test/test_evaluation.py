@@ -119,6 +119,22 @@ def test_summary_of_an_empty_evaluation_has_no_statistics():
     assert s["horizons"]["0.5"] == {"mean_m": None, "median_m": None, "p95_m": None, "n": 0}
 
 
+def test_totals_absorbed_recording_by_recording_are_the_session_totals(params):
+    """eval-prediction --per-bag evaluates each bag into its own totals and adds them to the session's: the
+    same figures as one totals over the session (the table learned online carries over in both)."""
+    one, other = PuckEKF.from_params(params), PuckEKF.from_params(params)
+    recordings = [frames_of(session(one, seed=seed, n_shots=2)) for seed in (1, 2)]
+    whole = EvaluationTotals((0.5, 1.0), rest_speed=params["regime_rest_speed"])
+    pieces = whole.empty_like()
+    for frames in recordings:
+        evaluate_stream(one, frames, whole)
+        own = pieces.empty_like()
+        evaluate_stream(other, frames, own)
+        assert own.recordings == 1 and own.errors["0.5"]
+        pieces.absorb(own)
+    assert pieces.summary() == whole.summary() and pieces.nll == whole.nll and pieces.seconds == whole.seconds
+
+
 def test_mean_only_prediction_equals_the_mean_with_covariance(params):
     """One compiled stepping (prediction_kernel) carries the mean with or without the covariance."""
     ekf = PuckEKF.from_params(params)

@@ -38,6 +38,9 @@ the Air Hockey Challenge baseline's tracker is described in REFERENCE_FACTS sec.
 constants; :mod:`air_hockey_agent.core.estimation.reference_filter`) is evaluated on the same bags, on the
 same definition and against the same valid poses, and each horizon's median error is also given as the
 tracker's ratio to the reference's (JSON "reference", its "median_ratio"; issue #13's target: at most 0.7).
+With ``--per-bag``, each bag's own figures follow in session order (JSON "per_bag": bag, frames, median and
+n per horizon, rejected fraction, re-initialisations per second, NIS median, and with ``--reference`` the
+reference's medians): which bags are hard, and how the session's first bags fare while the table is learned.
 """
 from __future__ import annotations
 
@@ -78,6 +81,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--reference", action="store_true",
                         help="also evaluate the reference filter (config/reference_filter.yaml: the challenge "
                              "baseline's tracker as REFERENCE_FACTS describes it) and give the medians' ratio")
+    parser.add_argument("--per-bag", action="store_true",
+                        help="also each bag's figures, in session order (median per horizon, rejected, "
+                             "re-initialisations per second, NIS median)")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)
 
@@ -91,6 +97,7 @@ def run(args: argparse.Namespace) -> int:
     totals = EvaluationTotals(tuple(args.horizons), rest_speed=params["regime_rest_speed"])
     reference_totals = EvaluationTotals(tuple(args.horizons))
     cut: list = []  # the bags' trajectories cut as sysid cuts them (thesis sec. 4.5.1)
+    per_bag: list = []  # each bag's own figures (its rows of --per-bag)
     bags, missing = find_bags(args.bags)  # a directory is searched for bags, as sysid and plot do
     for message in missing:
         print(f"{PROG}: error: {message}", file=sys.stderr)
@@ -105,9 +112,7 @@ def run(args: argparse.Namespace) -> int:
         if warning:
             print(f"{PROG}: warning: {bag}: {warning}", file=sys.stderr)
         frames = [(r.stamp, m) for r, m in zip(records, measurements)]
-        evaluate_stream(ekf, frames, totals)
-        if reference is not None:
-            evaluate_stream(reference, frames, reference_totals)
+        per_bag.append(_evaluate_bag(bag, frames, ekf, totals, reference, reference_totals))
         cut += preprocess([r.stamp for r in records], measurements, ekf.settings.dt, preprocessing,
                           params["glitch_speed"]).trajectories  # as sysid cuts them, from the poses read once
         if not args.json:
@@ -117,8 +122,35 @@ def run(args: argparse.Namespace) -> int:
     summary = _summary(ekf, totals, params, cut, args.horizons)
     if reference is not None:
         summary["reference"] = reference_report(reference_totals.summary(), summary["horizons"])
+    if args.per_bag:
+        summary["per_bag"] = per_bag
     print(json.dumps(summary) if args.json else format_table(summary))
     return 2 if failed else 0
+
+
+def _evaluate_bag(bag: Path, frames: list, ekf: PuckEKF, totals: EvaluationTotals, reference,
+                  reference_totals: EvaluationTotals) -> dict:
+    """Evaluate one bag's frames (the tracker, and the reference filter unless None) into the session's
+    totals; returns the bag's own figures: its --per-bag row."""
+    own = totals.empty_like()
+    evaluate_stream(ekf, frames, own)
+    totals.absorb(own)
+    row = _bag_row(str(bag), own.summary())
+    if reference is not None:
+        theirs = reference_totals.empty_like()
+        evaluate_stream(reference, frames, theirs)
+        reference_totals.absorb(theirs)
+        row["reference_horizons"] = _bag_row(str(bag), theirs.summary())["horizons"]
+    return row
+
+
+def _bag_row(bag: str, summary: dict) -> dict:
+    """A bag's row of --per-bag: frames, median and n per horizon, rejected fraction, re-initialisations
+    per second and NIS median."""
+    return {"bag": bag, "frames": summary["frames"],
+            "horizons": {key: {"median_m": h["median_m"], "n": h["n"]} for key, h in summary["horizons"].items()},
+            "rejected_fraction": summary["rejected_fraction"], "reinit_per_s": summary["reinit_per_s"],
+            "nis_median": summary["nis"]["median"]}
 
 
 def _load_parameters(args: argparse.Namespace) -> tuple | None:
@@ -197,7 +229,33 @@ def format_table(summary: dict) -> str:
         else:
             lines.append(f"{key:>11} {'-':>10} {'-':>12} {'-':>9} {0:>8}")
     return "\n".join(lines + [_learning_line(summary)] + _path_table(summary["by_path"])
-                     + _thesis_table(summary["thesis_style"]) + _reference_table(summary.get("reference")))
+                     + _thesis_table(summary["thesis_style"]) + _reference_table(summary.get("reference"))
+                     + _per_bag_table(summary.get("per_bag")))
+
+
+def _per_bag_table(rows: list | None) -> list[str]:
+    """Each bag's median errors [mm], rejected fraction, re-initialisations per second and NIS median, in
+    session order (what was learned online carries from one bag to the next)."""
+    if rows is None:
+        return []
+    keys = list(rows[0]["horizons"]) if rows else []
+    title = "median [mm] at " + " / ".join(keys) + " s"
+    lines = ["per bag, in session order (the table learned online carries from one bag to the next)",
+             f"{'frames':>8} {title:>30} {'rejected':>9} {'re-init/s':>9} {'NIS':>6}"
+             + ("  reference median [mm]" if rows and "reference_horizons" in rows[0] else "") + "  bag"]
+    for row in rows:
+        medians = " / ".join(_mm(h["median_m"]) for h in row["horizons"].values())
+        rejected = "-" if row["rejected_fraction"] is None else f"{row['rejected_fraction'] * 100:.1f} %"
+        reinit = "-" if row["reinit_per_s"] is None else f"{row['reinit_per_s']:.2f}"
+        nis = "-" if row["nis_median"] is None else f"{row['nis_median']:.2f}"
+        theirs = row.get("reference_horizons")
+        extra = "" if theirs is None else "  " + " / ".join(_mm(h["median_m"]) for h in theirs.values()).rjust(21)
+        lines.append(f"{row['frames']:>8} {medians:>30} {rejected:>9} {reinit:>9} {nis:>6}{extra}  {row['bag']}")
+    return lines
+
+
+def _mm(value: float | None) -> str:
+    return "-" if value is None else f"{value * 1e3:.1f}"
 
 
 def _reference_table(reference: dict | None) -> list[str]:

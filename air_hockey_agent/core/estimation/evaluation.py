@@ -99,6 +99,22 @@ class EvaluationTotals:
             self.nll.setdefault(horizon_key(h), [])
             self.paths.setdefault(horizon_key(h), [])
 
+    def empty_like(self) -> "EvaluationTotals":
+        """New totals with the same horizons and settings, nothing collected."""
+        return EvaluationTotals(self.horizons, loglik=self.loglik, stride=self.stride, rest_speed=self.rest_speed)
+
+    def absorb(self, other: "EvaluationTotals") -> None:
+        """Add what ``other`` (same horizons and settings) collected, as if its recordings had been added here."""
+        for key in self.errors:
+            self.errors[key] += other.errors[key]
+            self.nll[key] += other.nll[key]
+            self.paths[key] += other.paths[key]
+        self.nis += other.nis
+        self.nis_regimes += other.nis_regimes
+        for name in ("frames", "poses", "lost_frames", "outliers_rejected", "off_table", "reinitialisations",
+                     "seconds", "recordings"):
+            setattr(self, name, getattr(self, name) + getattr(other, name))
+
     def summary(self) -> dict:
         """Per horizon mean / median / p95 [m] and count, plus the stream counts and the filter's
         consistency (JSON-ready)."""
