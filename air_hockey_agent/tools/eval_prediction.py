@@ -77,8 +77,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--horizons", type=number(0.0, low_open=True), nargs="+", default=[0.5, 1.0, 1.5], metavar="SECONDS",
                         help="prediction horizons [s] (default 0.5 1.0 1.5)")
     parser.add_argument("--params-file", type=Path, action="append", default=[],
-                        help="tracker parameter YAML (as for puck_tracker --params-file; a /**/reference_filter section "
-                             "for --reference); may be repeated")
+                        help="tracker parameter YAML (as for puck_tracker --params-file; a "
+                             "/**/reference_filter section for --reference); may be repeated")
     parser.add_argument("--reference", action="store_true",
                         help="also evaluate the reference filter (config/reference_filter.yaml: the challenge "
                              "baseline's tracker as REFERENCE_FACTS describes it) and give the medians' ratio")

@@ -78,13 +78,9 @@ class ReferenceModel:
     def step(self, x: np.ndarray, dt: float) -> tuple[np.ndarray, np.ndarray, int | None]:
         """(F, Q, the rim met or None) of a step of ``dt`` [s] from state ``x``; the next state is F x
         (angle wrapped), its covariance F P F^T + Q."""
+        if self._held(x, dt):
+            return np.eye(6), np.zeros((6, 6)), None
         px, py, vx, vy = x[:4]
-        t = self.table
-        if abs(py) < 0.5 * t.goal_width:
-            if abs(px + vx * dt) > t.x_limit:
-                return np.eye(6), np.zeros((6, 6)), None  # scored: held
-        elif abs(px) > t.x_limit or abs(py) > t.y_limit:
-            return np.eye(6), np.zeros((6, 6)), None      # off the table: held
         hit = self._first_crossing(px, py, vx * dt, vy * dt)
         if hit is None:
             return self._flight(dt), self.settings.q * (dt / self.settings.step), None
@@ -92,7 +88,7 @@ class ReferenceModel:
         rotation = _rim_frame(wall)
         local = rotation @ np.array([vx, vy])
         impact = self.settings.rim_map.copy()
-        slide = 1.0 if local[0] + x[5] * t.puck_radius >= 0.0 else -1.0
+        slide = 1.0 if local[0] + x[5] * self.table.puck_radius >= 0.0 else -1.0
         impact[0, 1] *= slide
         impact[2, 1] *= slide
         to_local = np.eye(3)
@@ -124,6 +120,9 @@ class ReferenceModel:
         return x, impacts
 
     def _held(self, x: np.ndarray, dt: float) -> bool:
+        """Whether a step of ``dt`` [s] holds state ``x``: a puck in the goal band (within half the goal
+        width of the centre line) whose step would cross a short rim line is scored; a centre beyond the
+        rim lines elsewhere is off the table."""
         t = self.table
         if abs(x[1]) < 0.5 * t.goal_width:
             return abs(x[0] + x[2] * dt) > t.x_limit
@@ -164,6 +163,7 @@ class ReferenceModel:
         return out
 
     def _flight(self, dt: float) -> np.ndarray:
+        """F of a flight step of ``dt`` [s]: the drift, and the velocity damped per axis."""
         f = _drift(dt)
         f[2, 2] = 1.0 - dt * self.settings.damping[0]
         f[3, 3] = 1.0 - dt * self.settings.damping[1]
@@ -219,12 +219,13 @@ class ReferenceFilter:
         return cls(ReferenceModel(TableGeometry.from_params(tracker), settings), settings)
 
     def reset(self) -> None:
+        """Forget the track: the next pose starts a new one."""
         self.initialised, self.stamp = False, None
 
     def plausible(self, z: Sequence[float]) -> bool:
         """A pose that can be the puck: finite and on the table within the tracker's margin."""
-        return all(math.isfinite(v) for v in z) and self.model.table.contains(z[0], z[1],
-                                                                              self.settings.outside_table_margin)
+        margin = self.settings.outside_table_margin
+        return all(math.isfinite(v) for v in z) and self.model.table.contains(z[0], z[1], margin)
 
     def process(self, t: float, z: Sequence[float] | None) -> None:
         """One mocap frame at ``t`` [s]: pose ``z`` (x, y, theta) or None (lost)."""
@@ -233,8 +234,8 @@ class ReferenceFilter:
         if z is not None and not self.plausible(z):
             self.stats.off_table += 1
             z = None
-        if self.initialised and self.stamp is not None and not 0.0 <= t - self.stamp <= self.settings.max_prediction_gap:
-            self.reset()
+        if self.initialised and not 0.0 <= t - self.stamp <= self.settings.max_prediction_gap:
+            self.reset()  # a gap, or time ran back: a new track
         if not self.initialised:
             if z is not None:
                 self.x = np.array([z[0], z[1], 0.0, 0.0, wrap_angle(z[2]), 0.0])
