@@ -221,8 +221,9 @@ def test_the_reference_filter_on_the_same_bags_gives_its_figures_and_the_ratio(b
         "air-hockey eval-prediction: error: reference filter: parameter 'damping' needs 2 values, got 1"]
 
 
-def test_per_bag_rows_add_up_to_the_session(bags):
-    """--per-bag: a row per bag in session order whose frames and comparisons add up to the report's."""
+def test_per_bag_rows_add_up_to_the_session(bags, tmp_path):
+    """--per-bag: a row per bag in session order whose frames and comparisons add up to the report's;
+    --plot draws them (PNGs written, a file in the way a one-line error)."""
     out = cli("eval-prediction", bags / "a", bags / "b", "--per-bag", "--json")
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)
@@ -234,9 +235,17 @@ def test_per_bag_rows_add_up_to_the_session(bags):
         assert sum(row["horizons"][key]["n"] for row in rows) == total["n"]
         low, high = sorted(row["horizons"][key]["median_m"] for row in rows)
         assert low <= total["median_m"] <= high
-    text = cli("eval-prediction", bags / "a", bags / "b", "--per-bag", "--reference")
+    plots = tmp_path / "plots"
+    text = cli("eval-prediction", bags / "a", bags / "b", "--per-bag", "--reference", "--plot", plots)
     assert text.returncode == 0 and "per bag, in session order" in text.stdout
     assert "reference median [mm]" in text.stdout and text.stdout.rstrip().endswith(str(bags / "b"))
+    for name in ("eval_per_bag.png", "eval_horizons.png"):
+        assert (plots / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and f"wrote {plots / name}" in text.stderr
+    in_the_way = tmp_path / "a_file"
+    in_the_way.write_text("")
+    out = cli("eval-prediction", bags / "a", "--plot", in_the_way)
+    assert out.returncode == 2 and out.stderr.strip().splitlines() == [
+        f"air-hockey eval-prediction: error: --plot {in_the_way}: cannot create the directory (File exists)"]
 
 
 def test_human_readable_table(bags):

@@ -41,6 +41,8 @@ tracker's ratio to the reference's (JSON "reference", its "median_ratio"; issue 
 With ``--per-bag``, each bag's own figures follow in session order (JSON "per_bag": bag, frames, median and
 n per horizon, rejected fraction, re-initialisations per second, NIS median, and with ``--reference`` the
 reference's medians): which bags are hard, and how the session's first bags fare while the table is learned.
+``--plot DIR`` draws them: each bag's medians in session order and the errors against the horizon, with the
+reference's when it ran (:mod:`.eval_plots`).
 """
 from __future__ import annotations
 
@@ -85,6 +87,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--per-bag", action="store_true",
                         help="also each bag's figures, in session order (median per horizon, rejected, "
                              "re-initialisations per second, NIS median)")
+    parser.add_argument("--plot", type=Path, default=None, metavar="DIR",
+                        help="write eval_per_bag.png and eval_horizons.png into DIR (created)")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.set_defaults(run=run)
 
@@ -125,6 +129,10 @@ def run(args: argparse.Namespace) -> int:
         summary["reference"] = reference_report(reference_totals.summary(), summary["horizons"])
     if args.per_bag:
         summary["per_bag"] = per_bag
+    if args.plot is not None:
+        from air_hockey_agent.tools.eval_plots import write_eval_plots
+        for path in write_eval_plots(args.plot, summary, per_bag):
+            print(f"wrote {path}", file=sys.stderr)
     print(json.dumps(summary) if args.json else format_table(summary))
     return 2 if failed else 0
 
@@ -160,6 +168,13 @@ def _load_parameters(args: argparse.Namespace) -> tuple | None:
     if any(h <= 0.0 for h in args.horizons):
         print(f"{PROG}: error: --horizons must be positive, got {args.horizons}", file=sys.stderr)
         return None
+    if args.plot is not None:
+        try:
+            args.plot.mkdir(parents=True, exist_ok=True)
+        except OSError as exc:  # a file in the way, or no permission: before any bag is read
+            print(f"{PROG}: error: --plot {args.plot}: cannot create the directory ({exc.strerror})",
+                  file=sys.stderr)
+            return None
     try:
         params = load_tracker_params(args.params_file)
         preprocessing = load_sysid_params(args.params_file)
