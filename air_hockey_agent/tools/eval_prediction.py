@@ -64,6 +64,7 @@ from air_hockey_agent.sysid_params import load_sysid_params
 from air_hockey_agent.tracker_params import without_learning, load_tracker_params
 from air_hockey_agent.tools.argtypes import number
 from air_hockey_agent.tools.eval_report import format_table
+from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.recordings import add_pose_topic_arguments
 
 PROG = "air-hockey eval-prediction"
@@ -107,7 +108,8 @@ def run(args: argparse.Namespace) -> int:
     for message in missing:
         print(f"{PROG}: error: {message}", file=sys.stderr)
     failed = len(missing)
-    for bag in bags:
+    progress = Progress("eval-prediction", quiet=True)  # with --json: a bar on a terminal only
+    for done, bag in enumerate(bags, 1):
         try:
             records, measurements, warning, _ = bag_measurements(bag, args.topic, args.frame, args.table_frame, params)
         except BagError as exc:
@@ -122,6 +124,8 @@ def run(args: argparse.Namespace) -> int:
                           params["glitch_speed"]).trajectories  # as sysid cuts them, from the poses read once
         if not args.json:
             print(f"{bag}: {len(frames)} frames", file=sys.stderr)
+        else:
+            progress(done, len(bags), bag.name)
     if not totals.recordings:  # each bag's one-line error said why; an all-empty report would say nothing
         return 2
     summary = _summary(ekf, totals, params, cut, args.horizons)
