@@ -16,7 +16,9 @@ normalised innovation squared (NIS) of every frame that reached the gate (3 degr
 2.37 and mean 3 when consistent), also by regime (issue #13: is the noise right at rest, in flight and at
 the rims?): *impact* when the model puts a rim impact in the step to the frame or the one before it,
 *rest* when the previous estimate is slower than ``rest_speed``, *flight* otherwise. eval-prediction,
-sysid, prediction_optimizer and plot all use this definition.
+sysid, prediction_optimizer and plot all use this definition. The filter may also be the reference
+filter (:mod:`.reference_filter`, ``eval-prediction --reference``), which offers the same interface
+(``process``, ``reset``, ``predict_from`` and the state they leave), so both are judged alike.
 """
 from __future__ import annotations
 
