@@ -122,8 +122,12 @@ def test_every_pose_on_the_table_is_fused_from_a_standing_start():
     assert f.x[0] > 0.2 and f.last_nis > 100 and f.stats.outliers_rejected == 0
     f.process(31 / 120, [5.0, 0.0, 0.0])  # off the table: not a measurement
     assert f.stats.off_table == 1 and f.last_nis is None
+    f.process(31 / 120 - 0.001, [0.4, 0.2, 0.3])  # a late stamp: not fused, the track goes on
+    assert f.stats.repeated_frames == 1 and f.stats.reinitialisations == 1 and f.last_nis is None
     f.process(10.0, [0.0, 0.0, 0.0])  # after a gap: a new track
     assert f.stats.reinitialisations == 2 and np.array_equal(f.x, np.zeros(6))
+    f.process(5.0, [0.1, 0.0, 0.0])  # time ran back farther than the gap (a replay loop): a new track
+    assert f.stats.reinitialisations == 3 and f.stamp == 5.0
 
 
 def test_on_its_own_model_its_predictions_are_exact():

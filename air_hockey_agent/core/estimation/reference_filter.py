@@ -234,8 +234,9 @@ class ReferenceFilter:
         if z is not None and not self.plausible(z):
             self.stats.off_table += 1
             z = None
-        if self.initialised and not 0.0 <= t - self.stamp <= self.settings.max_prediction_gap:
-            self.reset()  # a gap, or time ran back: a new track
+        gap = self.settings.max_prediction_gap
+        if self.initialised and not -gap <= t - self.stamp <= gap:
+            self.reset()  # a gap, or time ran back far (a replay loop): a new track, as the tracker's
         if not self.initialised:
             if z is not None:
                 self.x = np.array([z[0], z[1], 0.0, 0.0, wrap_angle(z[2]), 0.0])
@@ -243,7 +244,7 @@ class ReferenceFilter:
                 self.initialised, self.stamp = True, t
                 self.stats.reinitialisations += 1
             return
-        if t == self.stamp:
+        if t <= self.stamp:  # a repeated or late stamp: not fused, as by the tracker
             self.stats.repeated_frames += 1
             return
         self.x, self.P, _ = self._propagate(self.x, self.P, t - self.stamp)
