@@ -153,17 +153,21 @@ def _evaluate_bag(bag: Path, frames: list, ekf: PuckEKF, totals: EvaluationTotal
         theirs = reference_totals.empty_like()
         evaluate_stream(reference, frames, theirs)
         reference_totals.absorb(theirs)
-        row["reference_horizons"] = _bag_row(str(bag), theirs.summary())["horizons"]
+        row["reference_horizons"] = _medians(theirs.summary())
     return row
 
 
 def _bag_row(bag: str, summary: dict) -> dict:
     """A bag's row of --per-bag: frames, median and n per horizon, rejected fraction, re-initialisations
     per second and NIS median."""
-    return {"bag": bag, "frames": summary["frames"],
-            "horizons": {key: {"median_m": h["median_m"], "n": h["n"]} for key, h in summary["horizons"].items()},
+    return {"bag": bag, "frames": summary["frames"], "horizons": _medians(summary),
             "rejected_fraction": summary["rejected_fraction"], "reinit_per_s": summary["reinit_per_s"],
             "nis_median": summary["nis"]["median"]}
+
+
+def _medians(summary: dict) -> dict:
+    """Median [m] and n per horizon of an evaluation summary."""
+    return {key: {"median_m": h["median_m"], "n": h["n"]} for key, h in summary["horizons"].items()}
 
 
 def _load_parameters(args: argparse.Namespace) -> tuple | None:

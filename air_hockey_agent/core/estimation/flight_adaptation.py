@@ -75,11 +75,8 @@ class AccelerationAdaptation:
         self._weighted = self._information @ np.array(prior)
         self._set_mean(np.array(prior))
 
-    def _mean(self) -> np.ndarray:
-        """The posterior mean (kept from the last change: the offset is read every frame)."""
-        return self._mean_now
-
     def _set_mean(self, mean: np.ndarray) -> None:
+        """Keep the posterior mean and the offset it gives (read every frame) from the last change."""
         self._mean_now = mean
         o = mean[self._offset_at:] if self.learns_offset else self._configured_offset
         self._offset_now = (float(o[0]), float(o[1]))
@@ -129,7 +126,7 @@ class AccelerationAdaptation:
     def flight_law(self) -> dict[str, Any]:
         """The learned ``table_acceleration`` (gx, gy) [m/s^2], ``damping`` [1/s] (never below 0) and
         ``friction_surface`` [m/s^2] (learned, never below 0, or the configured one), from one solve."""
-        m = self._mean()
+        m = self._mean_now
         return {"table_acceleration": (float(m[0]), float(m[1])), "damping": max(0.0, float(m[2])),
                 "friction_surface": float(m[3]) if self.learns_friction else self.friction}
 
@@ -178,7 +175,7 @@ class AccelerationAdaptation:
             m = np.zeros((2, 2)) if sensitivity is None else np.asarray(sensitivity, float)
             design = np.hstack([design, m])
             unexplained = unexplained + m @ np.array(self.offset)
-        innovation = unexplained - design @ self._mean()
+        innovation = unexplained - design @ self._mean_now
         spread = np.diag(noise) + design @ np.linalg.inv(self._information) @ design.T
         if float(innovation @ np.linalg.solve(spread, innovation)) > self.settings.gate:
             if earlier is not None:

@@ -278,8 +278,7 @@ class ReferenceFilter:
             f, q, wall = self.model.step(x, dt)
             x = f @ x
             x[4] = wrap_angle(x[4])
-            if p is not None:
-                p = f @ p @ f.T + q
+            p = f @ p @ f.T + q
             if wall is not None:
                 impacts.append(((k + 1) * dt, wall, float(x[0]), float(x[1]), False))
         return x, p, impacts
@@ -287,5 +286,5 @@ class ReferenceFilter:
     def predict_from(self, model: ReferenceModel, x: np.ndarray, p: np.ndarray | None, horizon: float) -> Prediction:
         """Prediction ``horizon`` [s] ahead of a recorded state (``model`` is the one it was recorded with:
         the reference's never changes)."""
-        state, covariance, impacts = self._propagate(np.asarray(x, float).copy(), p, horizon)
+        state, covariance, impacts = self._propagate(np.asarray(x, float), p, horizon)  # x itself is not changed
         return Prediction(state, covariance, impacts)
