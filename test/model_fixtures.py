@@ -30,12 +30,12 @@ def session_on_testbed(ekf, shots: int, seed: int, testbed: dict | None = None, 
     """A session on the test bed with config/synthetic.yaml's shots, effects and mocap (``testbed``: its
     ``testbed.*`` effects, ``mocap``: fields of MocapImperfections, set otherwise), as synth-bag --source
     testbed writes it."""
-    from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
+    from air_hockey_agent.core.puck.real_table import HandCarry, TableEffects, testbed_shots
 
     def shots_of(cfg, rng):
         cfg = {**cfg, **{f"testbed.{name}": value for name, value in (testbed or {}).items()}}
         return testbed_shots(TableEffects.from_params(cfg), ekf.model.table, cfg["testbed.hit_delay"], cfg["fine_dt"],
-                             rng)
+                             rng, HandCarry.from_params(cfg), np.random.default_rng([seed, 2]))
     return _session(ekf, shots, seed, shots_of, mocap)
 
 

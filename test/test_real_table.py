@@ -188,3 +188,51 @@ def test_a_post_returns_a_puck_along_the_line_from_it_and_a_clear_puck_scores():
     for states in (head_on, steep, grazing):
         energy = states[:, 2] ** 2 + states[:, 3] ** 2 + 0.5 * RADIUS ** 2 * states[:, 5] ** 2  # disc: I = m r^2/2
         assert np.all(np.diff(energy) <= 1e-12)
+
+
+def test_a_hand_carries_the_puck_on_a_minimum_jerk_path_and_holds_it_still():
+    """A carry (HandCarry.draw's tuple) takes the puck where it is, stops it, slides it to the target along
+    the minimum-jerk path, then holds it: positions and velocities against the closed form (peak speed
+    1.875 D / T halfway) and against the positions' finite differences; before the carry the shot is the
+    one without it; the angle turns the short way."""
+    from air_hockey_agent.core.puck.real_table import HandCarry, minimum_jerk
+    start = np.array([0.2, -0.1, 0.0, 0.0, 3.0, 0.0])
+    velocity = np.array([-1.0, 0.4])
+    target = np.array([-0.5, 0.3, -3.0])
+    dt, carry_at, carry_time = 1e-3, 1.2, 1.5
+
+    def run(carry):
+        return RealTablePuck(TABLE, TableEffects(damping=0.1), np.random.default_rng(2)).simulate(
+            start, 3.5, dt, 0.3, velocity, carry)
+    times, free = run(None)
+    _, carried = run((carry_at, carry_time, target))
+    grab = int(round(carry_at / dt)) - 1
+    assert np.array_equal(carried[:grab + 1], free[:grab + 1])
+    end = grab + int(round(carry_time / dt))
+    assert carried[end, :2] == pytest.approx(target[:2], abs=1e-12)
+    assert np.all(carried[end:, 2:4] == pytest.approx(0.0, abs=1e-12))
+    assert np.allclose(carried[end:, :2], target[:2], rtol=0.0, atol=1e-12)
+    assert abs(math.remainder(carried[end, 4] - target[2], 2 * math.pi)) < 1e-9
+    turned = float(np.sum(carried[grab + 1:end + 1, 5]) * dt)  # the short way: 3.0 -> -3.0 across pi is 0.28 rad
+    assert turned == pytest.approx(2 * math.pi - 6.0, abs=1e-3)
+    middle = grab + int(round(carry_time / 2 / dt))
+    distance = math.dist(carried[grab, :2], target[:2])
+    assert math.hypot(*carried[middle, 2:4]) == pytest.approx(1.875 * distance / carry_time, rel=1e-6)
+    finite = np.diff(carried[grab + 1:end + 1, :2], axis=0) / dt
+    mean_velocity = 0.5 * (carried[grab + 1:end, 2:4] + carried[grab + 2:end + 1, 2:4])
+    assert np.max(np.abs(finite - mean_velocity)) < 1e-5
+    pose, rate = minimum_jerk(np.zeros(1), np.ones(1), 0.0, 2.0)
+    assert pose[0] == 0.0 and rate[0] == 0.0
+    assert not HandCarry().enabled and HandCarry((1.0, 2.0), 0.5).enabled
+
+
+def test_a_carry_is_drawn_within_the_shot_and_the_table():
+    """HandCarry.draw: the carry ends hold seconds before the shot does, its target lies margin inside the
+    rims; a carry longer than the shot starts at its beginning."""
+    from air_hockey_agent.core.puck.real_table import HandCarry
+    carry, rng = HandCarry((1.0, 2.0), 0.5), np.random.default_rng(4)
+    for _ in range(200):
+        start, time, target = carry.draw(TABLE, 7.0, rng)
+        assert 1.0 <= time <= 2.0 and start + time + 0.5 == pytest.approx(7.0)
+        assert abs(target[0]) <= TABLE.x_limit - 0.1 and abs(target[1]) <= TABLE.y_limit - 0.1
+    assert HandCarry((5.0, 5.0), 0.5).draw(TABLE, 3.0, rng)[0] == 0.0

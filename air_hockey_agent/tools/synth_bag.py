@@ -36,7 +36,7 @@ from air_hockey_agent.bags.build import build, pose_fields, puck_state_fields
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.frames import table_to_mocap
-from air_hockey_agent.core.puck.real_table import TableEffects, testbed_shots
+from air_hockey_agent.core.puck.real_table import HandCarry, TableEffects, testbed_shots
 from air_hockey_agent.core.estimation.synthetic import (MOCAP_BOUNDS, MOCAP_FIELDS, MocapImperfections, ShotRanges,
                                                         synthetic_session)
 from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
@@ -74,6 +74,10 @@ SESSION_PARAMS = (
     ParamSpec("testbed.tangential_scale", float, "[-] tangential impulse as a fraction of Coulomb's", 0.0, 1.0),
     ParamSpec("testbed.hit_delay", list, "[s] range of the rest before the human hit", 0.0, 600.0, 2),
     ParamSpec("testbed.hit_duration", float, "[s] how long the human hit pushes the puck (0: an impulse)", 0.0, 1.0),
+    ParamSpec("testbed.carry_time", list, "[s] range of a hand's carry of the puck at a shot's end (0 0: none)",
+              0.0, 600.0, 2),
+    ParamSpec("testbed.carry_hold", float, "[s] how long the hand holds the carried puck still before the shot "
+              "ends", 0.0, 600.0),
     ParamSpec("mujoco.timestep", float, "[s] MuJoCo table's integration step", 1e-5, 0.01),
     ParamSpec("mujoco.puck_mass", float, "[kg] MuJoCo table's puck mass", 1e-4, 10.0),
     ParamSpec("mujoco.damping", float, "[1/s] MuJoCo table's viscous damping", 0.0, 10.0),
@@ -159,7 +163,8 @@ def _truth_source(source: str, params_files, session, table, seed: int, mujoco_p
         return
     if source == "testbed":
         yield testbed_shots(TableEffects.from_params(session), table, session["testbed.hit_delay"],
-                            session["fine_dt"], np.random.default_rng([seed, 1]))
+                            session["fine_dt"], np.random.default_rng([seed, 1]), HandCarry.from_params(session),
+                            np.random.default_rng([seed, 2]))
         return
     if source == "mujoco":  # imported here: only this source needs the engine
         from air_hockey_agent.sim.mujoco_table import mujoco_shots

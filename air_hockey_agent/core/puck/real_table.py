@@ -23,7 +23,11 @@ more), while the tangential impulse is the Routh/Coulomb one (thesis eq. 3.2-3.3
 ``tangential_scale``: below one it is softer than Coulomb's. With constant restitution and scale one
 the impact is the thesis's Routh impact (tested against :func:`.impact.rim_impact`).
 
-A *human hit* sets the velocity of a puck at rest: :func:`hit_from_rest` draws one.
+A *human hit* sets the velocity of a puck at rest: :func:`hit_from_rest` draws one. At the end of a
+shot a human may *carry* the puck to where the next shot starts (:class:`HandCarry`: thesis sec. 4.5.1
+cuts "the adjustment of the puck in the end for the next trajectory" out of the lab's recordings, so the
+recordings hold it): the hand takes the puck wherever it is, stopping it, and slides it along a
+minimum-jerk path (Flash and Hogan 1985) to a new place and angle, where it holds it still.
 """
 from __future__ import annotations
 
@@ -81,6 +85,53 @@ def real_rim_impact(vb: float, vn: float, omega: float, radius: float,
     coulomb = effects.friction_rim * (1.0 + e) * abs(vn)  # |P_b| / m when sliding
     impulse = -math.copysign(min(abs(slip) / 3.0, coulomb), slip) * effects.tangential_scale
     return vb + impulse, -e * vn, omega + 2.0 * impulse / radius
+
+
+@dataclass(frozen=True)
+class HandCarry:
+    """A human carrying the puck at the end of a shot (``testbed.carry_time`` and ``testbed.carry_hold``
+    in ``config/synthetic.yaml``): the carry takes a time drawn from ``time`` [s] (both 0: no carry) and
+    ends ``hold`` [s] before the shot's recording does; the new place is anywhere ``margin`` [m] inside
+    the rims, the new angle anywhere."""
+
+    time: tuple[float, float] = (0.0, 0.0)
+    hold: float = 0.0
+    margin: float = 0.1
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], prefix: str = "testbed.") -> "HandCarry":
+        """From ``<prefix>carry_time`` and ``<prefix>carry_hold`` (e.g. ``testbed.carry_time``)."""
+        low, high = params[prefix + "carry_time"]
+        return cls((float(low), float(high)), float(params[prefix + "carry_hold"]))
+
+    @property
+    def enabled(self) -> bool:
+        return self.time[1] > 0.0
+
+    def draw(self, table: TableGeometry, duration: float, rng: np.random.Generator) -> tuple[float, float, np.ndarray]:
+        """(start [s] within a shot of ``duration`` [s], carry time [s], target pose (x, y, theta))."""
+        carry = float(rng.uniform(*self.time))
+        x = rng.uniform(-table.x_limit + self.margin, table.x_limit - self.margin)
+        y = rng.uniform(-table.y_limit + self.margin, table.y_limit - self.margin)
+        return max(0.0, duration - self.hold - carry), carry, np.array([x, y, rng.uniform(-math.pi, math.pi)])
+
+
+def minimum_jerk(start: np.ndarray, end: np.ndarray, share: float, duration: float) -> tuple[np.ndarray, np.ndarray]:
+    """Pose and its rate on the minimum-jerk path from ``start`` to ``end`` (same units, e.g. (x, y, theta)
+    [m, m, rad]) at ``share`` (0..1) of ``duration`` [s]: p = a + (b - a)(10 s^3 - 15 s^4 + 6 s^5)."""
+    s = min(1.0, max(0.0, share))
+    delta = np.asarray(end, float) - np.asarray(start, float)
+    return start + delta * (10 * s ** 3 - 15 * s ** 4 + 6 * s ** 5), \
+        delta * (30 * s ** 2 - 60 * s ** 3 + 30 * s ** 4) / duration
+
+
+def carried_state(grabbed: np.ndarray, target: np.ndarray, elapsed: float, duration: float) -> np.ndarray:
+    """State (x, y, vx, vy, theta, omega) ``elapsed`` [s] into a hand's carry of ``duration`` [s] from the
+    state ``grabbed`` to the pose ``target`` (x, y, theta); the angle turns the short way."""
+    start = np.array([grabbed[0], grabbed[1], grabbed[4]])
+    end = np.array([target[0], target[1], grabbed[4] + wrap_angle(target[2] - grabbed[4])])
+    pose, rate = minimum_jerk(start, end, elapsed / duration, duration)
+    return np.array([pose[0], pose[1], rate[0], rate[1], wrap_angle(pose[2]), rate[2]])
 
 
 class RealTablePuck:
@@ -179,19 +230,25 @@ class RealTablePuck:
         s[2], s[3] = bx * vb + nx * vn, by * vb + ny * vn
 
     def simulate(self, state: np.ndarray, duration: float, dt: float,
-                 hit_at: float | None = None, hit_velocity: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+                 hit_at: float | None = None, hit_velocity: np.ndarray | None = None,
+                 carry: tuple[float, float, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
         """True states every ``dt`` [s] for ``duration`` [s] from ``state``; with ``hit_at`` [s], the puck's
         velocity becomes ``hit_velocity`` [m/s] then (a human hit; the puck is held still before), growing
-        evenly over ``effects.hit_duration`` [s] (a mallet's push; 0: at once). Returns times (n,), states
-        (n, 6)."""
+        evenly over ``effects.hit_duration`` [s] (a mallet's push; 0: at once); with ``carry`` (start [s],
+        carry time [s], target pose, :meth:`HandCarry.draw`) a hand takes the puck at the start and carries
+        it (:func:`carried_state`), then holds it still. Returns times (n,), states (n, 6)."""
         n = int(round(duration / dt)) + 1
         states = np.empty((n, 6))
         states[0] = state
         hit_step = 0 if hit_at is None else int(round(hit_at / dt))
         push = max(1, int(round(self.effects.hit_duration / dt)))  # steps of the push
+        carry_step = n if carry is None else max(hit_step + 1, int(round(carry[0] / dt)))
         for i in range(1, n):
             if i < hit_step:  # held by the hand until the hit
                 states[i] = states[i - 1]
+                continue
+            if i >= carry_step:  # in the hand again
+                states[i] = carried_state(states[carry_step - 1], carry[2], (i - carry_step + 1) * dt, carry[1])
                 continue
             if hit_at is not None and i - hit_step < push:
                 states[i - 1, 2:4] = hit_velocity * (i - hit_step + 1) / push
@@ -225,13 +282,16 @@ def held_then_hit(state: np.ndarray, table: TableGeometry, hit_delay: tuple[floa
 
 
 def testbed_shots(effects: TableEffects, table: TableGeometry, hit_delay: tuple[float, float], fine_dt: float,
-                  rng: np.random.Generator):
+                  rng: np.random.Generator, carry: HandCarry = HandCarry(), carry_rng: np.random.Generator | None = None):
     """Shots on the test bed's table (``simulate(state, duration) -> (times, states)`` for
     :func:`~air_hockey_agent.core.estimation.synthetic.synthetic_session`): each a human hit
-    (:func:`held_then_hit`); ``fine_dt`` [s] is the integration step."""
+    (:func:`held_then_hit`), ended by a hand's ``carry`` where it is enabled (drawn from ``carry_rng``, its
+    own stream, so that the shots are the same with and without it); ``fine_dt`` [s] is the integration
+    step."""
 
     def simulate(state: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
         puck = RealTablePuck(table, effects, rng)
         rest, delay, velocity = held_then_hit(state, table, hit_delay, rng)
-        return puck.simulate(rest, duration, fine_dt, delay, velocity)
+        drawn = carry.draw(table, duration, carry_rng) if carry.enabled else None
+        return puck.simulate(rest, duration, fine_dt, delay, velocity, drawn)
     return simulate
