@@ -32,7 +32,7 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "off_table_poses", "rejected_fraction",
                            "reinit_per_s", "nis", "nis_by_regime", "by_path", "rim_law", "table_acceleration",
                            "spin_damping", "impact_delay", "marker_offset", "marker_noise", "process_noise",
-                           "thesis_style"}
+                           "thesis_style", "hand"}
     law = report["rim_law"]  # the bags' shots are flown with the configured physics: learning it keeps it
     assert set(law) == {"impacts", "restitution_scale", "fall_scale", "knee", "fall_width", "tangential_scale",
                         "stick_fraction", "friction_rim", "tangential_form", "params"}

@@ -5,6 +5,13 @@ from __future__ import annotations
 from air_hockey_agent.core.estimation.table_learning import describe_learning
 
 
+def _hand_line(summary: dict) -> str:
+    """How often the filter's hand regime held (a hand or mallet moving the puck: tracker.yaml's hand.*)."""
+    hand, frames = summary["hand"], summary["frames"]
+    share = f" ({hand['frames'] / frames * 100:.1f} % of the frames)" if frames else ""
+    return f"hand regime (a hand or mallet moving the puck): {hand['regimes']} times, {hand['frames']} frames{share}"
+
+
 def format_table(summary: dict) -> str:
     """Human-readable report (thesis table 5.3 layout: error per horizon in millimetres)."""
     nis, rejected, reinit = summary["nis"], summary["rejected_fraction"], summary["reinit_per_s"]
@@ -14,6 +21,7 @@ def format_table(summary: dict) -> str:
              + ("-" if reinit is None else f"{reinit:.2f}") + " re-initialisations per second, NIS median "
              + ("-" if nis["median"] is None else f"{nis['median']:.2f}") + " mean "
              + ("-" if nis["mean"] is None else f"{nis['mean']:.2f}") + " (consistent: 2.37, 3)",
+             _hand_line(summary),
              "NIS median by regime: " + ", ".join(
                  f"{r} " + ("-" if v["median"] is None else f"{v['median']:.2f}") + f" (n {v['n']})"
                  for r, v in summary["nis_by_regime"].items()),

@@ -59,6 +59,45 @@ SINGLE_STEP_LIMIT = 1.5  # frames up to 1.5 model steps long are predicted as on
 ACQUISITION_FRAMES = 3
 
 
+@dataclass(frozen=True)
+class HandSettings:
+    """A hand (or a mallet) moving the puck: ``hand.*`` in config/tracker.yaml (sources there).
+
+    The second restart from rejected frames within ``window`` [s] of the one before starts the *hand
+    regime*: the model's flight law no longer holds, so the process noise gains a white-noise acceleration
+    of ``acceleration`` [m/s^2] and ``spin_acceleration`` [rad/s^2] (per model step as a std; continuous
+    density ``a^2 dt``) and the frames are fused rather than rejected, and nothing is learned from them.
+    It ends when the velocity the updates added over ``calm_time`` [s] (the acceleration the model did
+    not predict) has stayed below ``calm_acceleration`` [m/s^2] for ``calm_time``: the hand let go or holds
+    it still (one calm window is not enough: a hand's acceleration passes zero halfway through a carry).
+    ``acceleration`` 0 turns it off."""
+
+    acceleration: float = 0.0
+    spin_acceleration: float = 0.0
+    window: float = 0.5
+    calm_time: float = 0.2
+    calm_acceleration: float = 1.0
+
+    @classmethod
+    def from_params(cls, params: Mapping[str, Any], prefix: str = "hand.") -> "HandSettings":
+        return cls(**{name: float(params[prefix + name]) for name in cls.__dataclass_fields__})
+
+    @property
+    def enabled(self) -> bool:
+        return self.acceleration > 0.0
+
+    def noise(self, dt: float, nominal_dt: float) -> np.ndarray:
+        """Process noise [6x6] of the hand over ``dt`` [s]: continuous white-noise acceleration of density
+        a^2 ``nominal_dt`` on (x, vx), (y, vy) and (theta, omega)."""
+        q = np.zeros((6, 6))
+        for pos, vel, std in ((0, 2, self.acceleration), (1, 3, self.acceleration), (4, 5, self.spin_acceleration)):
+            density = std * std * nominal_dt
+            q[pos, pos] = density * dt ** 3 / 3.0
+            q[pos, vel] = q[vel, pos] = density * dt * dt / 2.0
+            q[vel, vel] = density * dt
+        return q
+
+
 @dataclass
 class FilterSettings:
     """Noise and robustness settings; defaults and sources in ``config/tracker.yaml``."""
@@ -89,6 +128,7 @@ class FilterSettings:
     imm_contact_speed: float = 2.0        # [m/s] std of the contact mode's velocity change in one frame
     imm_contact_spin: float = 10.0        # [rad/s] ... and of its spin change
     marker_offset: tuple[float, float] = (0.0, 0.0)  # [m] mocap pivot off the centre, puck frame (.marker_offset)
+    hand: HandSettings = field(default_factory=lambda: HandSettings())  # a hand moving the puck (:class:`HandSettings`)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "FilterSettings":
@@ -107,7 +147,8 @@ class FilterSettings:
                    imm_rim_impact_noise=params["imm.rim_impact_noise"], imm_contact_speed=params["imm.contact_speed"],
                    imm_contact_spin=params["imm.contact_spin"], q_rest=np.diag(params["process_noise_rest"]),
                    rest_speed=params["regime_rest_speed"],
-                   marker_offset=(float(params["marker_offset"][0]), float(params["marker_offset"][1])))
+                   marker_offset=(float(params["marker_offset"][0]), float(params["marker_offset"][1])),
+                   hand=HandSettings.from_params(params))
 
     def process_noise(self, state: Sequence[float]) -> np.ndarray:
         """Q per model step for a step from ``state``: ``q_rest`` for a puck slower than ``rest_speed``
@@ -136,6 +177,8 @@ class FilterStats:
     off_table: int = 0           # poses beyond the table by more than outside_table_margin (not the puck on it)
     reinitialisations: int = 0
     repeated_frames: int = 0
+    hand_frames: int = 0         # frames handled in the hand regime (HandSettings)
+    hand_regimes: int = 0        # times the hand regime started
 
 
 @dataclass
@@ -180,6 +223,11 @@ class PuckEKF:
     noise_learning: MarkerNoiseAdaptation | None = None  # the mocap's noise learned online (None: R as set)
     process_noise_learning: ProcessNoiseAdaptation | None = None  # Q by regime learned online (None: as set)
     _frames_since_impact: int = 1 << 30                # gated frames since the model last put a rim impact
+    _last_event: float | None = None                   # [s] time of the last restart from rejected frames
+    in_hand: bool = False                              # the hand regime (HandSettings) holds
+    _hand_since: float = 0.0                           # [s] when it started
+    _calm_since: float | None = None                   # [s] since when its updates have been calm
+    _hand_corrections: list = field(default_factory=list)  # (t, dvx, dvy) of its updates within calm_time
 
     def __post_init__(self) -> None:
         """Nothing here; a subclass with state of its own sets it up (the generated ``__init__`` calls this)."""
@@ -230,6 +278,8 @@ class PuckEKF:
         self._pending.clear()
         self._failed_acquisitions = 0
         self._last_z = None
+        self._last_event, self.in_hand = None, False
+        self._hand_corrections.clear()
         if self.learning is not None:
             self.learning.forget()
         if state is None:
@@ -276,7 +326,7 @@ class PuckEKF:
         if dt <= 0.0:
             return
         if dt <= SINGLE_STEP_LIMIT * self.settings.dt:
-            q = self.settings.process_noise(self.x) * (dt / self.settings.dt)  # the regime the step starts in
+            q = self._step_noise(self.x, dt)
             res = self.model.step(self.x, dt)
             self.x = res.state
             p = res.jacobian @ self.P @ res.jacobian.T + q
@@ -286,8 +336,16 @@ class PuckEKF:
                                 impact_noise=self.settings.impact_noise,
                                 impact_contact_time=self.settings.impact_contact_time)
             self.x, self.P = pred.state, pred.covariance
+            if self.in_hand:
+                self.P = self.P + self.settings.hand.noise(dt, self.settings.dt)
             self._impacts_met(pred.impacts)
         self.stamp = t
+
+    def _step_noise(self, state: np.ndarray, dt: float) -> np.ndarray:
+        """Q of a step of ``dt`` [s] from ``state``: the regime the step starts in (``process_noise``),
+        plus the hand's in the hand regime (:class:`HandSettings`)."""
+        q = self.settings.process_noise(state) * (dt / self.settings.dt)
+        return q + self.settings.hand.noise(dt, self.settings.dt) if self.in_hand else q
 
     def _with_impact_noise(self, p: np.ndarray, x: np.ndarray, impacts: list) -> np.ndarray:
         """``p`` with the impact noise of a step that met ``impacts`` (:func:`with_impact_noise`), counted
@@ -405,6 +463,8 @@ class PuckEKF:
             self.reset()
             return flags | self._collect_for_initialisation(t, z)
         self.predict_to(t)
+        if self.in_hand:
+            self.stats.hand_frames += 1
         if z is None or self._is_frozen(z):
             self.stats.lost_frames += 1
             return flags | FLAG_PREDICTED
@@ -426,22 +486,59 @@ class PuckEKF:
         (sxx, sxy, _), (_, syy, _), (_, _, saa) = s.tolist()
         yx, yy, ya = y.tolist()
         position_d2 = (syy * yx * yx - 2.0 * sxy * yx * yy + sxx * yy * yy) / (sxx * syy - sxy * sxy)
-        if self.process_noise_learning is not None:
+        if self.process_noise_learning is not None and not self.in_hand:
             self._learn_process_noise(position_d2)
         if position_d2 <= self.settings.gate_threshold:
             self._pending.clear()
+            velocity = (self.x[2], self.x[3])
             if ya * ya <= self.settings.angle_gate_threshold * saa:
                 self._angle_rejections = 0
                 self._apply_update(y, s_inv)
             else:
                 self._update_position_only(y[:2], s[:2, :2], z[2])
+            if self.in_hand:
+                self._watch_hand(t, self.x[2] - velocity[0], self.x[3] - velocity[1])
             return FLAG_MEASUREMENT_USED
         self.stats.outliers_rejected += 1
         self._pending.append(_Measurement(t, z))
         if len(self._pending) >= self.settings.max_consecutive_rejections:
+            previous, in_hand = self._last_event, self.in_hand
             self._initialise_from_pending()
+            self._after_event(t, previous, in_hand)
             return FLAG_OUTLIER_REJECTED | FLAG_REINITIALISED | FLAG_MEASUREMENT_USED
         return FLAG_OUTLIER_REJECTED | FLAG_PREDICTED
+
+    def _after_event(self, t: float, previous: float | None, in_hand: bool) -> None:
+        """A restart from rejected frames at ``t`` [s] (``previous``: the one before, if any): the second
+        within ``hand.window`` starts the hand regime (:class:`HandSettings`); one under way goes on."""
+        hand = self.settings.hand
+        self._last_event, self.in_hand = t, in_hand
+        if in_hand or not hand.enabled or previous is None or t - previous > hand.window:
+            return
+        self.in_hand, self._hand_since, self._calm_since = True, t, None
+        self._hand_corrections.clear()
+        self.stats.hand_regimes += 1
+
+    def _watch_hand(self, t: float, dvx: float, dvy: float) -> None:
+        """An update in the hand regime changed the velocity by (dvx, dvy) [m/s]: the regime ends once the
+        updates of the last ``calm_time`` added less than ``calm_acceleration`` (the model explains the
+        motion again)."""
+        hand = self.settings.hand
+        corrections = self._hand_corrections
+        corrections.append((t, dvx, dvy))
+        while corrections[0][0] <= t - hand.calm_time:
+            corrections.pop(0)
+        if t - self._hand_since < hand.calm_time:
+            return
+        ax = sum(c[1] for c in corrections) / hand.calm_time
+        ay = sum(c[2] for c in corrections) / hand.calm_time
+        if math.hypot(ax, ay) >= hand.calm_acceleration:
+            self._calm_since = None
+        elif self._calm_since is None:
+            self._calm_since = t
+        elif t - self._calm_since >= hand.calm_time:
+            self.in_hand = False
+            corrections.clear()
 
     def _learn_process_noise(self, position_d2: float) -> None:
         """Give a gated frame's position distance to the process noise learning

@@ -92,6 +92,8 @@ class EvaluationTotals:
     outliers_rejected: int = 0  # poses on the table the filter's gate rejected
     off_table: int = 0          # poses beyond the table's margin, dropped before the gate (not counted as rejected)
     reinitialisations: int = 0  # beyond the first of each recording
+    hand_regimes: int = 0       # times the filter's hand regime started (a hand or mallet moving the puck)
+    hand_frames: int = 0        # frames it handled in that regime
     seconds: float = 0.0        # [s] recorded time, first to last stamp of each recording
     recordings: int = 0
 
@@ -114,7 +116,7 @@ class EvaluationTotals:
         self.nis += other.nis
         self.nis_regimes += other.nis_regimes
         for name in ("frames", "poses", "lost_frames", "outliers_rejected", "off_table", "reinitialisations",
-                     "seconds", "recordings"):
+                     "hand_regimes", "hand_frames", "seconds", "recordings"):
             setattr(self, name, getattr(self, name) + getattr(other, name))
 
     def summary(self) -> dict:
@@ -132,7 +134,8 @@ class EvaluationTotals:
                    "rejected_fraction": (self.outliers_rejected / (self.poses - self.off_table)
                                          if self.poses > self.off_table else None),
                    "reinit_per_s": self.reinitialisations / self.seconds if self.seconds > 0 else None,
-                   "nis": {k: v for k, v in _nis_stats(nis).items() if k != "n"}}  # issue #13's keys
+                   "nis": {k: v for k, v in _nis_stats(nis).items() if k != "n"},  # issue #13's keys
+                   "hand": {"regimes": self.hand_regimes, "frames": self.hand_frames}}
         if self.rest_speed is not None:
             regimes = np.asarray(self.nis_regimes)
             summary["nis_by_regime"] = {r: _nis_stats(nis[regimes == r]) for r in REGIMES}
@@ -270,6 +273,8 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
     totals.outliers_rejected += ekf.stats.outliers_rejected
     totals.off_table += ekf.stats.off_table
     totals.reinitialisations += max(0, ekf.stats.reinitialisations - 1)
+    totals.hand_regimes += ekf.stats.hand_regimes
+    totals.hand_frames += ekf.stats.hand_frames
     totals.seconds += (max(stamps) - min(stamps)) if stamps else 0.0
     totals.recordings += 1
 

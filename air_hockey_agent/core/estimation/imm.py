@@ -113,7 +113,7 @@ class PuckIMM(PuckEKF):
             return
         prior, xs, ps = self._mixed()
         for j in range(len(MODES)):
-            q = self.settings.process_noise(xs[j]) * (dt / self.settings.dt)
+            q = self._step_noise(xs[j], dt)
             res = self.model.step(xs[j], dt)
             self._xs[j] = res.state
             self._ps[j] = res.jacobian @ ps[j] @ res.jacobian.T + q + self._mode_noise(j, res, dt)

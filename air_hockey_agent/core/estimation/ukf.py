@@ -55,7 +55,7 @@ class PuckUKF(PuckEKF):
         x = centre + mean_offset
         x[ANGLE] = wrap_angle(x[ANGLE])
         spread = deviations - mean_offset
-        p = (spread.T * wc) @ spread + self.settings.process_noise(points[0]) * (dt / self.settings.dt)
+        p = (spread.T * wc) @ spread + self._step_noise(points[0], dt)
         self.x = x
         self.P = self._with_impact_noise(0.5 * (p + p.T), x, stepped[0].impacts)
         self.stamp = t
