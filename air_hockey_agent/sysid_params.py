@@ -55,6 +55,9 @@ SYSID_PARAMS = (
     ParamSpec("max_gap", float, "[s] time without frames that ends a trajectory", 0.01, 60.0),
     ParamSpec("rest_speed", float, "[m/s] speed below which the puck is at rest", 0.0, 10.0),
     ParamSpec("rest_window", float, "[s] window of the rest test", 0.001, 10.0),
+    ParamSpec("push_window", float, "[s] chord of the speed a hand's push or grab is told by", 0.001, 10.0),
+    ParamSpec("push_speed_gain", float, "[m/s] speed gained between two chords that no table gives", 0.0, 100.0),
+    ParamSpec("push_rim_margin", float, "[m] chords this near a rim line are not judged", 0.0, 1.0),
     ParamSpec("min_duration", float, "[s] shortest trajectory kept", 0.0, 600.0),
 )
 

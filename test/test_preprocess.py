@@ -84,3 +84,60 @@ def test_a_marker_glitch_in_the_rest_does_not_start_the_trajectory():
     stamps = list(np.arange(300) * DT)
     (cut,) = preprocess(stamps, list(z), DT, prep, glitch_speed=10.0).trajectories
     assert round(cut.t0 / DT) in (60, 61)
+
+
+PUSH_PREP = {"frozen_threshold": 1e-6, "max_gap": 0.5, "rest_speed": 0.05, "rest_window": 0.1, "min_duration": 1.0,
+             "push_window": 0.2, "push_speed_gain": 0.1, "push_rim_margin": 0.05}
+
+
+def _shot_with_carry(carry, seed: int, second_hit: bool = False):
+    """A test-bed puck (core/puck/real_table.py, the filter's model not involved) resting, hit at 0.5 s across
+    the table's middle, then ``carry`` (start, time, target) by a hand and held; with ``second_hit`` hit
+    again from where it was put, 1 s after the carry. Poses at 120 Hz with 0.2 mm noise."""
+    from air_hockey_agent.core.puck.real_table import RealTablePuck, TableEffects
+    from air_hockey_agent.core.table import TableGeometry
+    table = TableGeometry(1.956, 1.042, 0.25, 0.03165)
+    effects = TableEffects(damping=0.1, friction_surface=0.02, restitution_slow=0.9, restitution_fast=0.9)
+    puck = RealTablePuck(table, effects, np.random.default_rng(seed))
+    _, states = puck.simulate(np.array([-0.6, -0.2, 0.0, 0.0, 0.0, 0.0]), 7.0, 1e-3, 0.5, np.array([1.2, 0.5]), carry)
+    if second_hit:
+        _, more = puck.simulate(states[-1], 4.0, 1e-3, 0.5, np.array([-1.0, 0.3]))
+        states = np.concatenate([states, more[1:]])
+    rng = np.random.default_rng(seed + 100)
+    rows = states[::8][:, [0, 1, 4]] + rng.normal(0.0, 2e-4, (len(states[::8]), 3))
+    return table, list(np.arange(len(rows)) * 8e-3 + 1000.0), list(rows)
+
+
+def test_a_hands_carry_ends_the_trajectory_and_what_follows_the_rest_starts_a_new_one():
+    """The hand takes the puck at 4.0 s and carries it 0.7 m in 1.5 s: the trajectory ends at most 0.45 s
+    before the grab (two windows) and not after it; the carry is dropped; a second hit after the puck rested
+    again starts a second trajectory. Without the table's limits nothing is cut (the thesis's preprocessing)."""
+    from air_hockey_agent.core.identification.preprocess import push_limits
+    carry = (4.0, 1.5, np.array([0.3, 0.1, 1.0]))
+    table, stamps, z = _shot_with_carry(carry, 3, second_hit=True)
+    limits = push_limits(table, 0.05)
+    done = preprocess(stamps, z, 8e-3, PUSH_PREP, 10.0, limits)
+    first, second = done.trajectories
+    end = first.t0 + first.duration - 1000.0
+    assert 4.0 - 0.45 <= end <= 4.0 and done.pushes >= 1  # the grab, and the carry's own speed-up
+    assert 7.0 + 0.5 <= second.t0 - 1000.0 <= 7.0 + 0.7  # the second hit, not the carry
+    (whole,) = preprocess(stamps, z, 8e-3, PUSH_PREP, 10.0).trajectories
+    assert whole.t0 + whole.duration - 1000.0 > 6.0  # the carry and the second shot kept as one
+
+
+def test_no_push_is_found_in_shots_without_a_hand_bounces_lost_frames_and_glitches_included():
+    """Test-bed sessions with every mocap imperfection (lost frames and dropouts, glitches, five times noisier
+    frames) and MuJoCo's soft rims: cutting at pushes changes no trajectory."""
+    from air_hockey_agent.core.estimation.ekf import PuckEKF
+    from air_hockey_agent.core.identification.preprocess import push_limits
+    from air_hockey_agent.tracker_params import load_tracker_params
+    from model_fixtures import session_on_mujoco, session_on_testbed
+    ekf = PuckEKF.from_params(load_tracker_params())
+    limits = push_limits(ekf.model.table, 0.05)
+    for frames in (session_on_testbed(ekf, 8, 3, lost_rate=0.3, glitch_rate=0.005, heavy_tail_rate=0.03),
+                   session_on_mujoco(ekf, 4, 11)):
+        stamps, z = [f.stamp for f in frames], [f.measurement for f in frames]
+        cut = preprocess(stamps, z, DT, PUSH_PREP, 10.0, limits)
+        plain = preprocess(stamps, z, DT, PUSH_PREP, 10.0)
+        assert cut.pushes == 0 and len(cut.trajectories) == len(plain.trajectories) >= 3
+        assert all(np.array_equal(a.z, b.z, equal_nan=True) for a, b in zip(cut.trajectories, plain.trajectories))

@@ -10,7 +10,8 @@ import numpy as np
 from air_hockey_agent.bags.reader import PUCK_FRAME, ROS1_SUFFIX, BagError, read_frame_transform, read_poses
 from air_hockey_agent.core.frames import TABLE_FRAME, pose_to_measurement, yaw_from_quaternion
 from air_hockey_agent.core.estimation.ekf import PuckEKF
-from air_hockey_agent.core.identification.preprocess import preprocess
+from air_hockey_agent.core.identification.preprocess import preprocess, push_limits
+from air_hockey_agent.core.table import TableGeometry
 
 
 @dataclass
@@ -23,6 +24,7 @@ class LoadedTrajectories:
     warnings: list = field(default_factory=list)  # one-line notes on data repaired while loading
     at_rest: int = 0            # pieces dropped because the puck never moved in them
     too_short: int = 0          # pieces dropped because their motion was shorter than min_duration
+    pushes: int = 0             # trajectories ended where a hand or mallet took the puck (cut_pushes)
     table_poses: list = field(default_factory=list)  # per bag read: the table pose (x, y, z, yaw) its poses were
     #                                                   read through, None for poses in the table frame
 
@@ -68,6 +70,7 @@ def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, A
     bags, errors = find_bags(paths)
     result = LoadedTrajectories([], [], errors, 0)
     dt = 1.0 / tracker["frequency"]
+    limits = push_limits(TableGeometry.from_params(tracker), prep["push_rim_margin"])
     for bag in bags:
         try:
             records, measurements, off_table, table_pose = bag_measurements(bag, topic, frame, table_frame, tracker)
@@ -79,8 +82,9 @@ def load_trajectories(paths: Sequence[Path], topic: str, tracker: Mapping[str, A
         for note in (_stream_problems([r.stamp for r in records], measurements), off_table):
             if note:
                 result.warnings.append(f"{bag}: {note}")
-        done = preprocess([r.stamp for r in records], measurements, dt, prep, tracker["glitch_speed"])
+        done = preprocess([r.stamp for r in records], measurements, dt, prep, tracker["glitch_speed"], limits)
         result.frozen += done.frozen
+        result.pushes += done.pushes
         result.at_rest += done.at_rest
         result.too_short += done.too_short
         result.trajectories.extend(done.trajectories)

@@ -57,7 +57,7 @@ from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evalua
 from air_hockey_agent.core.estimation.reference_filter import ReferenceFilter
 from air_hockey_agent.core.estimation.table_learning import rims_off_text
 from air_hockey_agent.bags.trajectories import bag_measurements, find_bags
-from air_hockey_agent.core.identification.preprocess import preprocess
+from air_hockey_agent.core.identification.preprocess import preprocess, push_limits
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.reference_params import load_reference_params
 from air_hockey_agent.sysid_params import load_sysid_params
@@ -121,7 +121,8 @@ def run(args: argparse.Namespace) -> int:
         frames = [(r.stamp, m) for r, m in zip(records, measurements)]
         per_bag.append(_evaluate_bag(bag, frames, ekf, totals, reference, reference_totals))
         cut += preprocess([r.stamp for r in records], measurements, ekf.settings.dt, preprocessing,
-                          params["glitch_speed"]).trajectories  # as sysid cuts them, from the poses read once
+                          params["glitch_speed"], push_limits(ekf.model.table, preprocessing["push_rim_margin"])
+                          ).trajectories  # as sysid cuts them, from the poses read once
         if not args.json:
             print(f"{bag}: {len(frames)} frames", file=sys.stderr)
         else:

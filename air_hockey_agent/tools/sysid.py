@@ -168,7 +168,8 @@ def run(args: argparse.Namespace) -> int:
     train, validation = _train_and_validation(args, loaded, held_out)
     if not args.json:
         print(f"{len(loaded.trajectories)} trajectories from {loaded.bags} bag(s) ({loaded.frozen} frozen frames "
-              f"interpolated): {len(train)} for training, {len(validation)} for validation"
+              f"interpolated, {loaded.pushes} ended where a hand or mallet took the puck): {len(train)} for "
+              f"training, {len(validation)} for validation"
               + (f" (from the {held_out.bags} bag(s) of --validate)" if held_out is not None else ""), flush=True)
         if args.method == "hebo":
             print("starting HEBO (loading torch takes several seconds) ...", flush=True)

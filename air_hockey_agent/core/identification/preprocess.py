@@ -8,6 +8,9 @@
 * :func:`split_trajectories`: a long recording is cut where more than ``max_gap`` seconds have no frame.
 * :func:`cut_rest`: the start of a trajectory up to the human's hit and its end where the puck is at rest
   or moved slowly by hand are cut (speed below ``rest_speed`` over a window).
+* :func:`cut_pushes`: a trajectory ends where a hand (or a mallet) takes the puck: a speed change no table
+  gives away from its rims (``push_speed_gain`` gained, or half the speed lost, from one ``push_window`` to
+  the next); what follows is the hand's until the puck rests again, and a new trajectory may start after.
 
 A grid trajectory is a :class:`GridTrajectory`: start time, step and an (n, 3) array of
 (x, y, theta) with NaN rows for blanks.
@@ -125,6 +128,73 @@ def cut_rest(traj: GridTrajectory, rest_speed: float, window: float,
     return GridTrajectory(traj.t0 + first * traj.dt, traj.dt, z[first:last + 1].copy())
 
 
+def _chord_speeds(z: np.ndarray, steps: int, dt: float) -> np.ndarray:
+    """Speed [m/s] over each window of ``steps`` rows from row k (NaN where an end is blank)."""
+    speeds = np.full(len(z), np.nan)
+    if len(z) > steps:
+        speeds[:-steps] = np.hypot(*(z[steps:, :2] - z[:-steps, :2]).T) / (steps * dt)
+    return speeds
+
+
+def _first_push(z: np.ndarray, steps: int, dt: float, gain: float, limits: tuple[float, float]) -> int | None:
+    """Row of the first of half a window's worth of windows in a row after each of which the speed over the
+    next window has gained more than ``gain`` [m/s] or fallen below half (from at least twice ``gain``),
+    judged only where the puck cannot have met a rim within the two windows: every frame inside ``limits``
+    (|x|, |y| [m]) by more than it travels, at the faster of the two speeds, over the longest run of lost
+    frames there (a chord across a bounce is short); None without one."""
+    speeds = _chord_speeds(z, steps, dt)
+    room = np.minimum(limits[0] - np.abs(z[:, 0]), limits[1] - np.abs(z[:, 1]))
+    lost = np.isnan(room)
+    room[lost] = np.inf
+    gap = np.zeros(len(z), int)  # length of the run of lost frames each lost row is in
+    for k in np.flatnonzero(lost):
+        gap[k] = gap[k - 1] + 1 if k and lost[k - 1] else 1
+    for k in range(len(z) - 2, -1, -1):
+        if lost[k] and lost[k + 1]:
+            gap[k] = gap[k + 1]
+    run, first = 0, None
+    for k in range(len(z) - 2 * steps):
+        before, after = speeds[k], speeds[k + steps]
+        if np.isnan(before) or np.isnan(after):
+            continue
+        span = slice(k, k + 2 * steps + 1)
+        if room[span].min() < max(before, after) * (gap[span].max() + 1) * dt:
+            continue
+        if after - before > gain or (before > 2.0 * gain and after < 0.5 * before):
+            run, first = run + 1, k if run == 0 else first
+            if run >= max(1, steps // 2):  # a marker glitch at a chord's end changes a few windows, a hand many
+                return first
+        else:
+            run = 0
+    return None
+
+
+def cut_pushes(traj: GridTrajectory, window: float, gain: float, limits: tuple[float, float],
+               rest_speed: float, rest_window: float) -> tuple[list[GridTrajectory], int]:
+    """Cut a trajectory (from :func:`cut_rest`) where a hand or a mallet takes the puck (thesis sec. 4.5.1
+    cuts "the adjustment of the puck in the end for the next trajectory"): at the first window after
+    which the speed changes as no table makes it change between two ``window`` [s] chords away from the
+    rims (:func:`_first_push`: a table's tilt gains about 0.01 m/s in 0.2 s, a hand sliding a puck away
+    tenths of a m/s; a flight law loses a tenth of the speed there at the most, a hand's grab all of it).
+    The hand's motion after it is dropped until the puck rests (``rest_speed`` over ``rest_window``); what
+    moves after that is cut again (a new hit). Returns the pieces in order and the pushes found."""
+    steps = max(1, int(round(window / traj.dt)))
+    k = _first_push(traj.z, steps, traj.dt, gain, limits)
+    if k is None:
+        return [traj], 0
+    pieces = [GridTrajectory(traj.t0, traj.dt, traj.z[:k + 1].copy())] if k > 0 else []
+    rest_steps = max(1, int(round(rest_window / traj.dt)))
+    slow = np.flatnonzero(_chord_speeds(traj.z[k + steps:], rest_steps, traj.dt) < rest_speed)
+    if not slow.size:
+        return pieces, 1
+    start = k + steps + int(slow[0])
+    after = cut_rest(GridTrajectory(traj.t0 + start * traj.dt, traj.dt, traj.z[start:]), rest_speed, rest_window)
+    if after is None:
+        return pieces, 1
+    more, pushes = cut_pushes(after, window, gain, limits, rest_speed, rest_window)
+    return pieces + more, pushes + 1
+
+
 @dataclass
 class Preprocessed:
     """The trajectories of one recording, and what preprocessing did to get them."""
@@ -133,15 +203,18 @@ class Preprocessed:
     frozen: int = 0         # frozen frames interpolated
     at_rest: int = 0        # pieces dropped because the puck never moved in them
     too_short: int = 0      # pieces dropped because their motion was shorter than min_duration
+    pushes: int = 0         # trajectories ended by a hand or mallet taking the puck (cut_pushes)
 
 
 def preprocess(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt: float,
-               prep: Mapping[str, Any], glitch_speed: float | None = None) -> Preprocessed:
+               prep: Mapping[str, Any], glitch_speed: float | None = None,
+               limits: tuple[float, float] | None = None) -> Preprocessed:
     """Algorithm 2 and the cleaning after it on one recording (table-frame (x, y, theta) per stamp, None
-    for a lost frame): grid, interpolate frozen frames, split at gaps, cut rest, drop short pieces
-    (``prep``: the sysid parameters ``frozen_threshold``, ``max_gap``, ``rest_*``, ``min_duration``). With
-    ``glitch_speed`` [m/s] (the tracker's), marker glitches do not count as motion when the rest is cut;
-    they stay in the trajectory (the filter meets them as it would live)."""
+    for a lost frame): grid, interpolate frozen frames, split at gaps, cut rest, cut where a hand takes the
+    puck (with ``limits``: the |x|, |y| [m] of the table's centre clear of the rims, :func:`cut_pushes`),
+    drop short pieces (``prep``: the sysid parameters ``frozen_threshold``, ``max_gap``, ``rest_*``,
+    ``push_*``, ``min_duration``). With ``glitch_speed`` [m/s] (the tracker's), marker glitches do not count
+    as motion when the rest is cut."""
     grid = to_model_grid(stamps, z, dt)
     result = Preprocessed([], interpolate_frozen(grid, prep["frozen_threshold"]))
     for piece in split_trajectories(grid, prep["max_gap"]):
@@ -149,8 +222,18 @@ def preprocess(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt:
         traj = cut_rest(piece, prep["rest_speed"], prep["rest_window"], glitches)
         if traj is None:
             result.at_rest += 1
-        elif traj.duration < prep["min_duration"]:
-            result.too_short += 1
-        else:
-            result.trajectories.append(traj)
+            continue
+        cut, pushes = ([traj], 0) if limits is None else cut_pushes(
+            traj, prep["push_window"], prep["push_speed_gain"], limits, prep["rest_speed"], prep["rest_window"])
+        result.pushes += pushes
+        for part in cut:
+            if part.duration < prep["min_duration"]:
+                result.too_short += 1
+            else:
+                result.trajectories.append(part)
     return result
+
+
+def push_limits(table, margin: float) -> tuple[float, float]:
+    """|x|, |y| [m] of the puck centre ``margin`` clear of every rim line of ``table`` (a TableGeometry)."""
+    return table.x_limit - margin, table.y_limit - margin
