@@ -58,7 +58,13 @@ class PuckTrackerNode(AirHockeyNode):
                 self.get_logger().warn("/optitrack/puck: pose has a non-finite position or invalid quaternion; "
                                        "treated as a lost frame", throttle_duration_sec=1.0)
             t = to_seconds(msg.header.stamp)
+            in_hand = self.ekf.in_hand
             flags = self.ekf.process(t, z)
+            if self.ekf.in_hand and not in_hand:
+                self.get_logger().info("a hand or mallet moves the puck: followed with a hand's noise (hand.*)",
+                                       throttle_duration_sec=5.0)
+            elif in_hand and not self.ekf.in_hand:
+                self.get_logger().info("the puck moves freely again", throttle_duration_sec=5.0)
             self.log_learning()
             if self.ekf.learned != self.physics_learned:
                 self.publish_physics(t)
