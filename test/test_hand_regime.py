@@ -1,6 +1,7 @@
 """The filter's hand regime (core/estimation/ekf.py, HandSettings): a hand carrying the puck, as the test
 bed's HandCarry moves it (core/puck/real_table.py: a minimum-jerk path, written apart from the filter), is
-followed rather than rejected, and nothing is learned from it; a human hit alone does not start it."""
+followed rather than rejected, and the process noise learns nothing from it; a human hit alone does not
+start it."""
 import numpy as np
 import pytest
 

@@ -14,6 +14,9 @@
   does not know, or the track was lost), instead of drifting forever. A good position whose angle
   fails ``angle_gate_threshold`` (1 dof) is fused without it. Frames beyond the table by more than
   ``outside_table_margin`` are dropped before gating.
+* a hand (or a mallet) moving the puck: the second restart from rejected frames within ``hand.window``
+  starts the hand regime (:class:`HandSettings`), which follows the puck with a hand's accelerations as
+  process noise instead of restarting every few frames, until the motion is the model's again.
 * (re)initialisation: a least-squares constant-velocity fit over the collected frames (the first
   ``ACQUISITION_FRAMES`` of a track whose fit agrees with the measurement noise, the rejected run after
   an event; seed 003's batch estimate), with the fit's covariance.
@@ -66,7 +69,9 @@ class HandSettings:
     The second restart from rejected frames within ``window`` [s] of the one before starts the *hand
     regime*: the model's flight law no longer holds, so the process noise gains a white-noise acceleration
     of ``acceleration`` [m/s^2] and ``spin_acceleration`` [rad/s^2] (per model step as a std; continuous
-    density ``a^2 dt``) and the frames are fused rather than rejected, and nothing is learned from them.
+    density ``a^2 dt``) and the frames are fused rather than rejected; the process noise learns nothing
+    from them (the table's learning goes on: its own gates refuse a hand's motion, and on a table far from
+    the configured physics it is what ends the misfit).
     It ends when the velocity the updates added over ``calm_time`` [s] (the acceleration the model did
     not predict) has stayed below ``calm_acceleration`` [m/s^2] for ``calm_time``: the hand let go or holds
     it still (one calm window is not enough: a hand's acceleration passes zero halfway through a carry).
