@@ -137,11 +137,11 @@ def _chord_speeds(z: np.ndarray, steps: int, dt: float) -> np.ndarray:
 
 
 def _first_push(z: np.ndarray, steps: int, dt: float, gain: float, limits: tuple[float, float]) -> int | None:
-    """Row of the first of half a window's worth of windows in a row after each of which the speed over the
-    next window has gained more than ``gain`` [m/s] or fallen below half (from at least twice ``gain``),
-    judged only where the puck cannot have met a rim within the two windows: every frame inside ``limits``
-    (|x|, |y| [m]) by more than it travels, at the faster of the two speeds, over the longest run of lost
-    frames there (a chord across a bounce is short); None without one."""
+    """Row of the first of the windows in a row, spanning half a window at least, after each of which the
+    speed over the next window has gained more than ``gain`` [m/s] or fallen below half (from at least
+    twice ``gain``), judged only where the puck cannot have met a rim within the two windows: every frame
+    inside ``limits`` (|x|, |y| [m]) by more than it travels, at the faster of the two speeds, over the
+    longest run of lost frames there (a chord across a bounce is short); None without one."""
     speeds = _chord_speeds(z, steps, dt)
     room = np.minimum(limits[0] - np.abs(z[:, 0]), limits[1] - np.abs(z[:, 1]))
     lost = np.isnan(room)
@@ -152,7 +152,7 @@ def _first_push(z: np.ndarray, steps: int, dt: float, gain: float, limits: tuple
     for k in range(len(z) - 2, -1, -1):
         if lost[k] and lost[k + 1]:
             gap[k] = gap[k + 1]
-    run, first = 0, None
+    first = None  # the first of the windows in a row that show it (windows not judged do not break a row)
     for k in range(len(z) - 2 * steps):
         before, after = speeds[k], speeds[k + steps]
         if np.isnan(before) or np.isnan(after):
@@ -161,11 +161,11 @@ def _first_push(z: np.ndarray, steps: int, dt: float, gain: float, limits: tuple
         if room[span].min() < max(before, after) * (gap[span].max() + 1) * dt:
             continue
         if after - before > gain or (before > 2.0 * gain and after < 0.5 * before):
-            run, first = run + 1, k if run == 0 else first
-            if run >= max(1, steps // 2):  # a marker glitch at a chord's end changes a few windows, a hand many
-                return first
+            first = k if first is None else first
+            if k - first >= steps // 2:  # over half a window: a marker glitch at a chord's end changes a few
+                return first               # windows a window apart, a hand all of them
         else:
-            run = 0
+            first = None
     return None
 
 
