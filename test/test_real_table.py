@@ -236,3 +236,25 @@ def test_a_carry_is_drawn_within_the_shot_and_the_table():
         assert 1.0 <= time <= 2.0 and start + time + 0.5 == pytest.approx(7.0)
         assert abs(target[0]) <= TABLE.x_limit - 0.1 and abs(target[1]) <= TABLE.y_limit - 0.1
     assert HandCarry((5.0, 5.0), 0.5).draw(TABLE, 3.0, rng)[0] == 0.0
+
+
+def test_another_engines_shots_end_in_the_same_carry():
+    """with_hand_carries ends any engine's shot (here a straight line at 0.5 m/s, standing in for one) in the
+    hand's carry drawn as the test bed draws it: up to the grab the engine's states, from it the carry's,
+    ending still at the target; without a carry the simulator itself comes back."""
+    from air_hockey_agent.core.puck.real_table import HandCarry, carried_state, with_hand_carries
+
+    def straight(state, duration):
+        times = np.arange(0.0, duration + 1e-9, 1e-3)
+        states = np.tile(np.asarray(state, float), (len(times), 1))
+        states[:, 0] += 0.5 * times
+        states[:, 2] = 0.5
+        return times, states
+    carry = HandCarry((1.0, 1.5), 0.5)
+    start, time, target = carry.draw(TABLE, 4.0, np.random.default_rng(7))
+    times, states = with_hand_carries(straight, TABLE, carry, np.random.default_rng(7))(np.zeros(6), 4.0)
+    grab = int(np.searchsorted(times, start))
+    assert np.array_equal(states[:grab], straight(np.zeros(6), 4.0)[1][:grab])
+    assert np.allclose(states[grab + 10], carried_state(states[grab - 1], target, times[grab + 10] - times[grab - 1], time))
+    assert np.allclose(states[-1, :2], target[:2]) and np.allclose(states[-1, 2:4], 0.0)
+    assert with_hand_carries(straight, TABLE, HandCarry(), np.random.default_rng(7)) is straight

@@ -36,7 +36,7 @@ from air_hockey_agent.bags.build import build, pose_fields, puck_state_fields
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.frames import table_to_mocap
-from air_hockey_agent.core.puck.real_table import HandCarry, TableEffects, testbed_shots
+from air_hockey_agent.core.puck.real_table import HandCarry, TableEffects, testbed_shots, with_hand_carries
 from air_hockey_agent.core.estimation.synthetic import (MOCAP_BOUNDS, MOCAP_FIELDS, MocapImperfections, ShotRanges,
                                                         synthetic_session)
 from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
@@ -157,7 +157,8 @@ def _truth_source(source: str, params_files, session, table, seed: int, mujoco_p
     """None for the puck model (synthetic_session's default), the test bed's shot simulator, the MuJoCo
     table's (``mujoco_physics``, checked by the caller; human hits after ``testbed.hit_delay`` as on the
     test bed), or one on the pybullet table without robots (imported here: pybullet prints a banner when
-    loaded)."""
+    loaded); the test bed's, MuJoCo's and pybullet's shots end in a hand's carry where ``testbed.carry_time``
+    asks for one."""
     if source == "model":
         yield None
         return
@@ -166,15 +167,17 @@ def _truth_source(source: str, params_files, session, table, seed: int, mujoco_p
                             session["fine_dt"], np.random.default_rng([seed, 1]), HandCarry.from_params(session),
                             np.random.default_rng([seed, 2]))
         return
+    carries = HandCarry.from_params(session), np.random.default_rng([seed, 2])  # another engine's shots end so too
     if source == "mujoco":  # imported here: only this source needs the engine
         from air_hockey_agent.sim.mujoco_table import mujoco_shots
-        yield mujoco_shots(mujoco_physics, table, session["testbed.hit_delay"], np.random.default_rng([seed, 1]))
+        yield with_hand_carries(mujoco_shots(mujoco_physics, table, session["testbed.hit_delay"],
+                                             np.random.default_rng([seed, 1])), table, *carries)
         return
     from air_hockey_agent.sim.params import load_sim_params
     from air_hockey_agent.sim.world import SimSettings, TableWorld, simulate_shot
     world = TableWorld(SimSettings.from_params(load_sim_params(params_files)).puck_only())
     try:
-        yield lambda state, duration: simulate_shot(world, state, duration)
+        yield with_hand_carries(lambda state, duration: simulate_shot(world, state, duration), table, *carries)
     finally:
         world.close()
 

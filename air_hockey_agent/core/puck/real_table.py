@@ -134,6 +134,29 @@ def carried_state(grabbed: np.ndarray, target: np.ndarray, elapsed: float, durat
     return np.array([pose[0], pose[1], rate[0], rate[1], wrap_angle(pose[2]), rate[2]])
 
 
+def carry_from(times: np.ndarray, states: np.ndarray, start: int, duration: float, target: np.ndarray) -> None:
+    """Rows ``start`` on of ``states`` (at ``times`` [s]) become a hand's carry (:func:`carried_state`) of
+    ``duration`` [s] from the state at row ``start - 1`` to the pose ``target``, then the hold."""
+    grabbed = states[start - 1].copy()
+    for i in range(start, len(states)):
+        states[i] = carried_state(grabbed, target, times[i] - times[start - 1], duration)
+
+
+def with_hand_carries(simulate, table: TableGeometry, carry: "HandCarry", rng: np.random.Generator):
+    """A shot simulator (``simulate(state, duration) -> (times, states)``, any engine's) whose shots end in a
+    hand's ``carry`` (drawn from ``rng``) where it is enabled: the states from the carry's start on are the
+    hand's (:func:`carry_from`), whatever the engine did then."""
+    if not carry.enabled:
+        return simulate
+
+    def carried(state: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
+        times, states = simulate(state, duration)
+        start, time, target = carry.draw(table, duration, rng)
+        carry_from(times, states, max(1, int(np.searchsorted(times, start))), time, target)
+        return times, states
+    return carried
+
+
 class RealTablePuck:
     """Integrates a puck on a :class:`TableEffects` table; ``rng`` draws the air film's phases and the
     random accelerations."""
@@ -242,18 +265,18 @@ class RealTablePuck:
         states[0] = state
         hit_step = 0 if hit_at is None else int(round(hit_at / dt))
         push = max(1, int(round(self.effects.hit_duration / dt)))  # steps of the push
-        carry_step = n if carry is None else max(hit_step + 1, int(round(carry[0] / dt)))
-        for i in range(1, n):
+        carry_step = n if carry is None else min(n, max(hit_step + 1, int(round(carry[0] / dt))))
+        for i in range(1, carry_step):
             if i < hit_step:  # held by the hand until the hit
                 states[i] = states[i - 1]
-                continue
-            if i >= carry_step:  # in the hand again
-                states[i] = carried_state(states[carry_step - 1], carry[2], (i - carry_step + 1) * dt, carry[1])
                 continue
             if hit_at is not None and i - hit_step < push:
                 states[i - 1, 2:4] = hit_velocity * (i - hit_step + 1) / push
             states[i] = self.step(states[i - 1], (i - 1) * dt, dt)
-        return np.arange(n) * dt, states
+        times = np.arange(n) * dt
+        if carry_step < n:  # in the hand again
+            carry_from(times, states, carry_step, carry[1], carry[2])
+        return times, states
 
 
 def hit_from_rest(table: TableGeometry, speed: tuple[float, float], rng: np.random.Generator,
