@@ -109,6 +109,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"{PROG}: error: {message}", file=sys.stderr)
     failed = len(missing)
     progress = Progress("eval-prediction", quiet=True)  # with --json: a bar on a terminal only
+    limits = push_limits(ekf.model.table, preprocessing["push_rim_margin"])  # where preprocessing judges pushes
     for done, bag in enumerate(bags, 1):
         try:
             records, measurements, warning, _ = bag_measurements(bag, args.topic, args.frame, args.table_frame, params)
@@ -121,8 +122,7 @@ def run(args: argparse.Namespace) -> int:
         frames = [(r.stamp, m) for r, m in zip(records, measurements)]
         per_bag.append(_evaluate_bag(bag, frames, ekf, totals, reference, reference_totals))
         cut += preprocess([r.stamp for r in records], measurements, ekf.settings.dt, preprocessing,
-                          params["glitch_speed"], push_limits(ekf.model.table, preprocessing["push_rim_margin"])
-                          ).trajectories  # as sysid cuts them, from the poses read once
+                          params["glitch_speed"], limits).trajectories  # as sysid cuts them, from the poses read once
         if not args.json:
             print(f"{bag}: {len(frames)} frames", file=sys.stderr)
         else:

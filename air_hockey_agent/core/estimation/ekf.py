@@ -94,13 +94,19 @@ class HandSettings:
     def noise(self, dt: float, nominal_dt: float) -> np.ndarray:
         """Process noise [6x6] of the hand over ``dt`` [s]: continuous white-noise acceleration of density
         a^2 ``nominal_dt`` on (x, vx), (y, vy) and (theta, omega)."""
-        q = np.zeros((6, 6))
-        for pos, vel, std in ((0, 2, self.acceleration), (1, 3, self.acceleration), (4, 5, self.spin_acceleration)):
-            density = std * std * nominal_dt
-            q[pos, pos] = density * dt ** 3 / 3.0
-            q[pos, vel] = q[vel, pos] = density * dt * dt / 2.0
-            q[vel, vel] = density * dt
-        return q
+        a, spin = self.acceleration, self.spin_acceleration
+        return white_noise_acceleration((a * a * nominal_dt, a * a * nominal_dt, spin * spin * nominal_dt), dt)
+
+
+def white_noise_acceleration(densities: tuple[float, float, float], dt: float) -> np.ndarray:
+    """Process noise [6x6] over ``dt`` [s] of continuous white-noise accelerations of the spectral
+    ``densities`` (on (x, vx), (y, vy), (theta, omega)): D (dt^3/3, dt^2/2, dt) per (value, rate) pair."""
+    q = np.zeros((6, 6))
+    for (pos, vel), density in zip(((0, 2), (1, 3), (4, 5)), densities):
+        q[pos, pos] = density * dt ** 3 / 3.0
+        q[pos, vel] = q[vel, pos] = density * dt * dt / 2.0
+        q[vel, vel] = density * dt
+    return q
 
 
 @dataclass

@@ -28,7 +28,8 @@ from typing import Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.estimation.ekf import _MEASURED_BLOCK, MEASURED, SINGLE_STEP_LIMIT, PuckEKF
+from air_hockey_agent.core.estimation.ekf import (_MEASURED_BLOCK, MEASURED, SINGLE_STEP_LIMIT, PuckEKF,
+                                                   white_noise_acceleration)
 from air_hockey_agent.core.puck.model import wrap_angle
 from air_hockey_agent.core.puck.prediction import with_impact_noise
 
@@ -72,14 +73,10 @@ class PuckIMM(PuckEKF):
 
     def _contact_noise(self, dt: float) -> np.ndarray:
         """Process noise [6x6] of a contact within a step of ``dt`` [s]: white-noise acceleration with a
-        velocity variance c^2 (position c^2 dt^2/3, cross term c^2 dt/2), spin and angle likewise."""
-        q = np.zeros((6, 6))
+        velocity variance c^2 (position c^2 dt^2/3, cross term c^2 dt/2), spin and angle likewise: density
+        c^2 / dt."""
         speed, spin = self.settings.imm_contact_speed, self.settings.imm_contact_spin
-        for pos, vel, std in ((0, 2, speed), (1, 3, speed), (4, 5, spin)):
-            q[pos, pos] = std * std * dt * dt / 3.0
-            q[pos, vel] = q[vel, pos] = std * std * dt / 2.0
-            q[vel, vel] = std * std
-        return q
+        return white_noise_acceleration((speed * speed / dt, speed * speed / dt, spin * spin / dt), dt)
 
     def _mode_noise(self, mode: int, res, dt: float) -> np.ndarray | float:
         """What mode ``mode`` adds to the common process noise in a step ``res`` of ``dt`` [s]: an impact's
