@@ -7,22 +7,31 @@ import pytest
 
 from air_hockey_agent.core.estimation.ekf import FLAG_REINITIALISED, HandSettings, PuckEKF
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
-from air_hockey_agent.core.puck.real_table import RealTablePuck, TableEffects
+from air_hockey_agent.core.puck.real_table import RealTablePuck, TableEffects, carry_from
 from air_hockey_agent.tracker_params import load_tracker_params, without_learning
 from model_fixtures import session_on_testbed
 
 FRAME = 1.0 / 120.0
 
 
-def _run(hand_acceleration: float, carry):
+def _params(**hand) -> dict:
+    """The defaults without learning, ``hand`` overriding ``hand.*`` (e.g. acceleration=0.0)."""
+    return {**without_learning(load_tracker_params()), **{"hand." + k: v for k, v in hand.items()}}
+
+
+def _shot(params: dict, carry):
     """One shot on a calm test bed (the defaults' damping, no rim in reach: a slow hit across the middle),
-    a hit at 0.3 s, then ``carry`` (start, time, target) or none, frames at 120 Hz with 0.1 mm noise; the
-    filter without learning. Returns the filter and, per frame, (t, in hand, restarted)."""
-    params = {**without_learning(load_tracker_params()), "hand.acceleration": hand_acceleration}
-    ekf = PuckEKF.from_params(params)
-    puck = RealTablePuck(ekf.model.table, TableEffects(damping=params["damping"]), np.random.default_rng(0))
+    a hit at 0.3 s, then ``carry`` (start, time, target) or none: true times and states every 1 ms."""
+    table = PuckEKF.from_params(params).model.table
+    puck = RealTablePuck(table, TableEffects(damping=params["damping"]), np.random.default_rng(0))
     start = np.array([-0.4, 0.0, 0.0, 0.0, 0.0, 0.0])
-    times, states = puck.simulate(start, 5.0, 1e-3, 0.3, np.array([0.4, 0.05]), carry)
+    return puck.simulate(start, 5.0, 1e-3, 0.3, np.array([0.4, 0.05]), carry)
+
+
+def _track(params: dict, states: np.ndarray):
+    """Frames of ``states`` (every 1 ms from 0) at 120 Hz with 0.1 mm noise through a filter with ``params``.
+    Returns the filter and, per frame, (t, in hand, restarted)."""
+    ekf = PuckEKF.from_params(params)
     rng, trace = np.random.default_rng(1), []
     for t in np.arange(0.0, 5.0, FRAME):
         state = states[int(round(t / 1e-3))]
@@ -30,6 +39,17 @@ def _run(hand_acceleration: float, carry):
         flags = ekf.process(1000.0 + t, z)
         trace.append((t, ekf.in_hand, bool(flags & FLAG_REINITIALISED)))
     return ekf, trace
+
+
+def _run(hand_acceleration: float, carry):
+    """:func:`_shot` tracked by the defaults without learning, the hand's acceleration as given."""
+    params = _params(acceleration=hand_acceleration)
+    return _track(params, _shot(params, carry)[1])
+
+
+def _first(trace, since: float, what: int) -> float:
+    """The first time at or after ``since`` [s] whose trace entry has ``what`` (1: in hand, 2: restarted)."""
+    return next(entry[0] for entry in trace if entry[0] >= since and entry[what])
 
 
 def test_a_carry_starts_the_hand_regime_a_hit_alone_does_not_and_it_ends_once_the_puck_is_held_still():
@@ -49,6 +69,37 @@ def test_a_carry_starts_the_hand_regime_a_hit_alone_does_not_and_it_ends_once_th
     assert not any(hand for _, hand, _ in hit_only)
 
 
+def test_a_hand_that_stops_the_moving_puck_starts_the_regime_at_the_first_restart():
+    """The hand takes the puck at 2.0 s while it slides at about 0.37 m/s: the restart that follows keeps
+    under stop_fraction of the speed the model predicted (no rim in reach), so the regime starts with it,
+    not with the second restart as it does with stop_fraction 0."""
+    carry = (2.0, 1.2, np.array([0.3, 0.25, 1.0]))
+    params = _params()
+    times, states = _shot(params, carry)
+    assert 0.3 < np.hypot(*states[1999, 2:4]) < 0.45  # the puck slides when the hand takes it
+    _, trace = _track(params, states)
+    grab = _first(trace, 2.0, 2)
+    assert grab < 2.1 and _first(trace, 2.0, 1) == grab
+    _, slow = _track(_params(stop_fraction=0.0), states)
+    assert _first(slow, 2.0, 2) == grab and _first(slow, 2.0, 1) > grab
+
+
+def test_a_restart_soon_after_the_regime_ended_starts_it_again():
+    """A hand carries the puck, holds it until the regime has ended (at e), then moves it again: if it does
+    so within hand.window of e (a hand's acceleration passing zero mid-carry ends the regime too), the
+    first restart starts the regime again; later than that, it takes the second restart as ever."""
+    params = _params()
+    times, states = _shot(params, (2.0, 0.8, np.array([0.3, 0.25, 1.0])))
+    _, trace = _track(params, states)
+    end = next(t for (t, hand, _), (_, before, _) in zip(trace[1:], trace) if before and not hand and t > 2.0)
+    for delay, at_once in ((0.1, True), (params["hand.window"] + 0.3, False)):
+        again = states.copy()
+        carry_from(times, again, int(round((end + delay) / 1e-3)), 0.8, np.array([-0.3, -0.2, 0.0]))
+        _, trace = _track(params, again)
+        restart = _first(trace, end + delay, 2)
+        assert bool(_first(trace, end + delay, 1) == restart) is at_once, (delay, restart)
+
+
 def test_the_hands_noise_is_white_noise_acceleration_of_its_density():
     """Q of the hand over dt: density a^2 dt0 times (dt^3/3, dt^2/2, dt) on each (value, rate) pair, zero
     elsewhere; over two half steps the covariance a constant-velocity model accumulates equals one step's."""
@@ -66,8 +117,9 @@ def test_the_hands_noise_is_white_noise_acceleration_of_its_density():
 def test_on_a_test_bed_whose_shots_end_in_a_carry_the_filter_stays_calibrated():
     """Eight test-bed shots, each ending in a hand's carry of 1-2 s (testbed.carry_time): without the hand
     regime the carries reject over 5 % of the poses, restart the filter more than once a second and drive
-    the learned flight noise over ten times the configured; with it under 3 %, 0.6 per second and 2 times
-    (as on the same shots without carries: 1.3), and the flight NIS median under 2.6. Without carries it
+    the learned flight noise over ten times the configured; with it under 2 %, 0.4 per second (issue #13's
+    targets: 2 % and 0.5; measured 1.6 % and 0.31) and 2 times (as on the same shots without carries:
+    1.3), and the flight NIS median under 2.6. Without carries it
     never starts and changes nothing."""
     def run(acceleration: float, carry_time):
         params = {**load_tracker_params(), "hand.acceleration": acceleration}
@@ -79,7 +131,7 @@ def test_on_a_test_bed_whose_shots_end_in_a_carry_the_filter_stays_calibrated():
     off, off_scale = run(0.0, [1.0, 2.0])
     on, on_scale = run(3.0, [1.0, 2.0])
     assert off["rejected_fraction"] > 0.05 and off["reinit_per_s"] > 1.0 and off_scale > 10.0
-    assert on["rejected_fraction"] < 0.03 and on["reinit_per_s"] < 0.6 and on_scale < 2.0
+    assert on["rejected_fraction"] < 0.02 and on["reinit_per_s"] < 0.4 and on_scale < 2.0
     assert on["nis_by_regime"]["flight"]["median"] < 2.6 and on["hand"]["regimes"] >= 4
     calm, _ = run(3.0, [0.0, 0.0])
     calm_off, _ = run(0.0, [0.0, 0.0])

@@ -14,9 +14,10 @@
   does not know, or the track was lost), instead of drifting forever. A good position whose angle
   fails ``angle_gate_threshold`` (1 dof) is fused without it. Frames beyond the table by more than
   ``outside_table_margin`` are dropped before gating.
-* a hand (or a mallet) moving the puck: the second restart from rejected frames within ``hand.window``
-  starts the hand regime (:class:`HandSettings`), which follows the puck with a hand's accelerations as
-  process noise instead of restarting every few frames, until the motion is the model's again.
+* a hand (or a mallet) moving the puck: a restart from rejected frames that stopped the puck, or the
+  second within ``hand.window``, starts the hand regime (:class:`HandSettings`), which follows the puck
+  with a hand's accelerations as process noise instead of restarting every few frames, until the motion
+  is the model's again.
 * (re)initialisation: a least-squares constant-velocity fit over the collected frames (the first
   ``ACQUISITION_FRAMES`` of a track whose fit agrees with the measurement noise, the rejected run after
   an event; seed 003's batch estimate), with the fit's covariance.
@@ -66,12 +67,14 @@ ACQUISITION_FRAMES = 3
 class HandSettings:
     """A hand (or a mallet) moving the puck: ``hand.*`` in config/tracker.yaml (sources there).
 
-    The second restart from rejected frames within ``window`` [s] of the one before starts the *hand
-    regime*: the model's flight law no longer holds, so the process noise gains a white-noise acceleration
-    of ``acceleration`` [m/s^2] and ``spin_acceleration`` [rad/s^2] (per model step as a std; continuous
-    density ``a^2 dt``) and the frames are fused rather than rejected; the process noise learns nothing
-    from them (the table's learning goes on: its own gates refuse a hand's motion, and on a table far from
-    the configured physics it is what ends the misfit).
+    A restart from rejected frames starts the *hand regime* when it kept less than ``stop_fraction`` of
+    the speed the model predicted (a hand took the puck; no rim returns so little), or when it came within
+    ``window`` [s] of the restart before or of the regime's end (a hand moves the puck on): the model's
+    flight law no longer holds, so the process noise gains a white-noise acceleration of ``acceleration``
+    [m/s^2] and ``spin_acceleration`` [rad/s^2] (per model step as a std; continuous density ``a^2 dt``)
+    and the frames are fused rather than rejected; the process noise learns nothing from them (the
+    table's learning goes on: its own gates refuse a hand's motion, and on a table far from the configured
+    physics it is what ends the misfit).
     It ends when the velocity the updates added over ``calm_time`` [s] (the acceleration the model did
     not predict) has stayed below ``calm_acceleration`` [m/s^2] for ``calm_time``: the hand let go or holds
     it still (one calm window is not enough: a hand's acceleration passes zero halfway through a carry).
@@ -82,6 +85,7 @@ class HandSettings:
     window: float = 0.5
     calm_time: float = 0.2
     calm_acceleration: float = 1.0
+    stop_fraction: float = 0.0
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "hand.") -> "HandSettings":
@@ -234,7 +238,7 @@ class PuckEKF:
     noise_learning: MarkerNoiseAdaptation | None = None  # the mocap's noise learned online (None: R as set)
     process_noise_learning: ProcessNoiseAdaptation | None = None  # Q by regime learned online (None: as set)
     _frames_since_impact: int = 1 << 30                # gated frames since the model last put a rim impact
-    _last_event: float | None = None                   # [s] time of the last restart from rejected frames
+    _last_event: float | None = None                   # [s] the last restart from rejections or hand regime's end
     in_hand: bool = False                              # the hand regime (HandSettings) holds
     _hand_since: float = 0.0                           # [s] when it started
     _calm_since: float | None = None                   # [s] since when its updates have been calm
@@ -513,18 +517,22 @@ class PuckEKF:
         self.stats.outliers_rejected += 1
         self._pending.append(_Measurement(t, z))
         if len(self._pending) >= self.settings.max_consecutive_rejections:
-            previous, in_hand = self._last_event, self.in_hand
-            self._initialise_from_pending()
-            self._after_event(t, previous, in_hand)
+            self._restart_from_rejections(t)
             return FLAG_OUTLIER_REJECTED | FLAG_REINITIALISED | FLAG_MEASUREMENT_USED
         return FLAG_OUTLIER_REJECTED | FLAG_PREDICTED
 
-    def _after_event(self, t: float, previous: float | None, in_hand: bool) -> None:
-        """A restart from rejected frames at ``t`` [s] (``previous``: the one before, if any): the second
-        within ``hand.window`` starts the hand regime (:class:`HandSettings`); one under way goes on."""
-        hand = self.settings.hand
+    def _restart_from_rejections(self, t: float) -> None:
+        """Restart at ``t`` [s] from the rejected run (:meth:`_initialise_from_pending`). The hand regime
+        (:class:`HandSettings`) starts with it when the restart kept less than ``hand.stop_fraction`` of
+        the speed the model predicted (a hand took the puck: no rim returns so little), or when it comes
+        within ``hand.window`` of the restart before or of the regime's end; one under way goes on."""
+        hand, previous, in_hand = self.settings.hand, self._last_event, self.in_hand
+        predicted = math.hypot(self.x[2], self.x[3])
+        self._initialise_from_pending()
         self._last_event, self.in_hand = t, in_hand
-        if in_hand or not hand.enabled or previous is None or t - previous > hand.window:
+        stopped = math.hypot(self.x[2], self.x[3]) < hand.stop_fraction * predicted
+        soon = previous is not None and t - previous <= hand.window
+        if in_hand or not hand.enabled or not (stopped or soon):
             return
         self.in_hand, self._hand_since, self._calm_since = True, t, None
         self._hand_corrections.clear()
@@ -548,7 +556,7 @@ class PuckEKF:
         elif self._calm_since is None:
             self._calm_since = t
         elif t - self._calm_since >= hand.calm_time:
-            self.in_hand = False
+            self.in_hand, self._last_event = False, t
             corrections.clear()
 
     def _learn_process_noise(self, position_d2: float) -> None:
