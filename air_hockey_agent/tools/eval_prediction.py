@@ -61,7 +61,7 @@ from air_hockey_agent.core.identification.preprocess import preprocess, push_lim
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.reference_params import load_reference_params
 from air_hockey_agent.sysid_params import load_sysid_params
-from air_hockey_agent.tracker_params import without_learning, load_tracker_params
+from air_hockey_agent.tracker_params import trajectory_loss_params, load_tracker_params
 from air_hockey_agent.tools.argtypes import number
 from air_hockey_agent.tools.eval_report import format_table
 from air_hockey_agent.tools.progress import Progress
@@ -213,10 +213,10 @@ def _summary(ekf: PuckEKF, totals: EvaluationTotals, params: dict, cut: list, ho
 
 def thesis_style(params: dict, trajectories: list, horizons) -> dict:
     """The thesis's trajectory-level columns per horizon, as sysid reports them (the configured physics,
-    nothing learned online: :func:`without_learning`): ``{"trajectories": n, "<h>": {"loss_m", "min_m",
-    "median_m", "n"}}`` over cut ``trajectories`` (None without any)."""
+    nothing learned online, no hand regime: :func:`trajectory_loss_params`): ``{"trajectories": n,
+    "<h>": {"loss_m", "min_m", "median_m", "n"}}`` over cut ``trajectories`` (None without any)."""
     from air_hockey_agent.core.identification.sysid import position_loss_reports
-    reports = position_loss_reports(without_learning(params), trajectories, horizons)
+    reports = position_loss_reports(trajectory_loss_params(params), trajectories, horizons)
     out: dict = {"trajectories": len(trajectories)}
     for key, r in reports.items():
         out[key] = ({"loss_m": r.loss, "min_m": r.min, "median_m": r.median, "n": r.comparisons} if r.comparisons

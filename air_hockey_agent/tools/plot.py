@@ -3,7 +3,9 @@
 * ``velocity.png``: the filter's velocity and spin against finite differences of the measurements;
 * ``prediction.png``: measured x, y, theta against the prediction made ``--horizon`` seconds before;
 * ``error_vs_horizon.png``: mean prediction error over all comparisons and the median of the trajectories'
-  mean errors (the thesis's median column) against the horizon.
+  mean errors (the thesis's median column) against the horizon, from the filter ``sysid`` and
+  ``eval-prediction``'s thesis-style columns run (nothing learned online, no hand regime:
+  :func:`~air_hockey_agent.tracker_params.trajectory_loss_params`).
 
 One trajectory (``--trajectory``, default the longest) is drawn in the first two; trajectories come
 from the same preprocessing as ``sysid``. ``--params-file`` plots with other (e.g. identified)
@@ -22,7 +24,7 @@ from air_hockey_agent.core.estimation.evaluation import prediction_series
 from air_hockey_agent.core.identification.sysid import position_loss_reports
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
-from air_hockey_agent.tracker_params import load_tracker_params
+from air_hockey_agent.tracker_params import load_tracker_params, trajectory_loss_params
 from air_hockey_agent.tools.argtypes import count, number
 from air_hockey_agent.tools.files import save_figure
 
@@ -124,7 +126,8 @@ def _error_vs_horizon(out: Path, trajectories, sets: dict) -> Path:
     import matplotlib.pyplot as plt
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for (name, params), color in zip(sets.items(), ("tab:orange", "tab:green")):
-        reports = list(position_loss_reports(params, trajectories, [float(h) for h in HORIZON_GRID]).values())
+        reports = list(position_loss_reports(trajectory_loss_params(params), trajectories,
+                                             [float(h) for h in HORIZON_GRID]).values())
         ax.plot(HORIZON_GRID, [r.loss * 1e3 for r in reports], "o-", color=color, label=f"mean ({name})")
         ax.plot(HORIZON_GRID, [r.median * 1e3 for r in reports], "s--", color=color,
                 label=f"median of trajectory means ({name})")

@@ -44,7 +44,7 @@ from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PH
                                                       loss_report, nis_median, on_bounds, partial_loss, polish)
 from air_hockey_agent.core.table import WALL_NAMES
 from air_hockey_agent.sysid_params import bounds
-from air_hockey_agent.tracker_params import TRACKER_PARAMS, without_learning
+from air_hockey_agent.tracker_params import TRACKER_PARAMS, trajectory_loss_params
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.recordings import (ToolError, add_recording_arguments, load_recordings, read_trajectories,
                                               report_error)
@@ -164,7 +164,7 @@ def run(args: argparse.Namespace) -> int:
         return report_error(PROG, exc)
     tracker, settings, loaded = recordings.tracker, recordings.settings, recordings.loaded
     others = () if held_out is None else (held_out,)  # the validation bags, read apart from the training ones
-    tracker = without_learning(tracker)  # the law itself is identified: learning it online would rescale each candidate
+    tracker = trajectory_loss_params(tracker)  # the law itself is identified: learning it online would rescale each candidate
     train, validation = _train_and_validation(args, loaded, held_out)
     if not args.json:
         print(f"{len(loaded.trajectories)} trajectories from {loaded.bags} bag(s) ({loaded.frozen} frozen frames "
