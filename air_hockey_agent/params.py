@@ -150,11 +150,12 @@ def load_node_params(default_files: Iterable[str], fq_name: str, specs: Iterable
     from air_hockey_agent.param_registry import node_parameters
     from air_hockey_agent.paths import config_file
     specs = list(specs)
-    extra = [Path(f) for f in extra_files]
+    files = [config_file(name) for name in default_files] + [Path(f) for f in extra_files]
     node = fq_name.rsplit("/", 1)[-1]
-    for path in extra:  # a misspelled section or key is an error here too, not a silently ignored line
+    for path in files:  # a misspelled section or key is an error, not a silently ignored line: in an
+        # edited config/ (or AIR_HOCKEY_CONFIG_DIR's) as in a --params-file
         check_parameter_file(path, node, [spec.name for spec in specs], node_parameters())
-    return load_defaults([config_file(name) for name in default_files] + extra, fq_name, specs)
+    return load_defaults(files, fq_name, specs)
 
 
 def yaml_float(value: float) -> str:

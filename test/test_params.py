@@ -105,3 +105,19 @@ def test_the_sim_table_tracker_file_has_the_simulated_tables_physics():
         assert tracker[tracker_name] == sim[sim_name], tracker_name
     assert tracker["restitution_slope"] == 0.0  # so restitution_min, a real table's, does not act
     assert load_tracker_params()["damping"] != sim["surface_damping"]
+
+
+def test_a_misspelled_key_in_the_config_directory_is_an_error_naming_the_file(tmp_path, monkeypatch):
+    """The defaults are checked as a --params-file is: an edited config/ (here AIR_HOCKEY_CONFIG_DIR's copy)
+    with a misspelled key is refused with the file, section and key, not read without it."""
+    import shutil
+    from air_hockey_agent.tracker_params import load_tracker_params
+    copy = tmp_path / "config"
+    shutil.copytree(config_dir(), copy)
+    monkeypatch.setenv("AIR_HOCKEY_CONFIG_DIR", str(copy))
+    assert load_tracker_params()["hand.stop_fraction"] == 0.25
+    text = (copy / "tracker.yaml").read_text()
+    (copy / "tracker.yaml").write_text(text.replace("      stop_fraction: 0.25", "      stop_fracton: 0.25"))
+    with pytest.raises(ParameterFileError, match=r"config/tracker\.yaml: section '/\*\*/puck_tracker': "
+                                                 r"'hand\.stop_fracton' is not a parameter of node 'puck_tracker'"):
+        load_tracker_params()
