@@ -58,6 +58,7 @@ SYSID_PARAMS = (
     ParamSpec("push_window", float, "[s] chord of the speed a hand's push or grab is told by", 0.001, 10.0),
     ParamSpec("push_speed_gain", float, "[m/s] speed gained between two chords that no table gives", 0.0, 100.0),
     ParamSpec("push_rim_margin", float, "[m] chords this near a rim line are not judged", 0.0, 1.0),
+    ParamSpec("push_memory", float, "[s] span over which a slow hand's speed gain adds up", 0.0, 10.0),
     ParamSpec("min_duration", float, "[s] shortest trajectory kept", 0.0, 600.0),
 )
 

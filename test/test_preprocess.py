@@ -87,7 +87,7 @@ def test_a_marker_glitch_in_the_rest_does_not_start_the_trajectory():
 
 
 PUSH_PREP = {"frozen_threshold": 1e-6, "max_gap": 0.5, "rest_speed": 0.05, "rest_window": 0.1, "min_duration": 1.0,
-             "push_window": 0.2, "push_speed_gain": 0.1, "push_rim_margin": 0.05}
+             "push_window": 0.2, "push_speed_gain": 0.1, "push_rim_margin": 0.05, "push_memory": 1.0}
 
 
 def _shot_with_carry(carry, seed: int, second_hit: bool = False):
@@ -127,7 +127,8 @@ def test_a_hands_carry_ends_the_trajectory_and_what_follows_the_rest_starts_a_ne
 
 def test_no_push_is_found_in_shots_without_a_hand_bounces_lost_frames_and_glitches_included():
     """Test-bed sessions with every mocap imperfection (lost frames and dropouts, glitches, five times noisier
-    frames) and MuJoCo's soft rims: cutting at pushes changes no trajectory."""
+    frames) or the harsh test bed's tilt and random accelerations (a slow puck gains speed downhill), and
+    MuJoCo's soft rims: cutting at pushes changes no trajectory."""
     from air_hockey_agent.core.estimation.ekf import PuckEKF
     from air_hockey_agent.core.identification.preprocess import push_limits
     from air_hockey_agent.tracker_params import load_tracker_params
@@ -135,9 +136,23 @@ def test_no_push_is_found_in_shots_without_a_hand_bounces_lost_frames_and_glitch
     ekf = PuckEKF.from_params(load_tracker_params())
     limits = push_limits(ekf.model.table, 0.05)
     for frames in (session_on_testbed(ekf, 8, 3, lost_rate=0.3, glitch_rate=0.005, heavy_tail_rate=0.03),
+                   session_on_testbed(ekf, 8, 4, {"tilt": 0.006, "random_acceleration": 0.03}),  # the harsh bed's
                    session_on_mujoco(ekf, 4, 11)):
         stamps, z = [f.stamp for f in frames], [f.measurement for f in frames]
         cut = preprocess(stamps, z, DT, PUSH_PREP, 10.0, limits)
         plain = preprocess(stamps, z, DT, PUSH_PREP, 10.0)
         assert cut.pushes == 0 and len(cut.trajectories) == len(plain.trajectories) >= 3
         assert all(np.array_equal(a.z, b.z, equal_nan=True) for a, b in zip(cut.trajectories, plain.trajectories))
+
+
+def test_a_slow_carry_that_gains_little_from_one_chord_to_the_next_is_found_over_a_second():
+    """The hand takes the puck at 2.5 s and slides it 0.98 m in 4 s (0.48 m/s at the most, gaining at most 0.07
+    m/s from one 0.2 s chord to the next): with push_memory 1 s the carry is dropped (one trajectory, ending
+    at the grab); chord against chord alone (push_memory 0) keeps it as a second trajectory of 3.3 s."""
+    from air_hockey_agent.core.identification.preprocess import push_limits
+    table, stamps, z = _shot_with_carry((2.5, 4.0, np.array([-0.4, -0.2, 1.0])), 5)
+    limits = push_limits(table, 0.05)
+    (first,) = preprocess(stamps, z, 8e-3, PUSH_PREP, 10.0, limits).trajectories
+    assert 2.5 - 0.45 <= first.t0 + first.duration - 1000.0 <= 2.5
+    kept = preprocess(stamps, z, 8e-3, {**PUSH_PREP, "push_memory": 0.0}, 10.0, limits).trajectories
+    assert len(kept) == 2 and kept[1].t0 - 1000.0 > 2.5 and kept[1].duration >= 1.0

@@ -10,7 +10,7 @@
   or moved slowly by hand are cut (speed below ``rest_speed`` over a window).
 * :func:`cut_pushes`: a trajectory ends where a hand (or a mallet) takes the puck: a speed change no table
   gives away from its rims (``push_speed_gain`` gained, or half the speed lost, from one ``push_window`` to
-  the next); what follows is the hand's until the puck rests again, and a new trajectory may start after.
+  the next; or ``push_speed_gain`` gained within ``push_memory``); what follows is the hand's until the puck rests again, and a new trajectory may start after.
 
 A grid trajectory is a :class:`GridTrajectory`: start time, step and an (n, 3) array of
 (x, y, theta) with NaN rows for blanks.
@@ -22,6 +22,7 @@ from dataclasses import dataclass
 from typing import Any, Mapping, Sequence
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 
 from air_hockey_agent.core.estimation.evaluation import marker_glitches
 
@@ -136,31 +137,69 @@ def _chord_speeds(z: np.ndarray, steps: int, dt: float) -> np.ndarray:
     return speeds
 
 
-def _first_push(z: np.ndarray, steps: int, dt: float, gain: float, limits: tuple[float, float]) -> int | None:
-    """Row of the first of the windows in a row, spanning half a window at least, after each of which the
-    speed over the next window has gained more than ``gain`` [m/s] or fallen below half (from at least
-    twice ``gain``), judged only where the puck cannot have met a rim within the two windows: every frame
-    inside ``limits`` (|x|, |y| [m]) by more than it travels, at the faster of the two speeds, over the
-    longest run of lost frames there (a chord across a bounce is short); None without one."""
-    speeds = _chord_speeds(z, steps, dt)
+def _rim_room(z: np.ndarray, limits: tuple[float, float]) -> tuple[np.ndarray, np.ndarray]:
+    """Per row: how far [m] the puck is inside ``limits`` (|x|, |y| [m]; negative beyond them, infinite where
+    the frame is lost) and the length of the run of lost frames the row is in (0 where measured)."""
     room = np.minimum(limits[0] - np.abs(z[:, 0]), limits[1] - np.abs(z[:, 1]))
     lost = np.isnan(room)
     room[lost] = np.inf
-    gap = np.zeros(len(z), int)  # length of the run of lost frames each lost row is in
+    gap = np.zeros(len(z), int)
     for k in np.flatnonzero(lost):
         gap[k] = gap[k - 1] + 1 if k and lost[k - 1] else 1
     for k in range(len(z) - 2, -1, -1):
         if lost[k] and lost[k + 1]:
             gap[k] = gap[k + 1]
+    return room, gap
+
+
+def _rim_free(room: np.ndarray, gap: np.ndarray, span: slice, speed: float, dt: float) -> bool:
+    """The puck, at ``speed`` [m/s], cannot have met a rim unseen over the rows in ``span``: every frame inside
+    the limits by more than it travels over the longest run of lost frames there (a chord across a bounce
+    is short)."""
+    return room[span].min() >= speed * (gap[span].max() + 1) * dt
+
+
+def _speed_floors(speeds: np.ndarray, room: np.ndarray, gap: np.ndarray, steps: int, dt: float) -> np.ndarray:
+    """Per row k: the highest chord speed [m/s] of the half window of chords from k (NaN where under half of
+    them are measured or the puck could have met a rim in them): a speed the puck kept that low over half
+    a window, which a marker glitch (shortening a chord or two) does not fake."""
+    half = max(1, steps // 2)
+    span = half + steps + 1  # the rows the half window of chords covers
+    floors = np.full(len(speeds), np.nan)
+    if len(speeds) < span:
+        return floors
+    runs = sliding_window_view(speeds, half + 1)[:len(speeds) - span + 1]
+    seen = (~np.isnan(runs)).sum(axis=1)
+    top = np.where(np.isnan(runs), -np.inf, runs).max(axis=1)
+    free = sliding_window_view(room, span).min(axis=1) >= top * (sliding_window_view(gap, span).max(axis=1) + 1) * dt
+    floors[:len(top)] = np.where((2 * seen >= half + 1) & free, top, np.nan)
+    return floors
+
+
+def _first_push(z: np.ndarray, steps: int, dt: float, gain: float, limits: tuple[float, float],
+                memory: int = 0) -> int | None:
+    """Row of the first of the windows in a row, spanning half a window at least, after each of which the
+    speed over the next window has gained more than ``gain`` [m/s] on the one before or on the lowest
+    speed held over half a window in the ``memory`` rows before (:func:`_speed_floors`: a slow hand's
+    rise adds up where one window's gain stays under ``gain``; a table's tilt does not), or fallen below
+    half (from at least twice ``gain``); judged only where the puck cannot have met a rim within the
+    windows (:func:`_rim_free`); None without one."""
+    speeds = _chord_speeds(z, steps, dt)
+    room, gap = _rim_room(z, limits)
+    floors = _speed_floors(speeds, room, gap, steps, dt) if memory else None
+    half = max(1, steps // 2)
     first = None  # the first of the windows in a row that show it (windows not judged do not break a row)
     for k in range(len(z) - 2 * steps):
         before, after = speeds[k], speeds[k + steps]
         if np.isnan(before) or np.isnan(after):
             continue
-        span = slice(k, k + 2 * steps + 1)
-        if room[span].min() < max(before, after) * (gap[span].max() + 1) * dt:
+        if not _rim_free(room, gap, slice(k, k + 2 * steps + 1), max(before, after), dt):
             continue
-        if after - before > gain or (before > 2.0 * gain and after < 0.5 * before):
+        slowest = before
+        if floors is not None and k >= half:
+            held = floors[max(0, k - memory):k - half + 1]
+            slowest = before if np.isnan(held).all() else min(before, float(np.nanmin(held)))
+        if after - slowest > gain or (before > 2.0 * gain and after < 0.5 * before):
             first = k if first is None else first
             if k - first >= steps // 2:  # over half a window: a marker glitch at a chord's end changes a few
                 return first               # windows a window apart, a hand all of them
@@ -170,16 +209,17 @@ def _first_push(z: np.ndarray, steps: int, dt: float, gain: float, limits: tuple
 
 
 def cut_pushes(traj: GridTrajectory, window: float, gain: float, limits: tuple[float, float],
-               rest_speed: float, rest_window: float) -> tuple[list[GridTrajectory], int]:
+               rest_speed: float, rest_window: float, memory: float = 0.0) -> tuple[list[GridTrajectory], int]:
     """Cut a trajectory (from :func:`cut_rest`) where a hand or a mallet takes the puck (thesis sec. 4.5.1
     cuts "the adjustment of the puck in the end for the next trajectory"): at the first window after
     which the speed changes as no table makes it change between two ``window`` [s] chords away from the
     rims (:func:`_first_push`: a table's tilt gains about 0.01 m/s in 0.2 s, a hand sliding a puck away
-    tenths of a m/s; a flight law loses a tenth of the speed there at the most, a hand's grab all of it).
-    The hand's motion after it is dropped until the puck rests (``rest_speed`` over ``rest_window``); what
+    tenths of a m/s; a flight law loses a tenth of the speed there at the most, a hand's grab all of it),
+    or where it has gained more than ``gain`` on the lowest speed held over the ``memory`` [s] before (a
+    slow hand: a table's tilt gains 0.03-0.06 m/s in a second). The hand's motion after it is dropped until the puck rests (``rest_speed`` over ``rest_window``); what
     moves after that is cut again (a new hit). Returns the pieces in order and the pushes found."""
     steps = max(1, int(round(window / traj.dt)))
-    k = _first_push(traj.z, steps, traj.dt, gain, limits)
+    k = _first_push(traj.z, steps, traj.dt, gain, limits, int(round(memory / traj.dt)))
     if k is None:
         return [traj], 0
     pieces = [GridTrajectory(traj.t0, traj.dt, traj.z[:k + 1].copy())] if k > 0 else []
@@ -191,7 +231,7 @@ def cut_pushes(traj: GridTrajectory, window: float, gain: float, limits: tuple[f
     after = cut_rest(GridTrajectory(traj.t0 + start * traj.dt, traj.dt, traj.z[start:]), rest_speed, rest_window)
     if after is None:
         return pieces, 1
-    more, pushes = cut_pushes(after, window, gain, limits, rest_speed, rest_window)
+    more, pushes = cut_pushes(after, window, gain, limits, rest_speed, rest_window, memory)
     return pieces + more, pushes + 1
 
 
@@ -224,7 +264,8 @@ def preprocess(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt:
             result.at_rest += 1
             continue
         cut, pushes = ([traj], 0) if limits is None else cut_pushes(
-            traj, prep["push_window"], prep["push_speed_gain"], limits, prep["rest_speed"], prep["rest_window"])
+            traj, prep["push_window"], prep["push_speed_gain"], limits, prep["rest_speed"], prep["rest_window"],
+            prep["push_memory"])
         result.pushes += pushes
         for part in cut:
             if part.duration < prep["min_duration"]:
