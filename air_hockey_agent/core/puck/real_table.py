@@ -309,8 +309,9 @@ def testbed_shots(effects: TableEffects, table: TableGeometry, hit_delay: tuple[
     """Shots on the test bed's table (``simulate(state, duration) -> (times, states)`` for
     :func:`~air_hockey_agent.core.estimation.synthetic.synthetic_session`): each a human hit
     (:func:`held_then_hit`), ended by a hand's ``carry`` where it is enabled (drawn from ``carry_rng``, its
-    own stream, so that the shots are the same with and without it); ``fine_dt`` [s] is the integration
-    step."""
+    own stream: shots without carries draw as they did before carries existed; with them, the shots after
+    the first differ, as the hand shortens the physics each shot draws for); ``fine_dt`` [s] is the
+    integration step."""
 
     def simulate(state: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
         puck = RealTablePuck(table, effects, rng)
