@@ -63,6 +63,7 @@ TRACKER_PARAMS = (
     ParamSpec("hand.calm_time", float, "[s] span over which the hand regime's end is judged", 1e-3, 10.0),
     ParamSpec("hand.calm_acceleration", float, "[m/s^2] unpredicted acceleration below which it ends", 0.0, 1000.0),
     ParamSpec("hand.stop_fraction", float, "a restart keeping less of the predicted speed starts it", 0.0, 1.0),
+    ParamSpec("hand.hit_speed", float, "[m/s] a restart gaining more was a hit: it ends the regime", 0.0, 100.0),
     ParamSpec("measurement_noise", list, "R diagonal (x, y, theta) [m^2, m^2, rad^2]", 1e-15, 1.0, 3),
     ParamSpec("process_noise", list, "Q diagonal per step (x, y, vx, vy, theta, omega)", 1e-18, 1e3, 6),
     ParamSpec("process_noise_rest", list, "Q diagonal per step of a puck slower than regime_rest_speed",

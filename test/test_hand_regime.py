@@ -100,6 +100,28 @@ def test_a_restart_soon_after_the_regime_ended_starts_it_again():
         assert bool(_first(trace, end + delay, 1) == restart) is at_once, (delay, restart)
 
 
+def test_a_hit_soon_after_the_regime_starts_none_and_the_flight_is_the_models():
+    """A hand carries the puck from 2.0 s for 0.8 s and holds it until the regime has ended (at e); 0.15 s
+    later (a human placing the puck and hitting it, the strategy test's launch after a reset) the puck is
+    hit at 1.5 m/s: the restart gains more than hand.hit_speed, so it starts no regime and the flight is
+    filtered with the model's noise. With hit_speed 0 it counts as a hand moving the puck on (within
+    hand.window of e) and the regime runs into the flight."""
+    params = _params()
+    times, states = _shot(params, (2.0, 0.8, np.array([0.3, 0.25, 1.0])))
+    _, trace = _track(params, states)
+    end = next(t for (t, hand, _), (_, before, _) in zip(trace[1:], trace) if before and not hand and t > 2.0)
+    at = int(round((end + 0.15) / 1e-3))
+    puck = RealTablePuck(PuckEKF.from_params(params).model.table, TableEffects(damping=params["damping"]),
+                         np.random.default_rng(2))
+    _, flight = puck.simulate(states[at], 5.0 - at * 1e-3, 1e-3, 1e-3, np.array([-1.4, -0.5]))
+    states = np.concatenate([states[:at], flight])
+    _, trace = _track(params, states)
+    hit = _first(trace, end + 0.15, 2)
+    assert hit < end + 0.2 and not any(hand for t, hand, _ in trace if t >= end)
+    _, old = _track(_params(hit_speed=0.0), states)
+    assert _first(old, end + 0.15, 1) == hit
+
+
 def test_the_hands_noise_is_white_noise_acceleration_of_its_density():
     """Q of the hand over dt: density a^2 dt0 times (dt^3/3, dt^2/2, dt) on each (value, rate) pair, zero
     elsewhere; over two half steps the covariance a constant-velocity model accumulates equals one step's."""

@@ -86,6 +86,7 @@ class HandSettings:
     calm_time: float = 0.2
     calm_acceleration: float = 1.0
     stop_fraction: float = 0.0
+    hit_speed: float = 0.0
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any], prefix: str = "hand.") -> "HandSettings":
@@ -524,15 +525,20 @@ class PuckEKF:
     def _restart_from_rejections(self, t: float) -> None:
         """Restart at ``t`` [s] from the rejected run (:meth:`_initialise_from_pending`). The hand regime
         (:class:`HandSettings`) starts with it when the restart kept less than ``hand.stop_fraction`` of
-        the speed the model predicted (a hand took the puck: no rim returns so little), or when it comes
-        within ``hand.window`` of the restart before or of the regime's end; one under way goes on."""
+        the speed the model predicted and the run fits a constant velocity (:meth:`_pending_consistent`: a
+        hand took the puck, where no rim returns so little; a fit across a mallet's reversal is slow too,
+        but does not fit), or when it comes within ``hand.window`` of the restart before or of the
+        regime's end; one under way goes on. A restart that sped the puck up by more than ``hand.hit_speed``
+        was a hit (a human's or a mallet's), after which the puck flies: it starts none and ends one."""
         hand, previous, in_hand = self.settings.hand, self._last_event, self.in_hand
-        predicted = math.hypot(self.x[2], self.x[3])
+        predicted, steady = math.hypot(self.x[2], self.x[3]), self._pending_consistent()
         self._initialise_from_pending()
-        self._last_event, self.in_hand = t, in_hand
-        stopped = math.hypot(self.x[2], self.x[3]) < hand.stop_fraction * predicted
+        fitted = math.hypot(self.x[2], self.x[3])
+        hit = 0.0 < hand.hit_speed < fitted - predicted
+        self._last_event, self.in_hand = t, in_hand and not hit
+        stopped = steady and fitted < hand.stop_fraction * predicted
         soon = previous is not None and t - previous <= hand.window
-        if in_hand or not hand.enabled or not (stopped or soon):
+        if in_hand or hit or not hand.enabled or not (stopped or soon):
             return
         self.in_hand, self._hand_since, self._calm_since = True, t, None
         self._hand_corrections.clear()
