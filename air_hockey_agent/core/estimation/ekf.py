@@ -70,11 +70,11 @@ class HandSettings:
     A restart from rejected frames starts the *hand regime* when it kept less than ``stop_fraction`` of
     the speed the model predicted and its frames fit a constant velocity (a hand took the puck; no rim
     returns so little), or when it came within ``window`` [s] of the restart before or of the regime's end
-    (a hand moves the puck on): the model's flight law no longer holds, so the process noise gains a white-noise acceleration of ``acceleration``
-    [m/s^2] and ``spin_acceleration`` [rad/s^2] (per model step as a std; continuous density ``a^2 dt``)
-    and the frames are fused rather than rejected; the process noise learns nothing from them (the
-    table's learning goes on: its own gates refuse a hand's motion, and on a table far from the configured
-    physics it is what ends the misfit).
+    (a hand moves the puck on): the model's flight law no longer holds, so the process noise gains a
+    white-noise acceleration of ``acceleration`` [m/s^2] and ``spin_acceleration`` [rad/s^2] (per model
+    step as a std; continuous density ``a^2 dt``) and the frames are fused rather than rejected; the
+    process noise learns nothing from them (the table's learning goes on: its own gates refuse a hand's
+    motion, and on a table far from the configured physics it is what ends the misfit).
     It ends when the velocity the updates added over ``calm_time`` [s] (the acceleration the model did
     not predict) has stayed below ``calm_acceleration`` [m/s^2] for ``calm_time``: the hand let go or holds
     it still (one calm window is not enough: a hand's acceleration passes zero halfway through a carry),
