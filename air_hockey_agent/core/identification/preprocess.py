@@ -10,7 +10,8 @@
   or moved slowly by hand are cut (speed below ``rest_speed`` over a window).
 * :func:`cut_pushes`: a trajectory ends where a hand (or a mallet) takes the puck: a speed change no table
   gives away from its rims (``push_speed_gain`` gained, or half the speed lost, from one ``push_window`` to
-  the next; or ``push_speed_gain`` gained within ``push_memory``); what follows is the hand's until the puck rests again, and a new trajectory may start after.
+  the next; or ``push_speed_gain`` gained within ``push_memory``); what follows is the hand's until the
+  puck rests again, and a new trajectory may start after.
 
 A grid trajectory is a :class:`GridTrajectory`: start time, step and an (n, 3) array of
 (x, y, theta) with NaN rows for blanks.
