@@ -160,6 +160,20 @@ def test_in_process_strategy_trials_repeat_exactly_and_score_real_hits():
     assert chunk_seed(0, 0) != chunk_seed(0, 1) and chunk_seed(0, 1) == chunk_seed(0, 1)
 
 
+@pytest.mark.slow  # in-process: no ROS node, about 15 s
+def test_the_trackers_hand_regime_leaves_the_agents_repel_its_goals():
+    """The strategy test's first 40 Repel trials (seed 0, in process, as `strategy-test --in-process`
+    plays them): at least 36 goals. Every 100-trial run measured 93-95 % goals before the tracker's hand
+    regime and after a hit came to end it (README "Strategy test"); the regime as first landed, which
+    followed a puck reset and launched within half a second with a hand's noise into its approach, scored
+    30 of these 40 (the issue's target, 30 %, is far below either: this guards the tracker's effect on
+    the agent)."""
+    from air_hockey_agent.sim.strategy_loop import chunks, run_chunk
+    records = [r for c, share in chunks([("repel", i) for i in range(40)]) for r in run_chunk(0, c, share)]
+    assert all(r["hit"] and not r["error"] for r in records)
+    assert sum(r["goal"] for r in records) >= 36, [r["index"] for r in records if not r["goal"]]
+
+
 @pytest.mark.slow  # in-process: no ROS node
 def test_in_process_tactics_aim_with_the_trackers_physics():
     """As puck/physics in the node graph: each robot's tactics predict their shots with the one tracker's
