@@ -11,7 +11,7 @@ import fnmatch
 import math
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import Any, Iterable, Mapping, Sequence
 
 import yaml
 
@@ -117,7 +117,11 @@ def _read_document(path: Path) -> Mapping[str, Any] | None:
 
 def load_parameter_file(path: Path, fq_name: str) -> dict[str, Any]:
     """Return the parameters in one ROS 2 parameter file that apply to node ``fq_name``."""
-    document = _read_document(path)
+    return _document_values(_read_document(path), path, fq_name)
+
+
+def _document_values(document: Mapping[str, Any] | None, path: Path, fq_name: str) -> dict[str, Any]:
+    """The parameters in ``path``'s read ``document`` that apply to node ``fq_name``."""
     if document is None:
         return {}
     values: dict[str, Any] = {}
@@ -131,9 +135,16 @@ def load_parameter_file(path: Path, fq_name: str) -> dict[str, Any]:
 
 def load_defaults(paths: Iterable[Path], fq_name: str, specs: Iterable[ParamSpec]) -> dict[str, Any]:
     """Merge parameter files (later files win) and check every declared parameter has a valid default."""
+    paths = list(paths)
     values: dict[str, Any] = {}
     for path in paths:
         values.update(load_parameter_file(path, fq_name))
+    return _with_defaults(values, paths, fq_name, specs)
+
+
+def _with_defaults(values: Mapping[str, Any], paths: Sequence[Path], fq_name: str,
+                   specs: Iterable[ParamSpec]) -> dict[str, Any]:
+    """Every declared parameter's value from the merged ``values`` of ``paths``, checked against its spec."""
     result = {}
     for spec in specs:
         if spec.name not in values:
@@ -151,11 +162,13 @@ def load_node_params(default_files: Iterable[str], fq_name: str, specs: Iterable
     from air_hockey_agent.paths import config_file
     specs = list(specs)
     files = [config_file(name) for name in default_files] + [Path(f) for f in extra_files]
-    node = fq_name.rsplit("/", 1)[-1]
-    for path in files:  # a misspelled section or key is an error, not a silently ignored line: in an
-        # edited config/ (or AIR_HOCKEY_CONFIG_DIR's) as in a --params-file
-        check_parameter_file(path, node, [spec.name for spec in specs], node_parameters())
-    return load_defaults(files, fq_name, specs)
+    node, own, nodes = fq_name.rsplit("/", 1)[-1], [spec.name for spec in specs], node_parameters()
+    values: dict[str, Any] = {}
+    for path in files:  # each read once; a misspelled section or key is an error, not a silently ignored
+        document = _read_document(path)  # line: in an edited config/ (or AIR_HOCKEY_CONFIG_DIR's) as in a
+        _check_document(document, path, node, own, nodes)  # --params-file
+        values.update(_document_values(document, path, fq_name))
+    return _with_defaults(values, files, fq_name, specs)
 
 
 def yaml_float(value: float) -> str:
@@ -230,7 +243,12 @@ def check_parameter_file(path: Path, node: str, own: Iterable[str], nodes: Mappi
     for no node in ``nodes`` (name -> its parameter names), a key the node it is for does not declare,
     or, in a section for every node, a key no node declares. ``node`` with its names ``own`` is the one
     reading the file."""
-    document = _read_document(path)
+    _check_document(_read_document(path), path, node, own, nodes)
+
+
+def _check_document(document: Mapping[str, Any] | None, path: Path, node: str, own: Iterable[str],
+                    nodes: Mapping[str, Iterable[str]]) -> None:
+    """:func:`check_parameter_file` on ``path``'s read ``document``."""
     if document is None:
         return
     known = {name: set(names) for name, names in nodes.items()}
