@@ -145,7 +145,7 @@ class FilterSettings:
     imm_contact_speed: float = 2.0        # [m/s] std of the contact mode's velocity change in one frame
     imm_contact_spin: float = 10.0        # [rad/s] ... and of its spin change
     marker_offset: tuple[float, float] = (0.0, 0.0)  # [m] mocap pivot off the centre, puck frame (.marker_offset)
-    hand: HandSettings = field(default_factory=lambda: HandSettings())  # a hand moving the puck (:class:`HandSettings`)
+    hand: HandSettings = field(default_factory=HandSettings)  # a hand moving the puck (:class:`HandSettings`)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "FilterSettings":

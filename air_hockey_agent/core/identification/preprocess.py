@@ -217,8 +217,9 @@ def cut_pushes(traj: GridTrajectory, window: float, gain: float, limits: tuple[f
     rims (:func:`_first_push`: a table's tilt gains about 0.01 m/s in 0.2 s, a hand sliding a puck away
     tenths of a m/s; a flight law loses a tenth of the speed there at the most, a hand's grab all of it),
     or where it has gained more than ``gain`` on the lowest speed held over the ``memory`` [s] before (a
-    slow hand: a table's tilt gains 0.03-0.06 m/s in a second). The hand's motion after it is dropped until the puck rests (``rest_speed`` over ``rest_window``); what
-    moves after that is cut again (a new hit). Returns the pieces in order and the pushes found."""
+    slow hand: a table's tilt gains 0.03-0.06 m/s in a second). The hand's motion after it is dropped
+    until the puck rests (``rest_speed`` over ``rest_window``); what moves after that is cut again (a new
+    hit). Returns the pieces in order and the pushes found."""
     steps = max(1, int(round(window / traj.dt)))
     k = _first_push(traj.z, steps, traj.dt, gain, limits, int(round(memory / traj.dt)))
     if k is None:
