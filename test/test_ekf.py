@@ -149,6 +149,19 @@ def test_measurement_far_outside_the_table_is_dropped():
     assert ekf.x[0] < 0.1
 
 
+@pytest.mark.parametrize("offset", [(0.0, 0.0), (0.002, -0.001)])
+@pytest.mark.parametrize("bad", [[np.nan, 0.0, 0.0], [0.03, 0.0, np.inf], [0.03, 0.0, -np.inf], [0.03, np.nan, np.nan]])
+def test_a_pose_that_is_not_finite_is_dropped_with_or_without_a_marker_offset(offset, bad):
+    """With a marker offset the pivot is taken back to the centre by the pose's angle before the pose's
+    check: an infinite angle raised there (math.cos) until the check came first (found by fuzzing)."""
+    ekf = PuckEKF(model(), replace(SETTINGS, marker_offset=offset))
+    for k in range(3):
+        ekf.process(k * DT, [0.01 * k, 0.0, 0.0])
+    state = ekf.x.copy()
+    assert ekf.process(3 * DT, bad) & FLAG_OUTLIER_REJECTED
+    assert ekf.stats.off_table == 1 and np.all(np.isfinite(ekf.x)) and ekf.x[0] == pytest.approx(state[0], abs=0.02)
+
+
 @pytest.mark.parametrize("matrix, message", [(np.diag([1.0, -1.0, 1.0]), "not positive definite"),
                                              (np.array([[1, 2, 0], [0, 1, 0], [0, 0, 1.0]]), "not symmetric"),
                                              (np.eye(2), "must be 3x3")])

@@ -431,7 +431,7 @@ class PuckEKF:
         if self.noise_learning is not None:
             self._learn_noise(t, z)
         offset = self.marker_offset
-        if z is not None and (offset[0] or offset[1]):
+        if z is not None and (offset[0] or offset[1]) and math.isfinite(z[2]):  # else plausible() drops it
             z = centre_of(np.asarray(z, float), offset)
         if self.learning is None:
             return self._process(t, z)
