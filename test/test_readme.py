@@ -13,7 +13,8 @@ fence may set how it runs:
 * ``<!-- readme-test: skip: REASON -->``: not runnable here (a display, a ROS install); the reason is
   shown as the skip reason.
 
-Synopses with placeholders (``[--option N]``, ``BAG...``) are ```text blocks, never run.
+Synopses with placeholders (``[--option N]``, ``BAG...``) are ```text blocks, never run. Links within the
+README must name one of its headings, and its contents list must name every section.
 
 Blocks that start ROS nodes (the ``nodes`` policy, a node-graph ``game`` or ``strategy-test``) are marked
 ``integration`` and so run in `make test`'s second part, alone; the others run in its first part, all on
@@ -179,3 +180,25 @@ def test_blocks_that_start_nodes_are_told_apart():
     assert not starts_nodes(block("run", "air-hockey game-check seed3\nair-hockey eval-prediction shots\n"))
     assert not starts_nodes(block("tested by test/test_node_cli.py", "air-hockey game --duration 30\n"))
     assert [b.line for b in BLOCKS if starts_nodes(b)], "README.md: no block starts nodes (the split is untested)"
+
+
+def heading_anchor(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading: lower case, punctuation but hyphens dropped, spaces to hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def test_every_link_within_the_readme_names_a_heading_and_the_contents_list_every_section():
+    text = README.read_text()
+    headings = re.findall(r"^#{2,3} (.+)$", text, re.M)
+    anchors = {heading_anchor(h) for h in headings}
+    broken = sorted(set(re.findall(r"\]\(#([^)]+)\)", text)) - anchors)
+    assert not broken, f"README.md: links to no heading: {broken}"
+    contents = text[text.index("Contents:"):text.index("## ")]
+    missing = [h for h in headings if f"(#{heading_anchor(h)})" not in contents]
+    assert not missing, f"README.md: sections missing from the contents: {missing}"
+
+
+def test_heading_anchors_follow_githubs_rule():
+    assert heading_anchor("Issue #13's targets, command by command") == "issue-13s-targets-command-by-command"
+    assert heading_anchor("Installation notes (the decisions behind `scripts/setup_venv.sh`)") == \
+        "installation-notes-the-decisions-behind-scriptssetup_venvsh"
