@@ -1,11 +1,12 @@
-"""The filter's hand regime (core/estimation/ekf.py, HandSettings): a hand carrying the puck, as the test
+"""The filter's hand regime (core/estimation/hand_regime.py, used by ekf.py): a hand carrying the puck, as the test
 bed's HandCarry moves it (core/puck/real_table.py: a minimum-jerk path, written apart from the filter), is
 followed rather than rejected, and the process noise learns nothing from it; a human hit alone does not
 start it."""
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.estimation.ekf import FLAG_REINITIALISED, HandSettings, PuckEKF
+from air_hockey_agent.core.estimation.ekf import FLAG_REINITIALISED, PuckEKF
+from air_hockey_agent.core.estimation.hand_regime import HandSettings
 from air_hockey_agent.core.estimation.evaluation import EvaluationTotals, evaluate_stream
 from air_hockey_agent.core.puck.real_table import RealTablePuck, TableEffects, carry_from
 from air_hockey_agent.tracker_params import load_tracker_params, without_learning
@@ -158,3 +159,55 @@ def test_on_a_test_bed_whose_shots_end_in_a_carry_the_filter_stays_calibrated():
     calm, _ = run(3.0, [0.0, 0.0])
     calm_off, _ = run(0.0, [0.0, 0.0])
     assert calm["hand"] == {"regimes": 0, "frames": 0} and calm == calm_off
+
+
+def _regime(**settings):
+    from air_hockey_agent.core.estimation.hand_regime import HandRegime
+    return HandRegime(HandSettings(**{"acceleration": 3.0, "window": 0.5, "calm_time": 0.2, "calm_acceleration": 1.0,
+                                      "stop_fraction": 0.25, "hit_speed": 1.0, **settings}))
+
+
+def test_the_regime_starts_at_a_steady_stop_or_a_second_restart_soon_and_a_hit_starts_none():
+    regime = _regime()
+    assert not regime.after_restart(1.0, 0.8, 0.1, steady=False)  # slow but no constant velocity: a reversal
+    assert regime.after_restart(1.3, 0.8, 0.1, steady=True) and regime.active  # within 0.5 s of 1.0
+    stop = _regime()
+    assert stop.after_restart(5.0, 0.8, 0.1, steady=True) and stop.active  # kept 12 % of the predicted speed
+    late = _regime()
+    assert not late.after_restart(1.0, 0.8, 0.5, steady=True) and not late.after_restart(1.6, 0.8, 0.5, True)
+    hit = _regime()
+    assert not hit.after_restart(1.0, 0.0, 0.0, steady=True) and not hit.after_restart(1.2, 0.0, 3.0, steady=True)
+    assert not hit.active  # the second restart, 0.2 s after the first, gained 3 m/s: a hit
+    assert _regime(acceleration=0.0).after_restart(5.0, 0.8, 0.1, steady=True) is False  # switched off
+
+
+def test_the_regime_ends_after_two_calm_windows_or_at_a_hit():
+    regime = _regime()
+    regime.after_restart(0.0, 0.8, 0.0, steady=True)
+    t = 0.0
+    for _ in range(60):  # 0.5 s of updates adding 3 m/s^2: never calm
+        t += 1 / 120
+        regime.watch(t, 3.0 / 120, 0.0)
+    assert regime.active
+    ended = None
+    for _ in range(120):  # then none: calm once the last 0.2 s hold under 1 m/s^2 (7 of the 3 m/s^2 updates,
+        t += 1 / 120      # from 0.5 + 0.2 - 7/120 s on), ended calm_time later
+        regime.watch(t, 0.0, 0.0)
+        if ended is None and not regime.active:
+            ended = t
+    calm = 0.5 + 0.2 - 7 / 120
+    assert ended is not None and calm + 0.2 <= ended <= calm + 0.2 + 1.5 / 120
+    hit = _regime()
+    hit.after_restart(0.0, 0.8, 0.0, steady=True)
+    assert not hit.after_restart(0.3, 0.0, 2.5, steady=True) and not hit.active
+
+
+def test_a_restart_under_way_forgets_the_velocity_added_before_it():
+    """The filter's restart begins a new track: what the updates added before it does not count toward
+    the regime's calm test (as the filter's reset cleared it before the regime had a module of its own)."""
+    regime = _regime(calm_time=0.2)
+    regime.after_restart(0.0, 0.8, 0.0, steady=True)
+    for k in range(1, 25):  # 0.2 s adding 6 m/s^2
+        regime.watch(k / 120, 6.0 / 120, 0.0)
+    regime.after_restart(0.21, 0.5, 0.4, steady=True)  # goes on, the corrections dropped
+    assert regime.active and regime._corrections == []

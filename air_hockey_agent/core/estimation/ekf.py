@@ -15,7 +15,7 @@
   fails ``angle_gate_threshold`` (1 dof) is fused without it. Frames beyond the table by more than
   ``outside_table_margin`` are dropped before gating.
 * a hand (or a mallet) moving the puck: a restart from rejected frames that stopped the puck, or the
-  second within ``hand.window``, starts the hand regime (:class:`HandSettings`), which follows the puck
+  second within ``hand.window``, starts the hand regime (:mod:`.hand_regime`), which follows the puck
   with a hand's accelerations as process noise instead of restarting every few frames, until the motion
   is the model's again.
 * (re)initialisation: a least-squares constant-velocity fit over the collected frames (the first
@@ -38,6 +38,7 @@ from typing import Any, Mapping, Sequence
 
 import numpy as np
 
+from air_hockey_agent.core.estimation.hand_regime import HandRegime, HandSettings
 from air_hockey_agent.core.estimation.marker_offset import centre_of
 from air_hockey_agent.core.estimation.noise_adaptation import MarkerNoiseAdaptation
 from air_hockey_agent.core.estimation.process_noise_adaptation import ProcessNoiseAdaptation
@@ -61,58 +62,6 @@ SINGLE_STEP_LIMIT = 1.5  # frames up to 1.5 model steps long are predicted as on
 # A track starts from this many frames: the fewest whose constant-velocity fit (2 values per axis) leaves
 # a residual to check, so a glitch or a hit still under way cannot set the first velocity unseen.
 ACQUISITION_FRAMES = 3
-
-
-@dataclass(frozen=True)
-class HandSettings:
-    """A hand (or a mallet) moving the puck: ``hand.*`` in config/tracker.yaml (sources there).
-
-    A restart from rejected frames starts the *hand regime* when it kept less than ``stop_fraction`` of
-    the speed the model predicted and its frames fit a constant velocity (a hand took the puck; no rim
-    returns so little), or when it came within ``window`` [s] of the restart before or of the regime's end
-    (a hand moves the puck on): the model's flight law no longer holds, so the process noise gains a
-    white-noise acceleration of ``acceleration`` [m/s^2] and ``spin_acceleration`` [rad/s^2] (per model
-    step as a std; continuous density ``a^2 dt``) and the frames are fused rather than rejected; the
-    process noise learns nothing from them (the table's learning goes on: its own gates refuse a hand's
-    motion, and on a table far from the configured physics it is what ends the misfit).
-    It ends when the velocity the updates added over ``calm_time`` [s] (the acceleration the model did
-    not predict) has stayed below ``calm_acceleration`` [m/s^2] for ``calm_time``: the hand let go or holds
-    it still (one calm window is not enough: a hand's acceleration passes zero halfway through a carry),
-    or at a restart that sped the puck up by more than ``hit_speed`` [m/s]: a hit, after which the puck
-    flies (such a restart starts none either). ``acceleration`` 0 turns it off."""
-
-    acceleration: float = 0.0
-    spin_acceleration: float = 0.0
-    window: float = 0.5
-    calm_time: float = 0.2
-    calm_acceleration: float = 1.0
-    stop_fraction: float = 0.0
-    hit_speed: float = 0.0
-
-    @classmethod
-    def from_params(cls, params: Mapping[str, Any], prefix: str = "hand.") -> "HandSettings":
-        return cls(**{name: float(params[prefix + name]) for name in cls.__dataclass_fields__})
-
-    @property
-    def enabled(self) -> bool:
-        return self.acceleration > 0.0
-
-    def noise(self, dt: float, nominal_dt: float) -> np.ndarray:
-        """Process noise [6x6] of the hand over ``dt`` [s]: continuous white-noise acceleration of density
-        a^2 ``nominal_dt`` on (x, vx), (y, vy) and (theta, omega)."""
-        a, spin = self.acceleration, self.spin_acceleration
-        return white_noise_acceleration((a * a * nominal_dt, a * a * nominal_dt, spin * spin * nominal_dt), dt)
-
-
-def white_noise_acceleration(densities: tuple[float, float, float], dt: float) -> np.ndarray:
-    """Process noise [6x6] over ``dt`` [s] of continuous white-noise accelerations of the spectral
-    ``densities`` (on (x, vx), (y, vy), (theta, omega)): D (dt^3/3, dt^2/2, dt) per (value, rate) pair."""
-    q = np.zeros((6, 6))
-    for (pos, vel), density in zip(((0, 2), (1, 3), (4, 5)), densities):
-        q[pos, pos] = density * dt ** 3 / 3.0
-        q[pos, vel] = q[vel, pos] = density * dt * dt / 2.0
-        q[vel, vel] = density * dt
-    return q
 
 
 @dataclass
@@ -194,7 +143,7 @@ class FilterStats:
     off_table: int = 0           # poses beyond the table by more than outside_table_margin (not the puck on it)
     reinitialisations: int = 0
     repeated_frames: int = 0
-    hand_frames: int = 0         # frames handled in the hand regime (HandSettings)
+    hand_frames: int = 0         # frames handled in the hand regime (.hand_regime)
     hand_regimes: int = 0        # times the hand regime started
 
 
@@ -240,14 +189,19 @@ class PuckEKF:
     noise_learning: MarkerNoiseAdaptation | None = None  # the mocap's noise learned online (None: R as set)
     process_noise_learning: ProcessNoiseAdaptation | None = None  # Q by regime learned online (None: as set)
     _frames_since_impact: int = 1 << 30                # gated frames since the model last put a rim impact
-    _last_event: float | None = None                   # [s] the last restart from rejections or hand regime's end
-    in_hand: bool = False                              # the hand regime (HandSettings) holds
-    _hand_since: float = 0.0                           # [s] when it started
-    _calm_since: float | None = None                   # [s] since when its updates have been calm
-    _hand_corrections: list = field(default_factory=list)  # (t, dvx, dvy) of its updates within calm_time
+    hand: HandRegime | None = None                     # a hand moving the puck (:mod:`.hand_regime`; None: built
+                                                       # from settings.hand after __init__)
 
     def __post_init__(self) -> None:
-        """Nothing here; a subclass with state of its own sets it up (the generated ``__init__`` calls this)."""
+        """The hand regime from the settings; a subclass with state of its own sets it up too (the generated
+        ``__init__`` calls this)."""
+        if self.hand is None:
+            self.hand = HandRegime(self.settings.hand)
+
+    @property
+    def in_hand(self) -> bool:
+        """Whether the hand regime (:mod:`.hand_regime`) holds."""
+        return self.hand.active
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "PuckEKF":
@@ -295,8 +249,7 @@ class PuckEKF:
         self._pending.clear()
         self._failed_acquisitions = 0
         self._last_z = None
-        self._last_event, self.in_hand = None, False
-        self._hand_corrections.clear()
+        self.hand = HandRegime(self.settings.hand)
         if self.learning is not None:
             self.learning.forget()
         if state is None:
@@ -360,7 +313,7 @@ class PuckEKF:
 
     def _step_noise(self, state: np.ndarray, dt: float) -> np.ndarray:
         """Q of a step of ``dt`` [s] from ``state``: the regime the step starts in (``process_noise``),
-        plus the hand's in the hand regime (:class:`HandSettings`)."""
+        plus the hand's in the hand regime (:mod:`.hand_regime`)."""
         q = self.settings.process_noise(state) * (dt / self.settings.dt)
         return q + self.settings.hand.noise(dt, self.settings.dt) if self.in_hand else q
 
@@ -514,7 +467,7 @@ class PuckEKF:
             else:
                 self._update_position_only(y[:2], s[:2, :2], z[2])
             if self.in_hand:
-                self._watch_hand(t, self.x[2] - velocity[0], self.x[3] - velocity[1])
+                self.hand.watch(t, self.x[2] - velocity[0], self.x[3] - velocity[1])
             return FLAG_MEASUREMENT_USED
         self.stats.outliers_rejected += 1
         self._pending.append(_Measurement(t, z))
@@ -524,47 +477,14 @@ class PuckEKF:
         return FLAG_OUTLIER_REJECTED | FLAG_PREDICTED
 
     def _restart_from_rejections(self, t: float) -> None:
-        """Restart at ``t`` [s] from the rejected run (:meth:`_initialise_from_pending`). The hand regime
-        (:class:`HandSettings`) starts with it when the restart kept less than ``hand.stop_fraction`` of
-        the speed the model predicted and the run fits a constant velocity (:meth:`_pending_consistent`: a
-        hand took the puck, where no rim returns so little; a fit across a mallet's reversal is slow too,
-        but does not fit), or when it comes within ``hand.window`` of the restart before or of the
-        regime's end; one under way goes on. A restart that sped the puck up by more than ``hand.hit_speed``
-        was a hit (a human's or a mallet's), after which the puck flies: it starts none and ends one."""
-        hand, previous, in_hand = self.settings.hand, self._last_event, self.in_hand
-        predicted, steady = math.hypot(self.x[2], self.x[3]), self._pending_consistent()
+        """Restart at ``t`` [s] from the rejected run (:meth:`_initialise_from_pending`) and tell the hand
+        regime what the restart kept of the predicted speed (:meth:`.HandRegime.after_restart`: a stop or a
+        restart soon after another starts it, a hit ends it)."""
+        predicted, steady, regime = math.hypot(self.x[2], self.x[3]), self._pending_consistent(), self.hand
         self._initialise_from_pending()
-        fitted = math.hypot(self.x[2], self.x[3])
-        hit = 0.0 < hand.hit_speed < fitted - predicted
-        self._last_event, self.in_hand = t, in_hand and not hit
-        stopped = steady and fitted < hand.stop_fraction * predicted
-        soon = previous is not None and t - previous <= hand.window
-        if in_hand or hit or not hand.enabled or not (stopped or soon):
-            return
-        self.in_hand, self._hand_since, self._calm_since = True, t, None
-        self._hand_corrections.clear()
-        self.stats.hand_regimes += 1
-
-    def _watch_hand(self, t: float, dvx: float, dvy: float) -> None:
-        """An update in the hand regime changed the velocity by (dvx, dvy) [m/s]: the regime ends once the
-        updates of the last ``calm_time`` added less than ``calm_acceleration`` (the model explains the
-        motion again)."""
-        hand = self.settings.hand
-        corrections = self._hand_corrections
-        corrections.append((t, dvx, dvy))
-        while corrections[0][0] <= t - hand.calm_time:
-            corrections.pop(0)
-        if t - self._hand_since < hand.calm_time:
-            return
-        ax = sum(c[1] for c in corrections) / hand.calm_time
-        ay = sum(c[2] for c in corrections) / hand.calm_time
-        if math.hypot(ax, ay) >= hand.calm_acceleration:
-            self._calm_since = None
-        elif self._calm_since is None:
-            self._calm_since = t
-        elif t - self._calm_since >= hand.calm_time:
-            self.in_hand, self._last_event = False, t
-            corrections.clear()
+        self.hand = regime  # the restart's reset begins a new track; the regime goes on across it
+        if self.hand.after_restart(t, predicted, math.hypot(self.x[2], self.x[3]), steady):
+            self.stats.hand_regimes += 1
 
     def _learn_process_noise(self, position_d2: float) -> None:
         """Give a gated frame's position distance to the process noise learning

@@ -28,8 +28,8 @@ from typing import Sequence
 
 import numpy as np
 
-from air_hockey_agent.core.estimation.ekf import (_MEASURED_BLOCK, MEASURED, SINGLE_STEP_LIMIT, PuckEKF,
-                                                   white_noise_acceleration)
+from air_hockey_agent.core.estimation.ekf import _MEASURED_BLOCK, MEASURED, SINGLE_STEP_LIMIT, PuckEKF
+from air_hockey_agent.core.estimation.hand_regime import white_noise_acceleration
 from air_hockey_agent.core.puck.model import wrap_angle
 from air_hockey_agent.core.puck.prediction import with_impact_noise
 
@@ -41,6 +41,7 @@ class PuckIMM(PuckEKF):
     """IMM filter over MODES (module docstring); ``mode_probabilities`` after each frame."""
 
     def __post_init__(self) -> None:
+        super().__post_init__()
         self._restart_modes()
 
     def _restart_modes(self) -> None:
