@@ -306,30 +306,7 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
         from air_hockey_agent.tools.split_plots import write_split_plots
         plots = [str(p) for p in write_split_plots(args.plot, split)]
     polished = _polish_split(args, moved, settings, train_after, chosen) if args.polish else None
-    objective = {"set": "train"}
-    if split.flight is not None:
-        f = split.flight
-        objective["flight"] = {"windows": f.windows, "dropped": f.dropped, "weighted_squared_residual": f.objective,
-                               "rms_acceleration_m_s2": f.rms_acceleration}
-        if split.field is not None:
-            c = split.field
-            objective["flight"]["field"] = {"cells": c.cells, "largest_m_s2": c.largest, "f_statistic": c.f_statistic,
-                                            "p_value": c.p_value,
-                                            "varies": c.p_value < settings["split.field_significance"]}
-        if split.spin is not None:
-            s = split.spin
-            objective["flight"]["spin_decay"] = {"rate_per_s": s.rate, "std_per_s": s.std, "windows": s.windows,
-                                                 "dropped": s.dropped, "rms_spin_rad_s": s.rms_spin}
-    if split.impacts is not None:
-        i = split.impacts
-        objective["impacts"] = {"impacts": i.impacts, "dropped": i.dropped, "rms_normal_speed_m_s": i.rms_normal,
-                                "rms_tangential_m_s": i.rms_tangential}
-        if split.delay is not None:
-            d = split.delay
-            objective["impacts"]["delay"] = {"fitted_s": d.fitted, "std_s": d.std, "impacts": d.impacts,
-                                             "value_s": d.value, "identified": "impact_delay" in names,
-                                             "offsets_m": {WALL_NAMES[w]: o for w, (o, _) in d.offsets.items()},
-                                             "offset_std_m": {WALL_NAMES[w]: s for w, (_, s) in d.offsets.items()}}
+    objective = _split_objective(split, settings, names)
     std = dict(split.std)
     if polished is not None:
         objective["polish"] = polished
@@ -355,6 +332,36 @@ def _identify_split(args, tracker: dict, settings: dict, train: list, validation
     result["summary_line"] = (f"identified by `air-hockey sysid --method split` ({len(train)} training "
                               f"trajectories) on {datetime.now(timezone.utc).strftime('%Y-%m-%d %H:%M UTC')}")
     return result
+
+
+def _split_objective(split, settings: dict, names) -> dict:
+    """What the split fits minimised, on the training set, for the report's ``objective``: the flight law's
+    windows (and the field check's and the spin decay's), the impacts' (and the rim delay's)."""
+    objective = {"set": "train"}
+    if split.flight is not None:
+        f = split.flight
+        objective["flight"] = {"windows": f.windows, "dropped": f.dropped, "weighted_squared_residual": f.objective,
+                               "rms_acceleration_m_s2": f.rms_acceleration}
+        if split.field is not None:
+            c = split.field
+            objective["flight"]["field"] = {"cells": c.cells, "largest_m_s2": c.largest, "f_statistic": c.f_statistic,
+                                            "p_value": c.p_value,
+                                            "varies": c.p_value < settings["split.field_significance"]}
+        if split.spin is not None:
+            s = split.spin
+            objective["flight"]["spin_decay"] = {"rate_per_s": s.rate, "std_per_s": s.std, "windows": s.windows,
+                                                 "dropped": s.dropped, "rms_spin_rad_s": s.rms_spin}
+    if split.impacts is not None:
+        i = split.impacts
+        objective["impacts"] = {"impacts": i.impacts, "dropped": i.dropped, "rms_normal_speed_m_s": i.rms_normal,
+                                "rms_tangential_m_s": i.rms_tangential}
+        if split.delay is not None:
+            d = split.delay
+            objective["impacts"]["delay"] = {"fitted_s": d.fitted, "std_s": d.std, "impacts": d.impacts,
+                                             "value_s": d.value, "identified": "impact_delay" in names,
+                                             "offsets_m": {WALL_NAMES[w]: o for w, (o, _) in d.offsets.items()},
+                                             "offset_std_m": {WALL_NAMES[w]: s for w, (_, s) in d.offsets.items()}}
+    return objective
 
 
 def _absent(split, chosen: dict, box: dict, significance: float) -> set[str]:
