@@ -91,6 +91,28 @@ def test_tracks_ground_truth_through_rim_impacts(kind):
     assert np.percentile(np.hypot(err[20:, 2], err[20:, 3]), 95) < 0.02  # [m/s] after convergence
 
 
+
+@pytest.mark.parametrize("kind", [PuckEKF, PuckUKF, PuckMEEUKF, PuckIMM])
+def test_a_dropout_is_bridged_by_the_fast_prediction_and_the_track_goes_on(kind):
+    """0.3 s without frames across a rim impact (longer than one step: the fast prediction, and for the IMM
+    its mixture's, after which the modes restart from it at the mixed probabilities): the first frame after
+    the gap is fused, not a restart, and the estimate stays on the truth."""
+    m = model()
+    start = np.array([-0.5, 0.1, 2.5, 1.7, 0.0, 8.0])
+    times, states = simulate_truth(m, start, 2.0, DT / 10)
+    frames = mocap_stream(m, times, states, 120.0, MocapImperfections(jitter_std=0.0), np.random.default_rng(1))
+    frames = [(t, z) for t, z in frames if not 0.7 < t < 1.0]  # the puck meets a rim at 0.76 s
+    f = kind(m, SETTINGS)
+    errors = []
+    for stamp, z in frames:
+        f.process(stamp, z)
+        if stamp > 1.0:
+            errors.append(np.hypot(*(f.x[:2] - true_state_at(m, times, states, stamp)[:2])))
+    assert f.stats.reinitialisations == 1 and f.stats.outliers_rejected <= 2
+    assert errors[0] < 1e-3 and np.median(errors) < 2e-4  # [m]
+    if kind is PuckIMM:
+        assert f.mode_probabilities.sum() == pytest.approx(1.0)
+
 def test_the_filter_parameter_selects_the_estimator_and_refuses_unknown_ones():
     tracker = load_tracker_params()
     assert type(PuckEKF.from_params(tracker)) is PuckEKF  # config/tracker.yaml: the EKF

@@ -468,3 +468,32 @@ def test_compiled_kernels_match_their_numpy_formulas(front):
         assert not inside or bool(np.all((trial >= lo) & (trial <= hi)))  # True only for a step inside the bounds
         outcomes.add(inside)
     assert outcomes == {True, False}
+
+
+def test_the_execution_check_keeps_the_worst_excursion_and_velocity_use_and_counts_plans_outside(front):
+    """game-check's ExecutionCheck (core/motion/execution_check.py) against the planner's own IK: a mallet
+    put 3 cm beyond the long rim line is the worst excursion, at its time; the largest |dq| over the real
+    velocity limit is the worst use; a trajectory with one knot outside by more than the tolerance counts."""
+    from air_hockey_agent.core.motion.execution_check import ExecutionCheck
+    s = front.s
+
+    def posture(x, y):
+        ik = solve_ik(front.kin, front.limits, np.array([x, y, s.height]), s.reference, s.reference,
+                      s.ik_iterations, s.ik_tolerance)
+        assert ik.ok
+        return ik.q
+
+    inside, beyond = posture(-0.7, 0.0), posture(-0.7, -front.region.y_max - 0.03)
+    check = ExecutionCheck(front, planned_tolerance=0.01, keep_trace=True)
+    slow, fast = 0.3 * front.limits.dq_max_real, 0.9 * front.limits.dq_max_real
+    check.joint_state(1.0, inside, slow)
+    check.joint_state(2.0, beyond, fast)
+    check.joint_state(3.0, inside, np.zeros(7))
+    r = check.result
+    assert r.joint_states == 3 and len(check.trace) == 3
+    assert r.worst_outside_m == pytest.approx(0.03, abs=2e-3) and r.worst_outside_time == 2.0
+    assert r.worst_velocity_use == pytest.approx(0.9) and r.worst_velocity_time == 2.0
+    check.trajectory([inside, inside])
+    check.trajectory([inside, beyond])
+    assert r.trajectories == 2 and r.trajectories_outside == 1
+    assert r.worst_planned_outside_m == pytest.approx(0.03, abs=2e-3)
