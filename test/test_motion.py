@@ -237,6 +237,14 @@ def test_bad_commands_are_refused_with_their_reason(front):
         plan = front.plan(command, start)
         assert plan.outcome == outcome and words in plan.message, plan.message
         assert len(plan.q) == 0
+    # a start state with a non-finite joint was planned from, the reach accepted with NaN knots (fuzzing)
+    for bad in (math.inf, math.nan):
+        q, dq = start.q.copy(), start.dq.copy()
+        q[6] = bad
+        for state in (ArmState(start.t, q, start.dq), ArmState(start.t, start.q, np.where(dq == 0.0, bad, dq))):
+            for velocity in (np.zeros(2), np.array([1.0, 0.0])):
+                plan = front.plan(Command(np.array([-0.69, 0.12]), velocity, start.t + 0.3), state)
+                assert plan.outcome == INVALID and "start state" in plan.message and len(plan.q) == 0
 
 
 def test_region_excess_is_the_distance_beyond_the_box_or_the_reach(front):

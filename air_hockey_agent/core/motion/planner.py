@@ -143,6 +143,8 @@ class MotionPlanner:
         values = np.concatenate([command.point, command.velocity, [command.time]])
         if not np.all(np.isfinite(values)):
             return refused(INVALID, "the command has non-finite values")
+        if not (math.isfinite(start.t) and np.all(np.isfinite(start.q)) and np.all(np.isfinite(start.dq))):
+            return refused(INVALID, "the arm's start state has non-finite values")  # else NaN knots, accepted
         if not self.region.contains(command.point):
             return refused(OUTSIDE_REGION, self.region.why_outside(command.point))
         if command.time < start.t + self.s.planning_delay:
