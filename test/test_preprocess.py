@@ -4,9 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.identification.preprocess import (GridTrajectory, cut_rest, grid_glitches,
-                                                             interpolate_frozen, preprocess, split_trajectories,
-                                                             to_model_grid)
+from air_hockey_agent.core.identification.preprocess import (GridTrajectory, Preprocessed, _gridded_pieces, cut_rest,
+                                                             grid_glitches, interpolate_frozen, preprocess,
+                                                             split_trajectories, to_model_grid)
 
 DT = 1 / 120
 
@@ -156,3 +156,49 @@ def test_a_slow_carry_that_gains_little_from_one_chord_to_the_next_is_found_over
     assert 2.5 - 0.45 <= first.t0 + first.duration - 1000.0 <= 2.5
     kept = preprocess(stamps, z, 8e-3, {**PUSH_PREP, "push_memory": 0.0}, 10.0, limits).trajectories
     assert len(kept) == 2 and kept[1].t0 - 1000.0 > 2.5 and kept[1].duration >= 1.0
+
+
+PREP = {"frozen_threshold": 1e-6, "max_gap": 0.5, "rest_speed": 0.05, "rest_window": 0.1, "push_window": 0.2,
+        "push_speed_gain": 0.1, "push_memory": 1.0, "min_duration": 0.5}
+
+
+def _shots(t0: float, count: int = 2) -> tuple[list, list]:
+    """``count`` shots of 2 s at 1 m/s along x with 0.1 mm of noise, 3 s apart (a pause without frames)."""
+    rng, stamps, poses = np.random.default_rng(0), [], []
+    for shot in range(count):
+        for k in range(240):
+            stamps.append(t0 + 5.0 * shot + k * DT)
+            poses.append((-0.8 + k * DT + rng.normal(0, 1e-4), rng.normal(0, 1e-4), 0.0))
+    return stamps, poses
+
+
+def test_a_stamp_far_off_or_not_finite_neither_blows_up_the_grid_nor_changes_the_trajectories():
+    """A zero header stamp among epoch times asked for a grid of 2e11 rows (MemoryError in sysid and in
+    eval-prediction's thesis-style columns, found by fuzzing); blocks far apart are gridded apart on one grid,
+    frames without a finite stamp left out. Empty input has no trajectories."""
+    stamps, poses = _shots(1.7e9)
+    clean = preprocess(stamps, poses, DT, PREP)
+    assert len(clean.trajectories) == 2
+    for bad in (0.0, -1e12, 5e9, math.nan, math.inf):
+        odd = list(stamps)
+        odd[100] = bad
+        got = preprocess(odd, poses, DT, PREP)
+        assert [round(t.t0 / DT) for t in got.trajectories] == [round(t.t0 / DT) for t in clean.trajectories]
+        assert [len(t) for t in got.trajectories] == [len(t) for t in clean.trajectories]
+    assert preprocess([], [], DT, PREP).trajectories == []
+
+
+def test_pieces_gridded_apart_lie_on_the_first_pieces_grid():
+    """The second shot's rows keep the phase of the recording's first stamp, to the last bit (the same
+    grid as one array over the whole recording gave), and a frozen last frame of a shot is not filled in
+    toward the next shot's first frame 3 s later (the whole-recording grid did that)."""
+    stamps, poses = _shots(100.0 + 0.3 * DT)
+    stamps[300] += 0.4 * DT  # a late frame in the second shot: still its row's nearest
+    whole = split_trajectories(to_model_grid(stamps, poses, DT), PREP["max_gap"])
+    apart = _gridded_pieces(stamps, poses, DT, PREP["max_gap"], PREP["frozen_threshold"], Preprocessed([]))
+    assert [t.t0 for t in apart] == [t.t0 for t in whole] and len(apart) == 2
+    assert all(np.array_equal(a.z, w.z) for a, w in zip(apart, whole))
+    poses[239] = poses[238]  # the first shot's last frame repeats the one before
+    counts = Preprocessed([])
+    first = _gridded_pieces(stamps, poses, DT, PREP["max_gap"], PREP["frozen_threshold"], counts)[0]
+    assert counts.frozen == 1 and len(first) == 239  # ends at the last good frame

@@ -5,7 +5,9 @@
   frame), and of two frames in one slot only the nearer is kept (duplicates dropped).
 * :func:`interpolate_frozen`: frames whose position repeats the previous one within ``threshold``
   (1e-6 m in the thesis) are replaced by linear interpolation between the neighbouring good frames.
-* :func:`split_trajectories`: a long recording is cut where more than ``max_gap`` seconds have no frame.
+* :func:`split_trajectories`: a long recording is cut where more than ``max_gap`` seconds have no frame
+  (:func:`preprocess` grids the stamps in blocks apart where they leave such a gap, on one grid: a stamp
+  far off cannot ask for billions of rows, and a frozen frame is not filled in across a gap).
 * :func:`cut_rest`: the start of a trajectory up to the human's hit and its end where the puck is at rest
   or moved slowly by hand are cut (speed below ``rest_speed`` over a window).
 * :func:`cut_pushes`: a trajectory ends where a hand (or a mallet) takes the puck: a speed change no table
@@ -49,18 +51,23 @@ class GridTrajectory:
         return int(np.sum(~np.isnan(self.z[:, 0])))
 
 
-def to_model_grid(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt: float) -> GridTrajectory:
-    """Algorithm 2: one row per model step from the first to the last stamp; blanks where frames are lost."""
+def to_model_grid(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt: float,
+                  origin: float | None = None) -> GridTrajectory:
+    """Algorithm 2: one row per model step from the first to the last stamp; blanks where frames are lost.
+    The rows lie at ``origin + k dt`` (default: the first stamp), so pieces of one recording gridded apart
+    share its grid."""
     t = np.asarray(stamps, float)
     order = np.argsort(t, kind="stable")
-    t0 = float(t[order[0]])
-    n = int(math.floor((t[order[-1]] - t0) / dt + 0.5)) + 1
+    origin = float(t[order[0]]) if origin is None else origin
+    first = int(math.floor((t[order[0]] - origin) / dt + 0.5))
+    t0 = origin + first * dt
+    n = int(math.floor((t[order[-1]] - origin) / dt + 0.5)) - first + 1
     grid = np.full((n, 3), np.nan)
     offset = np.full(n, np.inf)
     for i in order:
         if z[i] is None:
             continue
-        k = int(math.floor((t[i] - t0) / dt + 0.5))
+        k = int(math.floor((t[i] - origin) / dt + 0.5)) - first
         miss = abs(t[i] - (t0 + k * dt))
         if miss < offset[k]:  # nearest frame wins the slot; the other is a duplicate
             grid[k], offset[k] = z[i], miss
@@ -257,9 +264,8 @@ def preprocess(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt:
     drop short pieces (``prep``: the sysid parameters ``frozen_threshold``, ``max_gap``, ``rest_*``,
     ``push_*``, ``min_duration``). With ``glitch_speed`` [m/s] (the tracker's), marker glitches do not count
     as motion when the rest is cut."""
-    grid = to_model_grid(stamps, z, dt)
-    result = Preprocessed([], interpolate_frozen(grid, prep["frozen_threshold"]))
-    for piece in split_trajectories(grid, prep["max_gap"]):
+    result = Preprocessed([])
+    for piece in _gridded_pieces(stamps, z, dt, prep["max_gap"], prep["frozen_threshold"], result):
         glitches = grid_glitches(piece, glitch_speed, prep["max_gap"]) if glitch_speed else []
         traj = cut_rest(piece, prep["rest_speed"], prep["rest_window"], glitches)
         if traj is None:
@@ -275,6 +281,36 @@ def preprocess(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt:
             else:
                 result.trajectories.append(part)
     return result
+
+
+def _gridded_pieces(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt: float, max_gap: float,
+                    frozen_threshold: float, result: Preprocessed) -> list[GridTrajectory]:
+    """The recording on the model's grid (:func:`to_model_grid`, frozen frames interpolated, counted in
+    ``result``) cut at gaps longer than ``max_gap`` [s] (:func:`split_trajectories`). The stamps are
+    gridded in blocks apart wherever they leave a gap longer than ``max_gap + dt`` (a cut there anyway), on
+    one grid: a recording with one stamp far off (a zero header stamp among epoch times) would otherwise
+    ask for a grid of billions of rows. Frames with a non-finite stamp are left out."""
+    finite = [i for i, t in enumerate(stamps) if math.isfinite(t)]
+    order = sorted(finite, key=lambda i: stamps[i])
+    pieces, block = [], []
+    for j, i in enumerate(order):
+        if block and stamps[i] - stamps[order[j - 1]] > max_gap + dt:
+            pieces += _grid_block(block, stamps, z, dt, stamps[order[0]], max_gap, frozen_threshold, result)
+            block = []
+        block.append(i)
+    if block:
+        pieces += _grid_block(block, stamps, z, dt, stamps[order[0]], max_gap, frozen_threshold, result)
+    return pieces
+
+
+def _grid_block(block: list[int], stamps, z, dt: float, origin: float, max_gap: float, frozen_threshold: float,
+                result: Preprocessed) -> list[GridTrajectory]:
+    grid = to_model_grid([stamps[i] for i in block], [z[i] for i in block], dt, origin)
+    result.frozen += interpolate_frozen(grid, frozen_threshold)
+    pieces = split_trajectories(grid, max_gap)
+    for piece in pieces:  # each piece's start as origin + k dt, to the last bit as if gridded with the first block
+        piece.t0 = origin + round((piece.t0 - origin) / dt) * dt
+    return pieces
 
 
 def push_limits(table, margin: float) -> tuple[float, float]:
