@@ -109,11 +109,32 @@ def bag_measurements(bag: Path, topic: str, frame: str, table_frame: str,
     with ``table_frame``, of the bag's own transform to that frame (the ROS 1 lab's ``world -> Table``).
     Raises :class:`BagError`."""
     records = read_poses(bag, topic, frame)
+    gap = tracker["max_prediction_gap"]
+    glitches = set(stamp_glitches([r.stamp for r in records], gap))
+    records = [r for i, r in enumerate(records) if i not in glitches]
     table_pose = tracker["mocap_table_pose"]
     if table_frame:
         table_pose = table_pose_from_tf(bag, table_frame, records)
     measurements = measurements_of(records, table_pose)
-    return records, measurements, off_table_warning(measurements, tracker, table_pose), tuple(table_pose)
+    notes = [off_table_warning(measurements, tracker, table_pose)]
+    if glitches:
+        notes.append(f"{len(glitches)} pose(s) whose header stamp lies more than max_prediction_gap {gap:g} s "
+                     f"from both neighbours' (a stamp glitch, e.g. an empty stamp): left out")
+    return records, measurements, "; ".join(n for n in notes if n), tuple(table_pose)
+
+
+def stamp_glitches(stamps: Sequence[float], gap: float) -> list[int]:
+    """Indices (in recorded order) of stamps that are no time of the stream: non-finite, or farther than
+    ``gap`` [s] from both neighbours while the neighbours lie within ``gap`` of each other (one message with
+    an empty or foreign stamp). Left in, such a stamp stretches the recording's span (the evaluation's
+    re-initialisations per second) and restarts the filter twice."""
+    t = np.asarray(stamps, float)
+    bad = [int(i) for i in np.flatnonzero(~np.isfinite(t))]
+    for i in range(1, len(t) - 1):
+        before, after = t[i - 1], t[i + 1]
+        if abs(t[i] - before) > gap and abs(t[i] - after) > gap and abs(after - before) <= gap:
+            bad.append(i)
+    return sorted(bad)
 
 
 def table_pose_from_tf(bag: Path, table_frame: str, records: Sequence) -> tuple[float, float, float, float]:
