@@ -9,11 +9,26 @@ from __future__ import annotations
 
 import fnmatch
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Iterable, Mapping, Sequence
 
 import yaml
+
+
+class _Loader(yaml.SafeLoader):
+    """PyYAML's safe loader reading numbers as ROS 2 does: YAML 1.1 (PyYAML) takes ``1e-3`` and ``2E5``,
+    written without a decimal point, for strings, while ROS 2's parameter parser takes them for doubles."""
+
+
+_Loader.add_implicit_resolver("tag:yaml.org,2002:float", re.compile(r"^[-+]?[0-9]+[eE][-+]?[0-9]+$"),
+                              list("-+0123456789"))
+
+
+def yaml_load(text: str) -> Any:
+    """A YAML document as ROS 2 reads it (:class:`_Loader`); raises ``yaml.YAMLError``."""
+    return yaml.load(text, Loader=_Loader)
 
 
 class ParameterFileError(ValueError):
@@ -67,8 +82,8 @@ class ParamSpec:
         if kind is list and isinstance(value, (list, tuple)) and all(
                 isinstance(v, (int, float)) and not isinstance(v, bool) for v in value):
             return [float(v) for v in value]
-        raise ParameterValueError(
-            f"parameter '{self.name}' must be of type {kind.__name__}, got {type(value).__name__} {value!r}")
+        wanted = "a list of numbers" if kind is list else f"of type {kind.__name__}"
+        raise ParameterValueError(f"parameter '{self.name}' must be {wanted}, got {type(value).__name__} {value!r}")
 
 
 def _node_sections(document: Mapping[str, Any], fq_name: str) -> Iterable[Mapping[str, Any]]:
@@ -105,7 +120,7 @@ def _flatten(block: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 def _read_document(path: Path) -> Mapping[str, Any] | None:
     """A parameter file's YAML document (None when empty), or :class:`ParameterFileError` naming the file."""
     try:
-        document = yaml.safe_load(Path(path).read_text())
+        document = yaml_load(Path(path).read_text())
     except OSError as exc:
         raise ParameterFileError(f"{path}: cannot read parameter file ({exc.strerror})") from exc
     except yaml.YAMLError as exc:

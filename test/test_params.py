@@ -46,6 +46,22 @@ def test_wrong_type_is_refused():
         SPECS[1].check(3)
     with pytest.raises(ParameterValueError, match="must be finite"):
         SPECS[0].check(float("nan"))
+    with pytest.raises(ParameterValueError, match=r"'xy' must be a list of numbers, got list \['x', 0\]"):
+        ParamSpec("xy", list, "a pair", length=2).check(["x", 0])
+
+
+def test_numbers_without_a_decimal_point_are_numbers_as_in_ros2(tmp_path):
+    """PyYAML (YAML 1.1) reads 1e-3 as a string; ROS 2's parameter parser as a double, and so do we: a
+    copied ROS 2 parameter file with ``1e-3`` was refused as "must be of type float, got str '1e-3'"."""
+    path = write(tmp_path, "/**:\n  ros__parameters:\n    rate: 1e2\n    low: -2.5E-3\n    big: 1e400\n"
+                           "    name: e5\n    word: 1e\n    whole: 12\n")
+    values = load_parameter_file(path, "/node")
+    assert values["rate"] == 100.0 and values["low"] == -0.0025 and values["big"] == float("inf")
+    assert values["name"] == "e5" and values["word"] == "1e" and values["whole"] == 12
+    assert SPECS[0].check(values["rate"]) == 100.0
+    with pytest.raises(ParameterValueError, match="must be finite"):
+        SPECS[0].check(values["big"])
+    assert yaml.safe_load("1e-3") == "1e-3"  # what PyYAML alone gives
 
 
 def test_missing_default_names_parameter_and_file(tmp_path):

@@ -16,6 +16,7 @@ import time
 
 import yaml
 
+from air_hockey_agent.params import yaml_load
 from air_hockey_agent.tools.argtypes import count, number
 
 DISCOVERY = 1.5  # [s] wait for the DDS graph before listing (discovery takes about a second here)
@@ -165,7 +166,7 @@ def service_list(probe: Probe, args) -> int:
 
 def _request_data(text: str):
     try:
-        return yaml.safe_load(text) if text.strip() else {}
+        return yaml_load(text) if text.strip() else {}
     except yaml.YAMLError as exc:
         raise CliError(f"the request is not valid YAML ({exc.__class__.__name__}): {text!r}") from None
 
@@ -233,7 +234,7 @@ def param_set(probe: Probe, args) -> int:
     from rcl_interfaces.srv import SetParameters
     node = _param_services(probe, args.node, args.wait)
     try:
-        value = yaml.safe_load(args.value)
+        value = yaml_load(args.value)
     except yaml.YAMLError:
         value = args.value
     request = SetParameters.Request(parameters=[Parameter(args.name, value=value).to_parameter_msg()])
