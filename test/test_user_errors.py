@@ -98,6 +98,8 @@ def rest_bag(path):
 
 @pytest.mark.parametrize("make_args, words", [
     (lambda d: ["synth-bag", d / "out", "--shots", "0"], ["--shots", "integer >= 1", "'0'"]),
+    (lambda d: ["synth-bag", d / "out", "--seed", "-1"], ["--seed", "0..2147483647", "'-1'"]),  # was numpy's traceback
+    (lambda d: ["bench", "tactics", "--seed", "2147483648"], ["--seed", "0..2147483647"]),
     (lambda d: ["game", "--domain-id", "200"], ["--domain-id", "1..101", "'200'"]),
     (lambda d: ["play", d, "--domain-id", "0"], ["--domain-id", "1..101", "'0'"]),
     (lambda d: ["bench", "tracker", "--samples", "0"], ["--samples"]),

@@ -32,6 +32,10 @@ def count(low: int = 1, high: int | None = None) -> Callable[[str], int]:
     return parse
 
 
+SEED_MAX = 2 ** 31 - 1  # numpy's and pybullet's seeds: a non-negative 32-bit integer (game's --seed too)
+seed = count(0, SEED_MAX)  # --seed: refused in one line (numpy's default_rng raised on a negative seed)
+
+
 def number(low: float | None = None, high: float | None = None, low_open: bool = False,
            high_open: bool = False) -> Callable[[str], float]:
     """A finite number within the given bounds (``*_open``: the bound itself excluded)."""

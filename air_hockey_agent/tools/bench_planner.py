@@ -27,7 +27,7 @@ from air_hockey_agent.core.motion.hit_config import best_hit_configuration
 from air_hockey_agent.core.motion.ik import solve_ik
 from air_hockey_agent.motion_params import build_planner, load_motion_params
 from air_hockey_agent.tools.progress import Progress
-from air_hockey_agent.tools.argtypes import count
+from air_hockey_agent.tools.argtypes import count, seed
 
 ROBOT = "iiwa_front"
 READY_POINT = (-0.70, 0.0)       # [m] start of every command: in front of the own goal, like a ready pose
@@ -43,7 +43,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--commands", type=count(1), default=1000, help="random commands of each kind (default 1000)")
     parser.add_argument("--execute", type=count(0), default=200,
                         help="accepted hits executed in the simulation (default 200; 0 skips)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     parser.set_defaults(run=run)
 

@@ -19,7 +19,7 @@ from dataclasses import replace
 import numpy as np
 
 from air_hockey_agent.tools.progress import Progress
-from air_hockey_agent.tools.argtypes import count
+from air_hockey_agent.tools.argtypes import count, seed
 
 VARIANTS = {"smash_straight": "straight", "smash_left": "left_bank", "smash_right": "right_bank"}
 ROBOT = "iiwa_front"
@@ -31,7 +31,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("smash", help="smash accuracy in the pybullet table without ROS",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--shots", type=count(1), default=20, help="pucks per variant (default 20)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed of the puck positions (default 0)")
+    parser.add_argument("--seed", type=seed, default=0, help="random seed of the puck positions (default 0)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     parser.set_defaults(run=run)
 

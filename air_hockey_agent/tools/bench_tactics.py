@@ -19,7 +19,7 @@ from collections import Counter
 import numpy as np
 
 from air_hockey_agent.tools.progress import Progress
-from air_hockey_agent.tools.argtypes import count
+from air_hockey_agent.tools.argtypes import count, seed
 
 FRAME = 1.0 / 120.0       # [s] mocap frame period (thesis sec. 4.5)
 EPISODE = 1.5             # [s] simulated time per episode
@@ -31,7 +31,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser = subparsers.add_parser("tactics", help="tactics decision time per frame (mean, p99)",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--episodes", type=count(1), default=200, help="random puck episodes of 1.5 s (default 200)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     parser.set_defaults(run=run)
 

@@ -21,7 +21,7 @@ from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise, prepare_prediction
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tracker_params import FILTER_KINDS, load_tracker_params
-from air_hockey_agent.tools.argtypes import count
+from air_hockey_agent.tools.argtypes import count, seed
 
 HORIZONS = (0.5, 1.0, 1.5)
 
@@ -131,7 +131,7 @@ def add_parser(bench_subparsers: argparse._SubParsersAction) -> None:
     parser = bench_subparsers.add_parser("tracker", help="EKF update and prediction timing", description=__doc__,
                                          formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--samples", type=count(1), default=2000, help="random states (default 2000)")
-    parser.add_argument("--seed", type=int, default=0)
+    parser.add_argument("--seed", type=seed, default=0)
     parser.add_argument("--params-file", type=Path, action="append", default=[],
                         help="tracker parameter YAML (e.g. sysid's output); may be repeated")
     parser.add_argument("--json", action="store_true", help="print one JSON object")

@@ -29,7 +29,7 @@ from air_hockey_agent.tools.game import PER_ROBOT_NODES, prepare_for_nodes, robo
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.ros_env import node_executable, ros_environment
-from air_hockey_agent.tools.argtypes import count
+from air_hockey_agent.tools.argtypes import count, seed
 
 ROBOT = "iiwa_front"
 GROUPS = {"smash": ("smash_straight", "smash_left", "smash_right"), "cut": ("cut",), "prepare": ("prepare",),
@@ -44,7 +44,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--strategies", nargs="+", choices=sorted(GROUPS), default=sorted(GROUPS),
                         help="strategies to test (smash = straight, left and right bank; default: all)")
     parser.add_argument("--trials", type=count(1), default=100, help="trials per reported strategy (default 100)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed of the initial states (default 0)")
+    parser.add_argument("--seed", type=seed, default=0, help="random seed of the initial states (default 0)")
     parser.add_argument("--workers", type=count(1, 16), default=1, help="parallel simulations (default 1)")
     parser.add_argument("--json", action="store_true", help="print one JSON object instead of the table")
     parser.add_argument("--plot", type=Path, default=None, metavar="DIR", help="write fig. 5.7/5.8-like PNGs here")

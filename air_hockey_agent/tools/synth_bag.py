@@ -41,7 +41,7 @@ from air_hockey_agent.core.estimation.synthetic import (MOCAP_BOUNDS, MOCAP_FIEL
                                                         synthetic_session)
 from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import load_tracker_params
-from air_hockey_agent.tools.argtypes import count
+from air_hockey_agent.tools.argtypes import count, seed
 from air_hockey_agent.core.estimation.evaluation import count_lost_frames
 
 POSE_TOPIC, TRUTH_TOPIC = "/optitrack/puck", "/puck/true_state"
@@ -97,7 +97,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("out", type=Path, help="bag directory to create (must not exist)")
     parser.add_argument("--shots", type=count(1), help="number of shots (default: config/synthetic.yaml)")
-    parser.add_argument("--seed", type=int, default=0, help="random seed (default 0)")
+    parser.add_argument("--seed", type=seed, default=0, help="random seed (default 0)")
     parser.add_argument("--storage", choices=sorted(STORAGES), default="mcap", help="bag storage (default mcap)")
     parser.add_argument("--source", choices=("model", "sim", "testbed", "mujoco"), default="model",
                         help="truth from the puck model (default), the pybullet table simulation, the test "

@@ -50,7 +50,7 @@ from air_hockey_agent.tools.recordings import (ToolError, add_recording_argument
                                               report_error)
 from air_hockey_agent.tools.sysid_report import (format_report, geometry_warnings, objective_text, rims_off,
                                                  write_params_yaml)
-from air_hockey_agent.tools.argtypes import count, number
+from air_hockey_agent.tools.argtypes import count, number, seed
 
 PROG = "air-hockey sysid"
 HORIZONS = (0.5, 1.0, 1.5)
@@ -76,7 +76,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--validate", nargs="+", type=Path, metavar="BAG_DIR",
                         help="bags (or directories of bags) whose trajectories are the validation set; every "
                              "trajectory of the BAG_DIRs then trains (instead of --split)")
-    parser.add_argument("--seed", type=int, default=0, help="seed of the split and of HEBO")
+    parser.add_argument("--seed", type=seed, default=0, help="seed of the split and of HEBO")
     parser.add_argument("--cross-validate", action="store_true", help="learn at each horizon, validate at each")
     parser.add_argument("--identify", nargs="+", choices=SPLIT_IDENTIFIABLE, metavar="NAME",
                         help="parameters to identify (default: hebo the thesis's four, split all thirteen; "
