@@ -4,9 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.identification.preprocess import (GridTrajectory, Preprocessed, _gridded_pieces, cut_rest,
-                                                             grid_glitches, interpolate_frozen, preprocess,
-                                                             split_trajectories, to_model_grid)
+from air_hockey_agent.core.identification.preprocess import (GridTrajectory, _gridded_pieces, cut_rest, grid_glitches,
+                                                             interpolate_frozen, preprocess, split_trajectories,
+                                                             to_model_grid)
 
 DT = 1 / 120
 
@@ -195,10 +195,9 @@ def test_pieces_gridded_apart_lie_on_the_first_pieces_grid():
     stamps, poses = _shots(100.0 + 0.3 * DT)
     stamps[300] += 0.4 * DT  # a late frame in the second shot: still its row's nearest
     whole = split_trajectories(to_model_grid(stamps, poses, DT), PREP["max_gap"])
-    apart = _gridded_pieces(stamps, poses, DT, PREP["max_gap"], PREP["frozen_threshold"], Preprocessed([]))
+    apart, _ = _gridded_pieces(stamps, poses, DT, PREP["max_gap"], PREP["frozen_threshold"])
     assert [t.t0 for t in apart] == [t.t0 for t in whole] and len(apart) == 2
     assert all(np.array_equal(a.z, w.z) for a, w in zip(apart, whole))
     poses[239] = poses[238]  # the first shot's last frame repeats the one before
-    counts = Preprocessed([])
-    first = _gridded_pieces(stamps, poses, DT, PREP["max_gap"], PREP["frozen_threshold"], counts)[0]
-    assert counts.frozen == 1 and len(first) == 239  # ends at the last good frame
+    pieces, frozen = _gridded_pieces(stamps, poses, DT, PREP["max_gap"], PREP["frozen_threshold"])
+    assert frozen == 1 and len(pieces[0]) == 239  # ends at the last good frame

@@ -129,12 +129,9 @@ def stamp_glitches(stamps: Sequence[float], gap: float) -> list[int]:
     an empty or foreign stamp). Left in, such a stamp stretches the recording's span (the evaluation's
     re-initialisations per second) and restarts the filter twice."""
     t = np.asarray(stamps, float)
-    bad = [int(i) for i in np.flatnonzero(~np.isfinite(t))]
-    for i in range(1, len(t) - 1):
-        before, after = t[i - 1], t[i + 1]
-        if abs(t[i] - before) > gap and abs(t[i] - after) > gap and abs(after - before) <= gap:
-            bad.append(i)
-    return sorted(bad)
+    before, here, after = t[:-2], t[1:-1], t[2:]
+    lone = (np.abs(here - before) > gap) & (np.abs(here - after) > gap) & (np.abs(after - before) <= gap)
+    return np.flatnonzero(~np.isfinite(t) | np.concatenate([[False], lone, [False]])[:len(t)]).tolist()
 
 
 def table_pose_from_tf(bag: Path, table_frame: str, records: Sequence) -> tuple[float, float, float, float]:

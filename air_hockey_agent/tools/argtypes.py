@@ -32,7 +32,7 @@ def count(low: int = 1, high: int | None = None) -> Callable[[str], int]:
     return parse
 
 
-SEED_MAX = 2 ** 31 - 1  # numpy's and pybullet's seeds: a non-negative 32-bit integer (game's --seed too)
+SEED_MAX = 2 ** 31 - 1  # numpy's and pybullet's seeds: a non-negative 32-bit integer (game checks its own)
 seed = count(0, SEED_MAX)  # --seed: refused in one line (numpy's default_rng raised on a negative seed)
 
 

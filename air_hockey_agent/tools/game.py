@@ -30,7 +30,7 @@ from air_hockey_agent.tools import interrupt
 from air_hockey_agent.tools.files import output_bag_directory
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.ros_env import display_available, node_executable, ros_environment
-from air_hockey_agent.tools.argtypes import count
+from air_hockey_agent.tools.argtypes import SEED_MAX, count
 from air_hockey_agent.sim.game_topics import MARKER_TOPICS, RECORDED_TOPICS
 from air_hockey_agent.sim.params import ROBOTS
 
@@ -123,8 +123,8 @@ def _check_args(args: argparse.Namespace) -> None:
         raise GameError(f"--goals must be 0 (off) or more, got {args.goals}", 2)
     if args.real_time_factor is not None and not (math.isfinite(args.real_time_factor) and args.real_time_factor >= 0):
         raise GameError(f"--real-time-factor must be 0 or more, got {args.real_time_factor}", 2)
-    if not 0 <= args.seed < 2 ** 31:
-        raise GameError(f"--seed must be in 0..{2 ** 31 - 1}, got {args.seed}", 2)
+    if not 0 <= args.seed <= SEED_MAX:
+        raise GameError(f"--seed must be in 0..{SEED_MAX}, got {args.seed}", 2)
     if args.games > 1 and not args.in_process:
         raise GameError("--games needs --in-process (the node graph plays one game per run)", 2)
     if args.workers > 1 and not (args.in_process and args.games > 1):

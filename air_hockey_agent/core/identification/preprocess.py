@@ -264,8 +264,9 @@ def preprocess(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt:
     drop short pieces (``prep``: the sysid parameters ``frozen_threshold``, ``max_gap``, ``rest_*``,
     ``push_*``, ``min_duration``). With ``glitch_speed`` [m/s] (the tracker's), marker glitches do not count
     as motion when the rest is cut."""
-    result = Preprocessed([])
-    for piece in _gridded_pieces(stamps, z, dt, prep["max_gap"], prep["frozen_threshold"], result):
+    pieces, frozen = _gridded_pieces(stamps, z, dt, prep["max_gap"], prep["frozen_threshold"])
+    result = Preprocessed([], frozen)
+    for piece in pieces:
         glitches = grid_glitches(piece, glitch_speed, prep["max_gap"]) if glitch_speed else []
         traj = cut_rest(piece, prep["rest_speed"], prep["rest_window"], glitches)
         if traj is None:
@@ -284,33 +285,25 @@ def preprocess(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt:
 
 
 def _gridded_pieces(stamps: Sequence[float], z: Sequence[Sequence[float] | None], dt: float, max_gap: float,
-                    frozen_threshold: float, result: Preprocessed) -> list[GridTrajectory]:
-    """The recording on the model's grid (:func:`to_model_grid`, frozen frames interpolated, counted in
-    ``result``) cut at gaps longer than ``max_gap`` [s] (:func:`split_trajectories`). The stamps are
+                    frozen_threshold: float) -> tuple[list[GridTrajectory], int]:
+    """The recording on the model's grid (:func:`to_model_grid`, frozen frames interpolated) cut at gaps
+    longer than ``max_gap`` [s] (:func:`split_trajectories`), and the number of frozen frames. The stamps are
     gridded in blocks apart wherever they leave a gap longer than ``max_gap + dt`` (a cut there anyway), on
     one grid: a recording with one stamp far off (a zero header stamp among epoch times) would otherwise
     ask for a grid of billions of rows. Frames with a non-finite stamp are left out."""
-    finite = [i for i, t in enumerate(stamps) if math.isfinite(t)]
-    order = sorted(finite, key=lambda i: stamps[i])
-    pieces, block = [], []
-    for j, i in enumerate(order):
-        if block and stamps[i] - stamps[order[j - 1]] > max_gap + dt:
-            pieces += _grid_block(block, stamps, z, dt, stamps[order[0]], max_gap, frozen_threshold, result)
-            block = []
-        block.append(i)
-    if block:
-        pieces += _grid_block(block, stamps, z, dt, stamps[order[0]], max_gap, frozen_threshold, result)
-    return pieces
-
-
-def _grid_block(block: list[int], stamps, z, dt: float, origin: float, max_gap: float, frozen_threshold: float,
-                result: Preprocessed) -> list[GridTrajectory]:
-    grid = to_model_grid([stamps[i] for i in block], [z[i] for i in block], dt, origin)
-    result.frozen += interpolate_frozen(grid, frozen_threshold)
-    pieces = split_trajectories(grid, max_gap)
-    for piece in pieces:  # each piece's start as origin + k dt, to the last bit as if gridded with the first block
-        piece.t0 = origin + round((piece.t0 - origin) / dt) * dt
-    return pieces
+    t = np.asarray(stamps, float)
+    finite = np.flatnonzero(np.isfinite(t))
+    order = finite[np.argsort(t[finite], kind="stable")]
+    if not order.size:
+        return [], 0
+    origin, pieces, frozen = float(t[order[0]]), [], 0
+    for block in np.split(order, np.flatnonzero(np.diff(t[order]) > max_gap + dt) + 1):
+        grid = to_model_grid(t[block], [z[i] for i in block], dt, origin)
+        frozen += interpolate_frozen(grid, frozen_threshold)
+        for piece in split_trajectories(grid, max_gap):
+            piece.t0 = origin + round((piece.t0 - origin) / dt) * dt  # to the bit as on one grid from origin
+            pieces.append(piece)
+    return pieces, frozen
 
 
 def push_limits(table, margin: float) -> tuple[float, float]:
