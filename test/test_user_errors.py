@@ -121,6 +121,11 @@ def rest_bag(path):
     (lambda d: ["service", "call", "/set_puck_state", "air_hockey_msgs/srv/SetPuckState", "{vx: 1.0, speed: 2}",
                 "--timeout", "0.5"], ["speed: no such field in SetPuckState_Request"]),
     (lambda d: ["topic", "echo", "/no/such/topic", "--wait", "0.5"], ["/no/such/topic is not published"]),
+    # an unknown option is reported by the tool it was given to (it named the top-level command)
+    (lambda d: ["noise-estimate", d, "--bogus"], ["air-hockey noise-estimate: error", "--bogus",
+                                                 "see air-hockey noise-estimate --help"]),
+    (lambda d: ["bench", "tracker", "--bogus", "3"], ["air-hockey bench tracker: error", "--bogus 3"]),
+    (lambda d: ["param", "get", "node", "name", "--bogus"], ["air-hockey param get: error", "--bogus"]),
 ])
 def test_a_bad_tool_argument_is_a_one_line_error(ros_env, tmp_path, make_args, words):
     result = run([BIN / "air-hockey", *make_args(tmp_path)], env=ros_env, timeout=120)
