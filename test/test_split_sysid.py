@@ -316,7 +316,8 @@ def test_cli_split_errors_are_one_line(tmp_path):
             (("--method", "split", "--identify", "spin_damping", "table_acceleration", "--polish", "3"),
              "they stay as fitted"),
             (("--split", "0.8", "--validate", tmp_path), "--split: not with --validate"),
-            (("--validate", bag), "also a training bag (BAG_DIR); a bag validates or trains, not both")):
+            (("--validate", bag), "also a training bag (BAG_DIR); a bag validates or trains, not both"),
+            (("--validate", tmp_path / "missing"), "--validate: " + str(tmp_path / "missing") + ": does not exist")):
         run = cli("sysid", bag, *args)
         assert run.returncode == 2 and message in run.stderr and "Traceback" not in run.stderr
         assert len(run.stderr.strip().splitlines()) == 1

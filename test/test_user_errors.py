@@ -126,6 +126,10 @@ def rest_bag(path):
                                                  "see air-hockey noise-estimate --help"]),
     (lambda d: ["bench", "tracker", "--bogus", "3"], ["air-hockey bench tracker: error", "--bogus 3"]),
     (lambda d: ["param", "get", "node", "name", "--bogus"], ["air-hockey param get: error", "--bogus"]),
+    # a bag that is not there is one line, without a second "found 0 trajectories" line
+    (lambda d: ["sysid", d / "missing"], ["missing: does not exist"]),
+    (lambda d: ["noise-estimate", d / "missing"], ["missing: does not exist"]),
+    (lambda d: ["plot", d], ["no bags (rosbag2 or ROS 1) in this directory"]),
 ])
 def test_a_bad_tool_argument_is_a_one_line_error(ros_env, tmp_path, make_args, words):
     result = run([BIN / "air-hockey", *make_args(tmp_path)], env=ros_env, timeout=120)

@@ -18,6 +18,13 @@ class ToolError(Exception):
     """Reported as ``<prog>: error: <message>`` with exit code 2."""
 
 
+class AlreadyReported(ToolError):
+    """Exit code 2 with nothing more to print: every bag named failed, and each failure had its own line."""
+
+    def __init__(self) -> None:
+        super().__init__("every bag failed (reported above)")
+
+
 @dataclass
 class Recordings:
     tracker: dict            # tracker parameters (defaults + --params-file)
@@ -54,8 +61,9 @@ def load_recordings(prog: str, args: argparse.Namespace, minimum: int = 1) -> Re
         raise ToolError(str(exc)) from None
     loaded = read_trajectories(prog, args, args.bags, tracker, settings)
     if len(loaded.trajectories) < minimum:
-        raise ToolError(f"need at least {minimum} usable trajectories, found {len(loaded.trajectories)} "
-                        f"in {loaded.bags} bag(s){loaded.why_none(settings)}")
+        nothing_read(loaded)
+        raise ToolError(f"need at least {minimum} usable {'trajectory' if minimum == 1 else 'trajectories'}, "
+                        f"found {len(loaded.trajectories)} in {loaded.bags} bag(s){loaded.why_none(settings)}")
     return Recordings(tracker, settings, loaded)
 
 
@@ -71,6 +79,13 @@ def read_trajectories(prog: str, args: argparse.Namespace, bags: Sequence[Path],
     return loaded
 
 
+def nothing_read(loaded: LoadedTrajectories) -> None:
+    """Raise :class:`AlreadyReported` when no bag could be read at all: their one-line errors said why."""
+    if loaded.bags == 0 and loaded.errors:
+        raise AlreadyReported()
+
+
 def report_error(prog: str, exc: Exception | str) -> int:
-    print(f"{prog}: error: {exc}", file=sys.stderr)
+    if not isinstance(exc, AlreadyReported):
+        print(f"{prog}: error: {exc}", file=sys.stderr)
     return 2

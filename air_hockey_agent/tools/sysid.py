@@ -47,7 +47,7 @@ from air_hockey_agent.sysid_params import bounds
 from air_hockey_agent.tracker_params import TRACKER_PARAMS, trajectory_loss_params
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.recordings import (ToolError, add_recording_arguments, load_recordings, read_trajectories,
-                                              report_error)
+                                              nothing_read, report_error)
 from air_hockey_agent.tools.sysid_report import (format_report, geometry_warnings, objective_text, rims_off,
                                                  write_params_yaml)
 from air_hockey_agent.tools.argtypes import count, number, seed
@@ -259,6 +259,7 @@ def _validation_recordings(args: argparse.Namespace, recordings) -> LoadedTrajec
     if both:
         raise ToolError(f"--validate {both[0]}: also a training bag (BAG_DIR); a bag validates or trains, not both")
     if not held_out.trajectories:
+        nothing_read(held_out)
         raise ToolError(f"--validate: no usable trajectory in {held_out.bags} bag(s){held_out.why_none(settings)}")
     return held_out
 
