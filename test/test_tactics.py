@@ -73,6 +73,40 @@ def test_expected_carries_a_creeping_puck_on_beyond_the_horizon_and_holds_a_rest
     np.testing.assert_allclose(sit.expected(0.8, 0.06)[:4], [*start[:2], 0.0, 0.0])
 
 
+@pytest.mark.parametrize("part, message", [
+    ("estimate", "the estimate must be 6 finite values"),
+    ("sample", "not finite"), ("time", "not finite"), ("impact", "not finite"), ("stamp", "stamp nan"),
+    ("order", "do not increase"), ("before", "do not increase"), ("count", "sample times for"),
+])
+def test_a_malformed_prediction_is_refused_before_any_tactic_sees_it(model, selector, part, message):
+    """What the tactics node gets from puck/prediction (fuzzing: a NaN or inf there ended in a tactic's
+    OverflowError, which stops the node): each malformed part is a ValueError naming it, which the node logs
+    as "message ignored"; the well-formed prediction it was made from passes and is played."""
+    state = [-0.4, 0.1, 0.0, 0.0, 0.0, 0.0]
+    good = situation(model, state, t0=1.0)
+    t, est, times, samples, impacts = 1.0, list(state), good.times.copy(), good.states.copy(), [(1.2, 0.5, 0.5)]
+    if part == "estimate":
+        est[2] = math.inf
+    elif part == "sample":
+        samples[3, 0] = math.nan
+    elif part == "time":
+        times[2] = math.nan
+    elif part == "impact":
+        impacts = [(1.2, math.nan, 0.5)]
+    elif part == "stamp":
+        t = math.nan
+    elif part == "order":
+        times = times[::-1].copy()
+    elif part == "before":
+        times = times - 1.0
+    elif part == "count":
+        samples = samples[:-1]
+    with pytest.raises(ValueError, match=message):
+        build_situation("iiwa_front", t, est, times, samples, impacts)
+    sit = build_situation("iiwa_front", 1.0, state, good.times, good.states, [(1.2, 0.5, 0.5)])
+    assert selector.step(1.0, RUNNING, sit, np.array([-0.9, 0.0]), None).name == "smash"
+
+
 def test_lazy_ranking_orders_exactly_as_scoring_everything_and_scores_only_what_it_needs():
     """LazyRanked against a stable sort of every exact key (ties in candidate order, dropped candidates
     left out): the same items in the same order; the best item costs fewer exact scorings than there

@@ -112,9 +112,13 @@ def build_situation(robot: str, t: float, estimate: Sequence[float], sample_time
     ``sample_times``: absolute [s]; ``samples`` (n, 6): predicted states; ``impacts``: predicted rim
     impacts as (absolute time [s], x, y). The impact points are merged into the samples (with the
     velocity of the next sample), so that interpolating between samples follows the bounce.
+
+    Raises ValueError naming the part that is not finite, not increasing or of the wrong size: a
+    malformed prediction is refused here rather than deep inside a tactic.
     """
-    times = np.asarray(sample_times, float)
-    states = to_own_frame(np.asarray(samples, float).reshape(-1, 6), robot)
+    times, samples, impacts = np.asarray(sample_times, float), np.asarray(samples, float), list(impacts)
+    _check_prediction(t, np.asarray(estimate, float), times, samples, np.asarray(impacts, float).reshape(-1, 3))
+    states = to_own_frame(samples.reshape(-1, 6), robot)
     impact_times = np.array([i[0] for i in impacts], float)
     if len(impacts) and len(times):
         extra_t, extra = [], []
@@ -129,6 +133,22 @@ def build_situation(robot: str, t: float, estimate: Sequence[float], sample_time
             order = np.argsort(times, kind="stable")
             times, states = times[order], np.vstack([states, extra])[order]
     return Situation(t, to_own_frame(np.asarray(estimate, float), robot), times, states, impact_times)
+
+
+def _check_prediction(t: float, estimate: np.ndarray, times: np.ndarray, samples: np.ndarray,
+                      impacts: np.ndarray) -> None:
+    """ValueError unless the stamp, estimate (6), samples (n x 6), their times (n, increasing, after ``t``)
+    and the impacts (time, x, y) are finite and fit together."""
+    if not math.isfinite(t):
+        raise ValueError(f"stamp {t} is not finite")
+    if estimate.shape != (6,) or not np.all(np.isfinite(estimate)):
+        raise ValueError(f"the estimate must be 6 finite values, got {estimate.tolist()}")
+    if samples.size % 6 or samples.size // 6 != times.size:
+        raise ValueError(f"{times.size} sample times for {samples.size / 6:g} samples of 6 values")
+    if not (np.all(np.isfinite(samples)) and np.all(np.isfinite(times)) and np.all(np.isfinite(impacts))):
+        raise ValueError("a sample, sample time or impact is not finite")
+    if times.size and (times[0] <= t or np.any(np.diff(times) <= 0.0)):
+        raise ValueError("the sample times do not increase from the stamp")
 
 
 def situation_from_prediction(robot: str, estimate: Sequence[float], prediction) -> Situation:
