@@ -210,6 +210,34 @@ def test_speed_map_interpolates_and_marks_unreachable_cells():
     assert SpeedMap(xs, ys, angles, table).max_speed((1.0, 1.0), (1.0, 0.0)) == 0.0  # no reachable neighbour
 
 
+def test_an_unreadable_speed_map_cache_is_rebuilt_and_replaced(tmp_path):
+    """The fastest-hit table's cache file cut short, emptied, overwritten, of another grid or with a NaN:
+    rebuilt with a log line (an empty or cut file raised EOFError / BadZipFile, which stopped the tactics
+    node's start), and the file is a good table again."""
+    import zipfile
+    from air_hockey_agent.core.game import speed_map
+    from air_hockey_agent.motion_params import build_planner, load_motion_params
+    params = load_motion_params()
+    planner, grid, logs = build_planner(params, "iiwa_front"), (3, 3, 2), []
+    built = speed_map.load_or_build(planner, params, grid, tmp_path, logs.append)
+    path, = tmp_path.glob("speed_map_*.npz")
+    good = path.read_bytes()
+    other = SpeedMap([0.0, 1.0], [0.0, 1.0], [-1.0, 1.0], np.ones((2, 2, 2)))
+    bad_speed = SpeedMap(built.xs, built.ys, built.angles, np.where(built.speeds > 0, np.nan, 0.0))
+    for damage in (lambda: path.write_bytes(good[: len(good) // 2]), lambda: path.write_bytes(b""),
+                   lambda: path.write_bytes(b"x" * 100), lambda: other.save(path), lambda: bad_speed.save(path)):
+        damage()
+        logs.clear()
+        again = speed_map.load_or_build(planner, params, grid, tmp_path, logs.append)
+        assert np.array_equal(again.speeds, built.speeds) and "unreadable" in logs[0] and "building" in logs[1]
+        assert np.array_equal(SpeedMap.load(path, grid).speeds, built.speeds)
+    with zipfile.ZipFile(path) as archive:  # still numpy's format: the names the loader reads
+        assert {"xs.npy", "ys.npy", "angles.npy", "speeds.npy"} <= set(archive.namelist())
+    logs.clear()
+    speed_map.load_or_build(planner, params, grid, tmp_path, logs.append)
+    assert logs == []  # a good cache is read without a word
+
+
 def test_speed_map_agrees_with_the_planners_search():
     from air_hockey_agent.core.motion.hit_config import best_hit_configuration
     from air_hockey_agent.core.motion.ik import solve_ik

@@ -16,6 +16,7 @@ import json
 import math
 import os
 import tempfile
+import zipfile
 from pathlib import Path
 from typing import Any, Callable, Mapping, Sequence
 
@@ -113,9 +114,16 @@ class SpeedMap:
                 os.unlink(tmp)
 
     @classmethod
-    def load(cls, path: Path) -> "SpeedMap":
+    def load(cls, path: Path, grid: Sequence[int] | None = None) -> "SpeedMap":
+        """The table saved at ``path``; ValueError when it is not one (of ``grid``'s size, when given)
+        or holds a speed that is negative or not finite."""
         with np.load(path) as data:
-            return cls(data["xs"], data["ys"], data["angles"], data["speeds"])
+            table = cls(data["xs"], data["ys"], data["angles"], data["speeds"])
+        if grid is not None and table.speeds.shape != tuple(int(g) for g in grid):
+            raise ValueError(f"a {table.speeds.shape} grid, not {tuple(grid)}")
+        if not np.all(np.isfinite(table.speeds) & (table.speeds >= 0.0)):
+            raise ValueError("a speed is negative or not finite")
+        return table
 
 
 def cache_key(motion_params: Mapping[str, Any], grid: Sequence[int]) -> str:
@@ -137,8 +145,8 @@ def load_or_build(planner: MotionPlanner, motion_params: Mapping[str, Any], grid
     path = (cache_dir or default_cache_dir()) / f"speed_map_{cache_key(motion_params, grid)}.npz"
     if path.exists():
         try:
-            return SpeedMap.load(path)
-        except (OSError, ValueError, KeyError) as exc:
+            return SpeedMap.load(path, grid)
+        except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile) as exc:  # an empty or cut file
             if log:
                 log(f"speed map {path} unreadable ({exc}); rebuilding")
     if log:
