@@ -505,3 +505,10 @@ def test_the_execution_check_keeps_the_worst_excursion_and_velocity_use_and_coun
     check.trajectory([inside, beyond])
     assert r.trajectories == 2 and r.trajectories_outside == 1
     assert r.worst_planned_outside_m == pytest.approx(0.03, abs=2e-3)
+    # a NaN or inf in a recorded joint state or knot is left out and counted (an inf velocity was the game's
+    # worst "use", printed as Infinity in --json, which is not JSON)
+    check.joint_state(4.0, inside, np.full(7, np.inf))
+    check.joint_state(5.0, np.full(7, np.nan), np.zeros(7))
+    check.trajectory([np.full(7, np.nan), beyond])
+    assert r.non_finite_skipped == 3 and r.joint_states == 3 and r.worst_velocity_use == pytest.approx(0.9)
+    assert r.trajectories == 3 and r.trajectories_outside == 2

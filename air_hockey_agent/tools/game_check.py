@@ -86,7 +86,9 @@ def _print(bag: Path, result: dict) -> None:
         print(f"  {robot}: {r['joint_states']} joint states, mallet at most {r['worst_outside_m'] * 1000:.1f} mm "
               f"outside its region{when}; joint velocity at most {r['worst_velocity_use'] * 100:.0f} % of a "
               f"limit{vel_when}; {r['trajectories']} trajectories, {r['trajectories_outside']} with a planned "
-              f"knot outside (at most {r['worst_planned_outside_m'] * 1000:.1f} mm)")
+              f"knot outside (at most {r['worst_planned_outside_m'] * 1000:.1f} mm)"
+              + (f"; {r['non_finite_skipped']} joint states or knots with NaN or inf left out"
+                 if r["non_finite_skipped"] else ""))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -28,6 +28,7 @@ class ArmExecution:
     trajectories: int = 0
     trajectories_outside: int = 0         # with a planned knot more than ``planned_tolerance`` outside
     worst_planned_outside_m: float = 0.0
+    non_finite_skipped: int = 0           # joint states and planned knots with a NaN or inf, left out
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -44,6 +45,9 @@ class ExecutionCheck:
 
     def joint_state(self, t: float, q: np.ndarray, dq: np.ndarray) -> None:
         r, p = self.result, self.planner
+        if not (np.all(np.isfinite(q)) and np.all(np.isfinite(dq)) and np.isfinite(t)):
+            r.non_finite_skipped += 1  # counted apart: an inf velocity would be the game's "worst"
+            return
         r.joint_states += 1
         mallet = p.kin.position(q)[:2]
         outside = float(p.region.excess(mallet)[0])
@@ -58,7 +62,10 @@ class ExecutionCheck:
     def trajectory(self, knots: Iterable[np.ndarray]) -> None:
         r, p = self.result, self.planner
         r.trajectories += 1
-        points = np.array([p.kin.position(q)[:2] for q in knots])
+        knots = list(knots)
+        finite = [q for q in knots if np.all(np.isfinite(q))]
+        r.non_finite_skipped += len(knots) - len(finite)
+        points = np.array([p.kin.position(q)[:2] for q in finite])
         outside = float(np.max(p.region.excess(points))) if len(points) else 0.0
         r.worst_planned_outside_m = max(r.worst_planned_outside_m, outside)
         r.trajectories_outside += outside > self.tolerance
