@@ -25,10 +25,17 @@ def bags(tmp_path_factory):
     return root
 
 
+def strict_json(text):
+    """JSON as RFC 8259 has it: Python's json module would also read NaN and Infinity, which are not JSON."""
+    def refuse(word):
+        raise ValueError(f"{word} is not JSON")
+    return json.loads(text, parse_constant=refuse)
+
+
 def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     out = cli("eval-prediction", bags / "a", bags / "b", "--json")
     assert out.returncode == 0, out.stderr
-    report = json.loads(out.stdout)  # the whole of stdout is one JSON document
+    report = strict_json(out.stdout)  # the whole of stdout is one JSON document
     assert set(report) == {"horizons", "bags", "frames", "lost_frames", "outliers_rejected", "off_table_poses", "rejected_fraction",
                            "reinit_per_s", "nis", "nis_by_regime", "by_path", "rim_law", "table_acceleration",
                            "spin_damping", "impact_delay", "marker_offset", "marker_noise", "process_noise",
@@ -70,6 +77,24 @@ def test_json_report_is_exactly_one_object_with_the_documented_keys(bags):
     assert set(report["horizons"]["1.0"]) == {"mean_m", "median_m", "p95_m", "n"}
     assert report["bags"] == 2 and report["frames"] > 1000
     assert report["horizons"]["0.5"]["median_m"] <= 3e-3 and report["horizons"]["1.0"]["median_m"] <= 8e-3
+
+
+def test_a_figure_that_is_not_a_number_is_null_in_json(tmp_path):
+    """One shot: a rim met once has an offset whose standard deviation is infinite; --json wrote it as
+    `Infinity`, which JSON parsers other than Python's refuse."""
+    assert cli("synth-bag", tmp_path / "one", "--shots", 1, "--seed", 1).returncode == 0
+    out = cli("eval-prediction", tmp_path / "one", "--json")
+    assert out.returncode == 0, out.stderr
+    offsets = strict_json(out.stdout)["impact_delay"]["rim_offsets"]
+    assert any(rim["impacts"] == 1 and rim["std_m"] is None for rim in offsets.values()), offsets
+
+
+def test_json_text_writes_every_non_finite_float_as_null():
+    from air_hockey_agent.tools.json_output import json_text
+    value = {"a": float("nan"), "b": [1.5, float("inf"), (-float("inf"), 2)], "c": {"d": None, "e": "NaN"}, "f": 3}
+    assert json.loads(json_text(value)) == {"a": None, "b": [1.5, None, [None, 2]], "c": {"d": None, "e": "NaN"},
+                                            "f": 3}
+    assert value["a"] != value["a"] and value["b"][1] == float("inf")  # the input is left as it was
 
 
 def test_thesis_style_columns_are_sysids_over_the_same_trajectories(bags):

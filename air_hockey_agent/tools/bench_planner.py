@@ -14,7 +14,6 @@
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from collections import Counter
@@ -26,6 +25,7 @@ from air_hockey_agent.core.motion.planner import OUTCOME_NAMES, ArmState, Comman
 from air_hockey_agent.core.motion.hit_config import best_hit_configuration
 from air_hockey_agent.core.motion.ik import solve_ik
 from air_hockey_agent.motion_params import build_planner, load_motion_params
+from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.argtypes import count, seed
 
@@ -179,7 +179,7 @@ def run(args: argparse.Namespace) -> int:
               "executed": executed,
               "max_hit_speed_mps": hit_speed_map(planner, start, params["table.length"] / 2, 200, rng)}
     if args.json:
-        print(json.dumps(result))
+        print(json_text(result))
     else:
         _print_table(result)
     return 0

@@ -9,7 +9,6 @@ around the table in every run. Real-time factor = simulated seconds / wall secon
 from __future__ import annotations
 
 import argparse
-import json
 import time
 
 import numpy as np
@@ -18,6 +17,7 @@ from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.sim.params import load_sim_params
 from air_hockey_agent.tools.argtypes import number
+from air_hockey_agent.tools.json_output import json_text
 
 # pybullet prints a banner when imported: the simulation modules load only when this benchmark runs,
 # so that other `air-hockey` commands keep a clean stderr.
@@ -76,7 +76,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"running {arms} arms for {args.duration:g} simulated seconds ...", flush=True)
         result[key] = round(measure(params, max(1.0, args.duration), arms), 2)
     if args.json:
-        print(json.dumps(result))
+        print(json_text(result))
     else:
         print(f"real-time factor at {params['physics_rate']:.0f} Hz physics: puck only {result['rtf_puck_only']}, "
               f"arms holding {result['rtf_arms_idle']}, arms following trajectories {result['rtf_with_arms']}")

@@ -12,12 +12,12 @@ through the nodes.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 from dataclasses import replace
 
 import numpy as np
 
+from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.argtypes import count, seed
 
@@ -126,7 +126,7 @@ def run(args: argparse.Namespace) -> int:
     finally:
         world.close()
     if args.json:
-        print(json.dumps(result))
+        print(json_text(result))
         return 0
     for key, r in result.items():
         o, e = r["offset_m"], r["direction_error_deg"]

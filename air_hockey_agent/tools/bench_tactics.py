@@ -11,13 +11,13 @@ units of one tracker prediction timed in the same process.
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import time
 from collections import Counter
 
 import numpy as np
 
+from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.argtypes import count, seed
 
@@ -103,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
               "tracker_prediction_ms": float(np.median(predict_ms)),
               "p99_in_tracker_predictions": p99 / float(np.median(predict_ms))}
     if args.json:
-        print(json.dumps(result))
+        print(json_text(result))
     else:
         print(f"frames decided        {result['frames']} ({args.episodes} episodes of {EPISODE:g} s at 120 Hz), "
               f"{commands} commands")

@@ -9,7 +9,6 @@ the same steps compiled (:mod:`air_hockey_agent.core.puck.prediction_kernel`); w
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 import time
 from pathlib import Path
@@ -20,6 +19,7 @@ import numpy as np
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise, prepare_prediction
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tracker_params import FILTER_KINDS, load_tracker_params
 from air_hockey_agent.tools.argtypes import count, seed
 
@@ -145,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
         print(f"air-hockey bench tracker: error: {exc}", file=sys.stderr)
         return 2
     if args.json:
-        print(json.dumps(result))
+        print(json_text(result))
         return 0
     print(f"EKF update: mean {result['update_us']['mean']} us, p99 {result['update_us']['p99']} us")
     print(f"{'horizon':>8} {'stepwise mean/p99 [us]':>24} {'fast mean/p99 [us]':>20} {'ratio':>6} "

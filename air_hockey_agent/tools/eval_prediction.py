@@ -47,7 +47,6 @@ reference's when it ran (:mod:`.eval_plots`).
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -61,6 +60,7 @@ from air_hockey_agent.core.identification.preprocess import preprocess, push_lim
 from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.reference_params import load_reference_params
 from air_hockey_agent.sysid_params import load_sysid_params
+from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tracker_params import trajectory_loss_params, load_tracker_params
 from air_hockey_agent.tools.argtypes import number
 from air_hockey_agent.tools.eval_report import format_table
@@ -138,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
         from air_hockey_agent.tools.eval_plots import write_eval_plots
         for path in write_eval_plots(args.plot, summary, per_bag):
             print(f"wrote {path}", file=sys.stderr)
-    print(json.dumps(summary) if args.json else format_table(summary))
+    print(json_text(summary) if args.json else format_table(summary))
     return 2 if failed else 0
 
 

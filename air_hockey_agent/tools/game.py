@@ -17,7 +17,6 @@ game exactly, and faster; nothing is published, and ``--record`` writes the same
 from __future__ import annotations
 
 import argparse
-import json
 import math
 import sys
 import tempfile
@@ -28,6 +27,7 @@ from air_hockey_agent.params import ParamSpec, load_defaults
 from air_hockey_agent.paths import config_file
 from air_hockey_agent.tools import interrupt
 from air_hockey_agent.tools.files import output_bag_directory
+from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.ros_env import display_available, node_executable, ros_environment
 from air_hockey_agent.tools.argtypes import SEED_MAX, count
@@ -189,7 +189,7 @@ def run(args: argparse.Namespace) -> int:
         print("\n[game] interrupted", file=sys.stderr)
         return interrupt.exit_code(exc)
     if args.json:
-        print(json.dumps(result))
+        print(json_text(result))
     return 0
 
 

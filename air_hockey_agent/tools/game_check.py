@@ -13,11 +13,11 @@ exit code 2; the other bags are still checked.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
 from air_hockey_agent.bags.reader import BagError, bag_directory, bag_topics, iter_raw
+from air_hockey_agent.tools.json_output import json_text
 
 PROG = "air-hockey game-check"
 ROBOTS = ("iiwa_front", "iiwa_back")
@@ -117,5 +117,5 @@ def run(args: argparse.Namespace) -> int:
             written = plot_arms(checks, args.plot / f"{bag_directory(bag).name}_arms.png")
             print(f"wrote {written}", file=sys.stderr if args.json else sys.stdout)
     if args.json:
-        print(json.dumps(results))
+        print(json_text(results))
     return 2 if failed else 0

@@ -25,7 +25,6 @@ orders of magnitude in 5 iterations). With ``--fix Q`` the R estimate settles ne
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 
@@ -35,6 +34,7 @@ from air_hockey_agent.core.identification.noise import calibrate_by_regime, fixe
 from air_hockey_agent.core.identification.sysid import loss_report
 from air_hockey_agent.params import yaml_value
 from air_hockey_agent.tools.files import write_text_atomic
+from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 from air_hockey_agent.tools.argtypes import count, number
 
@@ -110,7 +110,7 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
     if args.out is not None:
         _write(args.out, r, q, final.r_per_speed, args, calibration)
-    print(json.dumps(result) if args.json else _format(result, args.out))
+    print(json_text(result) if args.json else _format(result, args.out))
     return 2 if loaded.errors else 0
 
 

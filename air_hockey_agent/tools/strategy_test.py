@@ -26,6 +26,7 @@ from air_hockey_agent.core.game.strategy.report import summarise, table
 from air_hockey_agent.core.game.strategy.scoring import TrialResult
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.game import PER_ROBOT_NODES, prepare_for_nodes, robot_node
+from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.ros_env import node_executable, ros_environment
@@ -186,7 +187,7 @@ def run(args: argparse.Namespace) -> int:
     seconds = time.monotonic() - start
     summary = summarise(results[t] for t in trials)
     if args.results is not None:
-        write_text_atomic(args.results, "".join(json.dumps(results[t]) + "\n" for t in trials))
+        write_text_atomic(args.results, "".join(json_text(results[t]) + "\n" for t in trials))
         say(f"wrote {args.results}")
     if args.plot is not None:
         from air_hockey_agent.tools.strategy_plots import write_plots
@@ -195,7 +196,7 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         report = {k: {f: v for f, v in e.items() if f != "failures"} for k, e in summary.items()}
         report["seconds"] = round(seconds, 1)
-        print(json.dumps(report))
+        print(json_text(report))
     else:
         print(table(summary, seconds))
     return 0

@@ -27,7 +27,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import json
 import math
 import multiprocessing
 import os
@@ -44,6 +43,7 @@ from air_hockey_agent.core.identification.sysid import (IDENTIFIABLE, LOSSES, PH
                                                       loss_report, nis_median, on_bounds, partial_loss, polish)
 from air_hockey_agent.core.table import WALL_NAMES
 from air_hockey_agent.sysid_params import bounds
+from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tracker_params import TRACKER_PARAMS, trajectory_loss_params
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.recordings import (ToolError, add_recording_arguments, load_recordings, read_trajectories,
@@ -193,7 +193,7 @@ def run(args: argparse.Namespace) -> int:
                           result["summary_line"], result.get("learning_priors", {}))
     result.pop("summary_line")
     _print_warnings(result, settings)
-    print(json.dumps(result) if args.json else format_report(result, args.out))
+    print(json_text(result) if args.json else format_report(result, args.out))
     return 2 if bad_bags else 0
 
 
