@@ -94,3 +94,27 @@ def test_scoreboard_total_adds_up_games():
                      "hits": {"iiwa_front": 4, "iiwa_back": 6}, "faults": {"puck_stuck: x": 3, "puck_out: y": 1},
                      "tactics": {"iiwa_front": {"ready": 3, "smash": 1}, "iiwa_back": {"cut": 1}}, "recording": None}
     assert one["faults"] == {"puck_stuck: x": 1}  # the inputs are not changed
+
+
+def test_the_table_and_progress_line_show_the_tally_in_columns():
+    """What `make game` prints: one column per robot, a row per tactic entered by either (0 for the other),
+    faults with their counts, the recording when there is one."""
+    board = Scoreboard(("iiwa_front", "iiwa_back"))
+    board.on_clock(1.0)
+    board.start()
+    board.on_status(2, 1, EVENT_PUCK_STUCK, "puck at rest in the neutral zone for 2 s", 4.0)
+    for robot, name in [("iiwa_front", "smash"), ("iiwa_back", "cut"), ("iiwa_back", "ready")]:
+        board.on_tactic(robot, name)
+    board.on_contact("iiwa_front")
+    board.on_clock(61.0)
+    assert board.progress() == "sim   60.0 s  score iiwa_front 2 : 1 iiwa_back  hits 1 / 0  faults 1"
+    lines = board.table("game.mcap").splitlines()
+    assert lines[0] == "game over after 60.0 s of simulated time"
+    rows = {line.split()[0] + (" " + line.split()[1] if line.split()[0] == "tactic" else ""): line.split()[-2:]
+            for line in lines[1:-2]}
+    assert rows == {"iiwa_front": ["iiwa_front", "iiwa_back"], "score": ["2", "1"], "hits": ["1", "0"],
+                    "tactic cut": ["0", "1"], "tactic ready": ["0", "1"], "tactic smash": ["1", "0"]}
+    assert len({len(line) for line in lines[1:-2]}) == 1  # right-aligned columns
+    assert lines[-2] == "  faults: puck_stuck: puck at rest in the neutral zone for 2 s x1"
+    assert lines[-1] == "  recording: game.mcap (open it in Foxglove)"
+    assert Scoreboard(("iiwa_front", "iiwa_back")).table(None).splitlines()[-1] == "  faults: none"
