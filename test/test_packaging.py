@@ -17,6 +17,7 @@ def _check_layout(prefix: Path) -> None:
     share = prefix / "share" / "air_hockey_agent"
     assert (share / "package.xml").is_file()
     assert (share / "config" / "tracker.yaml").is_file()
+    assert {p.name for p in (share / "launch").iterdir()} == {"agent.launch.py", "game.launch.py"}
     for node in NODES:
         exe = prefix / "lib" / "air_hockey_agent" / node
         assert exe.is_file() and os.access(exe, os.X_OK), f"missing executable lib/air_hockey_agent/{node}"

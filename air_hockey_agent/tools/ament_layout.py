@@ -5,7 +5,7 @@
 This writes, like ``colcon build --symlink-install`` would:
 
 * ``share/ament_index/resource_index/packages/air_hockey_agent`` (marker)
-* ``share/air_hockey_agent/{package.xml,config}`` as symlinks to the source tree
+* ``share/air_hockey_agent/{package.xml,config,models,launch}`` as symlinks to the source tree
 * ``lib/air_hockey_agent/<node>``: one executable per node console script
 """
 from __future__ import annotations
@@ -18,7 +18,7 @@ from pathlib import Path
 
 from air_hockey_agent.paths import PACKAGE, SOURCE_ROOT
 
-SHARED_ENTRIES = ("package.xml", "config", "models")
+SHARED_ENTRIES = ("package.xml", "config", "models", "launch")
 
 
 def node_entry_points() -> dict[str, str]:

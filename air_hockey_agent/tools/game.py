@@ -23,6 +23,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from air_hockey_agent.node_graph import NodeRun, game_nodes
 from air_hockey_agent.params import ParamSpec, load_defaults
 from air_hockey_agent.paths import config_file
 from air_hockey_agent.tools import interrupt
@@ -34,9 +35,6 @@ from air_hockey_agent.tools.argtypes import SEED_MAX, count
 from air_hockey_agent.sim.game_topics import MARKER_TOPICS, RECORDED_TOPICS
 from air_hockey_agent.sim.params import ROBOTS
 
-SHARED_NODES = ("table_sim", "referee")
-VIEW_NODE = "visualizer"
-PER_ROBOT_NODES = ("puck_tracker", "tactics", "trajectory_generator")
 KERNEL_COMPILE_NOTICE = 3.0  # [s] a kernel warm-up longer than this was a compilation: say so (a load takes ~1 s)
 
 GAME_PARAMS = (
@@ -55,32 +53,14 @@ class GameError(Exception):
         self.code = code
 
 
-def robot_node(node: str, robot: str, label: str | None = None) -> ProcessSpec:
-    """A per-robot node in the robot's namespace, on sim time (told which robot it is when it asks:
-    the tracker serves whoever is in its namespace). The tracker and the tactics get the simulated
-    table's puck physics (``config/tracker_sim_table.yaml``; the tracker's defaults are a real table's)."""
-    from air_hockey_agent.param_registry import node_parameters
-    from air_hockey_agent.tracker_params import SIM_TABLE_FILE
-    which = ["-p", f"robot:={robot}"] if "robot" in node_parameters()[node] else []
-    physics = str(config_file(SIM_TABLE_FILE))
-    which += {"puck_tracker": ["--params-file", physics], "tactics": ["-p", f"puck_params_file:={physics}"]}.get(node, [])
-    return ProcessSpec(label or f"{robot}/{node}", [*node_executable(node), "--ros-args", "-r", f"__ns:=/{robot}",
-                                                    "-p", "use_sim_time:=true", *which])
+def process(node: NodeRun, label: str | None = None) -> ProcessSpec:
+    """A node of :mod:`air_hockey_agent.node_graph` as a process of this package's launcher."""
+    return ProcessSpec(label or node.label, [*node_executable(node.executable), *node.ros_arguments()])
 
 
 def game_processes(gui: bool, real_time_factor: float, seed: int, markers: bool = False) -> list[ProcessSpec]:
-    """The node processes of one game, all on sim time (``markers``: with the visualizer)."""
-    shared = {
-        "table_sim": ["-p", f"gui:={str(gui).lower()}", "-p", f"real_time_factor:={real_time_factor}",
-                      "-p", f"seed:={seed}"],
-        # unattended: a robot fault pauses and resets instead of stopping the game for a person
-        "referee": ["-p", "use_sim_time:=true", "-p", f"seed:={seed}", "-p", "restart_after_fault:=true"],
-        VIEW_NODE: ["-p", "use_sim_time:=true"],
-    }
-    nodes = SHARED_NODES + ((VIEW_NODE,) if markers else ())
-    specs = [ProcessSpec(node, [*node_executable(node), "--ros-args", *shared[node]]) for node in nodes]
-    specs += [robot_node(node, robot) for robot in ROBOTS for node in PER_ROBOT_NODES]
-    return specs
+    """The node processes of one game (:func:`air_hockey_agent.node_graph.game_nodes`)."""
+    return [process(node) for node in game_nodes(gui, real_time_factor, seed, markers)]
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:

@@ -24,8 +24,9 @@ from pathlib import Path
 
 from air_hockey_agent.core.game.strategy.report import summarise, table
 from air_hockey_agent.core.game.strategy.scoring import TrialResult
+from air_hockey_agent.node_graph import agent_nodes
 from air_hockey_agent.tools.files import write_text_atomic
-from air_hockey_agent.tools.game import PER_ROBOT_NODES, prepare_for_nodes, robot_node
+from air_hockey_agent.tools.game import prepare_for_nodes, process
 from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tools.launch import Launcher, ProcessSpec
 from air_hockey_agent.tools.progress import Progress
@@ -63,7 +64,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def worker_processes(trials: list[tuple[str, int]], seed: int) -> list[ProcessSpec]:
     specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", "-p", "real_time_factor:=0.0",
                                        "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
-    specs += [robot_node(n, ROBOT, label=n) for n in PER_ROBOT_NODES]
+    specs += [process(n, label=n.executable) for n in agent_nodes(ROBOT, use_sim_time=True, sim_table=True)]
     trial_list = ",".join(f"{s}:{i}" for s, i in trials)
     specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args",
                                                "-p", f"seed:={seed}", "-p", f"trials:={trial_list}"]))
