@@ -17,10 +17,10 @@ import sys
 from pathlib import Path
 
 from air_hockey_agent.bags.reader import BagError, bag_directory, bag_topics, iter_raw
+from air_hockey_agent.sim.params import ROBOTS
 from air_hockey_agent.tools.json_output import json_text
 
 PROG = "air-hockey game-check"
-ROBOTS = ("iiwa_front", "iiwa_back")
 JOINT_STATE = "sensor_msgs/msg/JointState"
 TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 PUCK_TRUTH, PUCK_STATE = "/sim/puck_true_state", "air_hockey_msgs/msg/PuckState"
