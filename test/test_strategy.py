@@ -162,3 +162,32 @@ def test_a_trial_record_is_the_result_with_error_and_tactic():
     assert record == {**result.as_dict(), "error": False, "tactic": "smash: smash forced: waiting until it applies"}
     failed = TrialResult("cut", 7, reason="not finished twice (worker failed)").record(error=True, tactic="")
     assert failed["error"] and failed["tactic"] == "" and not failed["success"] and failed["rest"] is None
+
+
+def test_the_summary_and_its_table_per_strategy():
+    """What strategy-test prints: rates per strategy next to the thesis's, the smash offsets, Repel's goals and
+    speed ('-' with no speed measured), failures by reason, most frequent first."""
+    from air_hockey_agent.core.game.strategy.report import table
+
+    def trial(strategy, success, partial=False, goal=False, offset=None, speed=None, reason="scored"):
+        return {"strategy": strategy, "success": success, "partial": partial, "goal": goal, "offset": offset,
+                "defend_speed": speed, "reason": reason}
+    trials = [trial("smash_straight", True, offset=0.01), trial("smash_straight", True, offset=-0.03),
+              trial("smash_straight", False, reason="no goal"),
+              trial("cut", True, partial=True), trial("cut", False, partial=True, reason="at rest"),
+              trial("cut", False, reason="conceded"), trial("cut", False, reason="at rest"),
+              trial("repel", True, goal=True, speed=None)]
+    summary = summarise(trials)
+    assert list(summary) == ["smash_straight", "cut", "repel"]  # KEYS' order, only those played
+    smash, cut, repel = summary["smash_straight"], summary["cut"], summary["repel"]
+    assert smash["success_rate"] == pytest.approx(2 / 3) and smash["offset_mean_m"] == pytest.approx(-0.01)
+    assert smash["offset_std_m"] == pytest.approx(0.02) and cut["partial_rate"] == 0.5
+    assert cut["failures"] == {"at rest": 2, "conceded": 1} and repel["mean_speed_mps"] is None
+    lines = table(summary, 12.4).splitlines()
+    assert lines[1].split()[:5] == ["smash_straight", "3", "66.7", "%", "82.2"]
+    assert "offset -1.0 +- 2.0 cm" in lines[1]
+    assert lines[2].split()[:9] == ["cut", "4", "25.0", "%", "34.3", "%", "50.0", "%", "76.7"]
+    assert "goals 100.0 % (thesis 13 %), speed at the defend line - (thesis 1.57)" in lines[3]
+    assert lines[4] == "12 s of wall time"
+    assert lines[5] == "  smash_straight failures: no goal x1"
+    assert lines[6] == "  cut failures: at rest x2, conceded x1"
