@@ -146,3 +146,29 @@ def test_the_node_draws_commands_in_the_table_frame_and_survives_bad_messages(la
     assert "/iiwa_back/hit_command: message ignored (ValueError: unknown tactic 99)" in log
     assert "/iiwa_front/joint_states: missing joints" in log
     assert launcher.processes["visualizer"].returncode is None and "Traceback" not in log
+
+
+def test_the_game_scene_draws_what_it_knows_in_the_table_frame(defaults, style):
+    """GameScene, filled by the node or the in-process recorder: the table always; the measurement, the
+    estimate with its arrow, the prediction, each mallet, a hit until its time (iiwa_back's own frame turned
+    by pi into the table frame) and the score line once known."""
+    table = TableGeometry.from_params(defaults)
+    empty = scene.GameScene(table, style)
+    assert {s.ns for s in empty.shapes(0.0)} == {s.ns for s in scene.table_shapes(table, style)}
+    full = scene.GameScene(table, style, measurement=(0.31, 0.1), estimate=(0.3, 0.1, 0.0, -1.0, 0.5),
+                           prediction=([(0.3, 0.1), (0.1, 0.2)], [(0.1, 0.2)]),
+                           mallets={"iiwa_front": (-0.8, 0.0), "iiwa_back": (0.8, 0.1)},
+                           tactics={"iiwa_back": "cut"},
+                           commands={"iiwa_back": scene.SceneCommand((-0.6, 0.2), (2.0, 0.0), (1.0, 0.0), 5.0)},
+                           status=scene.status_text("running", 1, 2, "goal for iiwa_back"))
+    drawn = full.shapes(4.0)
+    measurement = next(s for s in drawn if s.ns == "measurement")
+    assert measurement.kind == "sphere" and measurement.position[:2] == (0.31, 0.1)
+    assert any(s.kind == "arrow" and not s.ns.endswith("/hit") for s in drawn)  # the estimate's velocity
+    assert any(s.ns.startswith("iiwa_back") and s.ns.endswith("/hit") for s in drawn)
+    hit = next(s for s in drawn if s.ns == "iiwa_back/hit" and s.kind == "arrow")
+    assert hit.points[0][:2] == pytest.approx((0.6, -0.2)) and hit.points[1][0] < hit.points[0][0]
+    score = next(s for s in drawn if s.ns == "score")
+    assert score.text == "running   iiwa_front 1 : 2 iiwa_back\ngoal for iiwa_back"
+    assert not any(s.ns == "iiwa_back/hit" for s in full.shapes(5.1))  # past its hit time
+    assert len(full.shapes(5.1)) < len(drawn)
