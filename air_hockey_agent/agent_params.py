@@ -54,6 +54,7 @@ AGENT_PARAMS = TABLE_PARAMS + (
               0.0, 600.0),
     ParamSpec("recontact_watch", float, "[s] a pushed or cut puck may not meet the mallet again this long", 0.0, 10.0),
     ParamSpec("mallet_restitution", float, "[-] puck-mallet restitution of the shot model", 0.0, 1.0),
+    ParamSpec("mallet_friction", float, "[-] puck-mallet Coulomb friction of the shot model", 0.0, 2.0),
     ParamSpec("aim_noise", float, "[rad] shot direction spread used to rank shots", 1e-4, 1.0),
     ParamSpec("approach_clearance", float, "[m] gap between the approaching mallet and the puck", 0.0, 0.5),
     ParamSpec("guard_margin", float, "[m] clearance of the opponent's ready point a shot needs", 0.0, 0.5),

@@ -192,6 +192,37 @@ def test_mallet_impact_reverses_the_relative_normal_velocity():
     np.testing.assert_allclose(puck_after_hit(np.array([1.0, 0.0]), np.zeros(2), n, 0.8), [1.0, 0.0])  # separating
 
 
+def test_a_contact_with_mallet_friction_is_rouths_impact_against_a_moving_wall():
+    """puck_after_contact: without friction the frictionless law with the spin kept; with friction, in the
+    mallet's frame a sticking contact ends the slip of the puck's edge (Routh, beta = 0) and a sliding one
+    takes mu times the normal impulse off the slip; the normal impulse is the same either way; the result
+    does not depend on the frame (a mallet moving at u is a wall at rest for a puck moving at v - u)."""
+    from air_hockey_agent.core.game.shots import puck_after_contact
+    r, e = 0.03165, 0.8
+    n = np.array([math.cos(0.4), math.sin(0.4)])
+    b = np.array([n[1], -n[0]])
+    puck, u = np.array([0.1, 0.2, -1.5, 0.3, 0.7, 2.0]), np.array([0.4, -0.2])
+    free = puck_after_contact(puck, u, n, e, 0.0, r)
+    np.testing.assert_allclose(free[2:4], puck_after_hit(puck[2:4], u, n, e))
+    assert free[5] == puck[5] and np.array_equal(free[:2], puck[:2])
+    for mu in (0.05, 0.5):  # sliding, then sticking, for this contact
+        after = puck_after_contact(puck, u, n, e, mu, r)
+        rel0, rel1 = puck[2:4] - u, after[2:4] - u
+        assert rel1 @ n == pytest.approx(-e * (rel0 @ n))  # the normal impulse is friction's bound's base
+        slip0, slip1 = rel0 @ b + r * puck[5], rel1 @ b + r * after[5]
+        p_n, p_b = (rel1 - rel0) @ n, (rel1 - rel0) @ b  # impulses per unit mass
+        assert after[5] - puck[5] == pytest.approx(2.0 * p_b / r)  # a uniform disc: I = m r^2 / 2
+        if mu == 0.05:
+            assert abs(p_b) == pytest.approx(mu * p_n) and slip1 * slip0 > 0.0  # sliding: Coulomb's bound
+        else:
+            assert slip1 == pytest.approx(0.0, abs=1e-12) and abs(p_b) < mu * p_n  # sticking: the slip ends
+        at_rest = puck_after_contact(np.concatenate([puck[:2], puck[2:4] - u, puck[4:]]), np.zeros(2), n, e, mu, r)
+        np.testing.assert_allclose(at_rest[2:4] + u, after[2:4])
+        assert at_rest[5] == pytest.approx(after[5])
+    leaving = puck_after_contact(np.array([0, 0, 1.0, 0, 0, 3.0]), np.zeros(2), np.array([1.0, 0.0]), e, 0.3, r)
+    assert np.array_equal(leaving, [0, 0, 1.0, 0, 0, 3.0])  # separating: no contact
+
+
 def test_speed_map_interpolates_and_marks_unreachable_cells():
     xs, ys, angles = [0.0, 1.0], [0.0, 1.0], [-1.0, 1.0]
     table = np.array([[[1.0, 2.0], [3.0, 4.0]], [[5.0, 6.0], [7.0, 8.0]]])
@@ -477,9 +508,9 @@ def test_puck_straight_at_the_goal_is_repelled_toward_the_opponent(selector, mod
 @pytest.mark.parametrize("start", [(0.2, -0.1, -1.5, -1.6), (0.3, 0.2, -1.8, 1.2), (0.0, 0.3, -1.2, -0.2)])
 def test_an_approaching_puck_is_cut_to_stop_in_the_smash_area(selector, model, settings, start):
     """Banked or straight: the Cut meets the puck before the defend line, and the puck it leaves, predicted
-    by the stepwise model from the commanded contact (normal from the mallet to the predicted puck), stops
-    inside the smash area without conceding."""
-    from air_hockey_agent.core.game.shots import puck_after_hit
+    by the stepwise model from the commanded contact (normal from the mallet to the predicted puck; Routh's
+    impact with the mallet's friction, spin included), stops inside the smash area without conceding."""
+    from air_hockey_agent.core.game.shots import puck_after_contact
     sit = situation(model, [*start, 0, 0])
     c = sit.crossing(settings.defend_x)
     assert c is not None
@@ -493,8 +524,9 @@ def test_an_approaching_puck_is_cut_to_stop_in_the_smash_area(selector, model, s
     puck = sit.at(t)
     n = (puck[:2] - cmd.point) / np.linalg.norm(puck[:2] - cmd.point)
     assert np.linalg.norm(puck[:2] - cmd.point) == pytest.approx(settings.contact_distance, abs=1e-6)
-    vp = puck_after_hit(puck[2:4], cmd.velocity, n, settings.mallet_restitution)
-    pred = predict_stepwise(model, np.array([*puck[:2], *vp, 0.0, puck[5]]), np.eye(6), 10.0, DT, np.zeros((6, 6)),
+    after = puck_after_contact(puck, cmd.velocity, n, settings.mallet_restitution, settings.mallet_friction,
+                               settings.table.puck_radius)
+    pred = predict_stepwise(model, after, np.eye(6), 10.0, DT, np.zeros((6, 6)),
                             lines=(-settings.table.length / 2,))
     assert np.hypot(*pred.state[2:4]) < 0.02 and settings.in_smash_area(*pred.state[:2])
 
@@ -644,8 +676,9 @@ def test_planner_answers_steer_the_next_command(selector, model):
 
 def test_a_cut_refused_as_too_late_meets_the_puck_later_on_its_path(selector, model, settings):
     """"Too late" for a Cut (its time is the puck's, not its own) asks for a contact at least
-    lead_time_step later instead of blocking the Cut and asking for the same contact again."""
-    sit = situation(model, [0.3, 0.2, -1.8, 1.2, 0, 0])
+    lead_time_step later instead of blocking the Cut and asking for the same contact again (a puck near
+    enough that the best contact is one of the first: none of the later ones is better)."""
+    sit = situation(model, [0.0, 0.2, -1.8, 1.2, 0, 0])
     selector.force(CUT)
     first = selector.step(0.0, RUNNING, sit)
     assert first.tactic == CUT and first.command is not None, first.reason
@@ -655,6 +688,7 @@ def test_a_cut_refused_as_too_late_meets_the_puck_later_on_its_path(selector, mo
     early = settings.cut_arrive_early
     def contact(c):
         return c.time + (0.0 if c.is_hit else early)
+    assert contact(first.command) < settings.min_plan_time + settings.lead_time_step  # the premise
     assert contact(later.command) - 0.02 >= settings.min_plan_time + settings.lead_time_step - 1e-9
     assert contact(later.command) > contact(first.command)
     selector.on_status(0.02, 4, math.nan, 0.03)  # unreachable: the Cut is blocked for retry_delay

@@ -45,6 +45,30 @@ def puck_after_hit(v_puck: np.ndarray, v_mallet: np.ndarray, normal: np.ndarray,
     return v_puck - (1.0 + restitution) * closing * normal
 
 
+def puck_after_contact(puck: np.ndarray, v_mallet: np.ndarray, normal: np.ndarray, restitution: float,
+                       friction: float, radius: float) -> np.ndarray:
+    """Puck state (6: x, y, vx, vy, theta, omega; own frame) right after a contact with a (much heavier)
+    mallet moving at ``v_mallet`` [m/s] along the unit centre line ``normal`` (mallet to puck): Routh's
+    impact (thesis eq. 3.2-3.4, :func:`~air_hockey_agent.core.puck.impact.rim_impact`) in the mallet's
+    frame, the mallet a wall that moves and does not turn. ``friction``: the mallet's Coulomb coefficient
+    [-] (0: :func:`puck_after_hit`, the spin kept); ``radius``: the puck's [m]. A glancing contact loses
+    tangential speed to the spin it gives: against pybullet's contact solver (29 Cut contacts, from the true
+    state before and the measured mallet) the frictionless law missed the velocity after by a median
+    0.124 m/s and 10 deg, this one by 0.066 m/s and 6 deg (README "Tactics and the game")."""
+    from air_hockey_agent.core.puck.impact import rim_impact
+    n = np.asarray(normal, float)
+    b = np.array([n[1], -n[0]])  # the rim frame's tangent: n = Rz(+90 deg) b
+    relative = np.asarray(puck[2:4], float) - v_mallet
+    vb, vn = float(relative @ b), float(relative @ n)
+    after = np.array(puck, float)
+    if vn >= 0.0:
+        return after
+    out = rim_impact(vb, vn, float(puck[5]), radius, restitution, friction)
+    after[2:4] = v_mallet + out.vb * b + out.vn * n
+    after[5] = out.omega
+    return after
+
+
 @dataclass(frozen=True)
 class Shot:
     variant: str
@@ -107,8 +131,8 @@ class ShotPredictor:
         if top <= 0.0:
             return None
         v = min(top * self.s.hit_speed_fraction, self.s.max_hit_speed, math.inf if speed is None else speed)
-        vp = puck_after_hit(puck[2:4], v * d, d, self.s.mallet_restitution)
-        state = np.array([puck[0], puck[1], vp[0], vp[1], 0.0, puck[5]])
+        state = self._after(puck, v * d, d)
+        vp = state[2:4]
         crossings = predict_fast(self.model, state, None, self.s.shot_horizon, self.dt, NO_Q,
                                  lines=(self.line, self.defend_line)).crossings
         crossing, guard = crossings.get(self.line), crossings.get(self.defend_line)
@@ -127,16 +151,23 @@ class ShotPredictor:
         ``mallet_velocity`` [m/s] leaves the puck (own-frame state, 6, at the contact): predicted with the
         puck model (rim impacts included) until its speed would fall to ``end_speed`` under the damping
         alone, at most ``horizon`` [s]."""
-        vp = puck_after_hit(puck[2:4], mallet_velocity, normal, self.s.mallet_restitution)
-        speed, damping = float(np.hypot(*vp)), self.model.params.damping
+        state = self._after(puck, mallet_velocity, normal)
+        speed, damping = float(np.hypot(*state[2:4])), self.model.params.damping
         t = horizon if damping <= 0.0 or speed <= end_speed else min(horizon, math.log(speed / end_speed) / damping)
-        state = np.array([puck[0], puck[1], vp[0], vp[1], 0.0, puck[5]])
         own_line = -self.line
         pred = predict_fast(self.model, state, None, max(t, self.dt), self.dt, NO_Q, lines=(0.0, own_line))
         goal = pred.crossings.get(own_line)
         return Push(np.asarray(normal, float), puck[:2] - normal * self.s.contact_distance,
                     np.asarray(mallet_velocity, float), pred.state[:2].copy(), 0.0 in pred.crossings,
                     goal is not None and abs(goal.y) < self.mouth, state, bool(pred.impacts))
+
+    def _after(self, puck: np.ndarray, mallet_velocity: np.ndarray, normal: np.ndarray) -> np.ndarray:
+        """The puck's state right after a contact (:func:`puck_after_contact`), its angle set to 0 (the
+        prediction does not need it)."""
+        state = puck_after_contact(puck, mallet_velocity, normal, self.s.mallet_restitution, self.s.mallet_friction,
+                                   self.model.table.puck_radius)
+        state[4] = 0.0
+        return state
 
     def rebounds_into_mallet(self, push: Push, follow_through: float, watch: float) -> bool:
         """The puck, rebounding from a rim, meets the mallet again within ``watch`` [s] of the contact while

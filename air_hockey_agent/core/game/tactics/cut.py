@@ -9,7 +9,8 @@ came to rest outside the smash area. Here the mallet may also give way: moving a
 ``(1 - k) e u`` of normal speed (k = 1 stops the normal motion: a catch). Every contact of
 ``cut_contact_steps`` times on the predicted path (from ``min_plan_time`` ahead to the defend line),
 ``cut_normal_steps`` normals within ``cut_normal_range`` of head-on and the ``cut_catch`` fractions k is
-predicted with the puck model (:meth:`ShotPredictor.contact`); the one that stops deepest inside the
+predicted with the puck model (:meth:`ShotPredictor.contact`: the contact as Routh's impact with the
+mallet's friction, which takes tangential speed into spin); the one that stops deepest inside the
 smash area, also with the normal off by the aim noise, is played. A contact that sends the puck into
 the own goal or back into the mallet is never played. When the planner answers "too late" (the arm
 cannot be there by then), the next proposal meets the puck at least ``lead_time_step`` later on its path

@@ -46,6 +46,7 @@ class TacticsSettings:
     clear_after: float
     recontact_watch: float
     mallet_restitution: float
+    mallet_friction: float
     aim_noise: float
     approach_clearance: float
     guard_margin: float
