@@ -8,10 +8,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any
 
+from air_hockey_agent.paths import PACKAGE, config_file
 from air_hockey_agent.sim.params import ROBOTS
 
-PACKAGE = "air_hockey_agent"
-SHARED_NODES = ("table_sim", "referee")
 VIEW_NODE = "visualizer"
 PER_ROBOT_NODES = ("puck_tracker", "tactics", "trajectory_generator")
 
@@ -51,7 +50,6 @@ def agent_nodes(robot: str, use_sim_time: bool, sim_table: bool) -> list[NodeRun
     tracker and the tactics take the simulated table's puck physics (``config/tracker_sim_table.yaml``;
     the tracker's defaults are a real table's). ``use_sim_time``: on the simulation's /clock."""
     from air_hockey_agent.param_registry import node_parameters
-    from air_hockey_agent.paths import config_file
     from air_hockey_agent.tracker_params import SIM_TABLE_FILE
     if robot not in ROBOTS:
         raise ValueError(f"robot must be one of {', '.join(ROBOTS)}, got {robot!r}")
