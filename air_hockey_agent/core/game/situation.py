@@ -116,10 +116,11 @@ def build_situation(robot: str, t: float, estimate: Sequence[float], sample_time
     Raises ValueError naming the part that is not finite, not increasing or of the wrong size: a
     malformed prediction is refused here rather than deep inside a tactic.
     """
-    times, samples, impacts = np.asarray(sample_times, float), np.asarray(samples, float), list(impacts)
-    _check_prediction(t, np.asarray(estimate, float), times, samples, np.asarray(impacts, float).reshape(-1, 3))
+    times, samples, estimate = np.asarray(sample_times, float), np.asarray(samples, float), np.asarray(estimate, float)
+    impacts = np.asarray(impacts, float).reshape(-1, 3)
+    _check_prediction(t, estimate, times, samples, impacts)
     states = to_own_frame(samples.reshape(-1, 6), robot)
-    impact_times = np.array([i[0] for i in impacts], float)
+    impact_times = impacts[:, 0].copy()
     if len(impacts) and len(times):
         extra_t, extra = [], []
         for ti, x, y in impacts:
@@ -132,7 +133,7 @@ def build_situation(robot: str, t: float, estimate: Sequence[float], sample_time
             times = np.concatenate([times, extra_t])
             order = np.argsort(times, kind="stable")
             times, states = times[order], np.vstack([states, extra])[order]
-    return Situation(t, to_own_frame(np.asarray(estimate, float), robot), times, states, impact_times)
+    return Situation(t, to_own_frame(estimate, robot), times, states, impact_times)
 
 
 def _check_prediction(t: float, estimate: np.ndarray, times: np.ndarray, samples: np.ndarray,
