@@ -678,7 +678,7 @@ def test_a_cut_refused_as_too_late_meets_the_puck_later_on_its_path(selector, mo
     """"Too late" for a Cut (its time is the puck's, not its own) asks for a contact at least
     lead_time_step later instead of blocking the Cut and asking for the same contact again (a puck near
     enough that the best contact is one of the first: none of the later ones is better)."""
-    sit = situation(model, [0.0, 0.2, -1.8, 1.2, 0, 0])
+    sit = situation(model, [0.2, 0.0, -1.2, 0.6, 0, 0], horizon=2.0)
     selector.force(CUT)
     first = selector.step(0.0, RUNNING, sit)
     assert first.tactic == CUT and first.command is not None, first.reason
@@ -693,6 +693,40 @@ def test_a_cut_refused_as_too_late_meets_the_puck_later_on_its_path(selector, mo
     assert contact(later.command) > contact(first.command)
     selector.on_status(0.02, 4, math.nan, 0.03)  # unreachable: the Cut is blocked for retry_delay
     assert selector.step(0.04, RUNNING, sit).command is None
+
+
+def test_a_cut_refused_as_too_late_is_not_asked_for_the_same_contact_again(selector, model, settings):
+    """A refused contact that lay later than the earliest allowed one: the next contact lies at least
+    lead_time_step after the refused one (the lead grew from the earliest allowed contact alone, so the same
+    contact was asked again until the lead passed it)."""
+    sit = situation(model, [0.2, 0.0, -1.2, 0.3, 0, 0], horizon=2.0)
+    selector.force(CUT)
+    first = selector.step(0.0, RUNNING, sit).command
+    assert first is not None and first.is_hit and first.slack > settings.lead_time_step  # the premise
+    selector.on_status(0.0, TOO_LATE, math.nan, 0.01)
+    later = selector.step(0.02, RUNNING, sit).command
+    assert later is not None and later.tactic == CUT
+    assert later.time >= first.time + settings.lead_time_step + 0.02 - 1e-9
+
+
+def test_a_running_cut_is_kept_when_its_re_plan_is_refused(selector, model, settings):
+    """A Cut under way whose re-plan (the prediction moved by more than a re-plan's tolerance) was refused as
+    too late is kept while the predicted puck still passes within contact_distance of the planned contact;
+    falling back to Ready sent the arm away from the puck's path (in games too). A prediction that moved
+    the puck farther than that falls back to Ready."""
+    state = [0.3, 0.2, -1.5, 0.9, 0, 0]
+    first = selector.step(0.0, RUNNING, situation(model, state, horizon=1.5))
+    assert first.tactic == CUT and first.command is not None, first.reason
+    selector.on_status(0.0, 0, math.nan, 0.0)  # accepted
+    moved = situation(model, [0.3, 0.2 + 0.02, -1.5, 0.9, 0, 0], t0=0.02, horizon=1.5)
+    replan = selector.step(0.02, RUNNING, moved)
+    assert replan.tactic == CUT and replan.command is not None  # not committed: it moved 2 cm
+    selector.on_status(0.02, TOO_LATE, math.nan, 0.02)
+    kept = selector.step(0.04, RUNNING, moved)
+    assert kept.tactic == CUT and kept.command is None and "kept" in kept.reason, kept.reason
+    far = situation(model, [0.3, 0.2 + 0.25, -1.5, 0.9, 0, 0], t0=0.06, horizon=1.5)
+    selector.blocked[CUT] = math.inf  # nothing new for the Cut: only the kept command or Ready remain
+    assert selector.step(0.06, RUNNING, far).tactic == READY
 
 
 def test_smash_is_not_played_when_the_approach_would_knock_the_puck(selector, model, settings):

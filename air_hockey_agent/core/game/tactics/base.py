@@ -34,6 +34,8 @@ class Proposal:
     target: np.ndarray = field(default_factory=lambda: np.zeros(2))  # [m] where the puck should go
     flexible_time: bool = False       # the tactic chose the time itself (it may slide while nothing else changes)
     later_ok: bool = False            # after "too late" the tactic can pick a later moment (Context.lead_extra)
+    slack: float = 0.0                # [s] how much later ``time`` lies than the earliest moment the tactic
+                                      #     allowed (its lead plus Context.lead_extra); "too late" adds it
 
     @property
     def is_hit(self) -> bool:

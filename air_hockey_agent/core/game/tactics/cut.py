@@ -14,9 +14,12 @@ mallet's friction, which takes tangential speed into spin); the one that stops d
 smash area, also with the normal off by the aim noise, is played. A contact that sends the puck into
 the own goal or back into the mallet is never played. When the planner answers "too late" (the arm
 cannot be there by then), the next proposal meets the puck at least ``lead_time_step`` later on its path
-(``Context.lead_extra``), so the best contact the arm can still make is played. Before, the Cut was
-blocked for ``retry_delay`` and then asked for the same contact again, nearer in time: in ten games a
-third of its commands (95 of 301) were refused as too late.
+than the refused one (``Context.lead_extra`` grows by the step and by how much later than the earliest
+allowed contact the refused one lay: ``Proposal.slack``), so the best contact the arm can still make is
+played. Before, the Cut was blocked for ``retry_delay`` and then asked for the same contact again,
+nearer in time: in ten games a third of its commands (95 of 301) were refused as too late; and while the
+lead grew from the earliest allowed contact alone, a refused contact that lay later than that was asked
+again until the lead passed it.
 """
 from __future__ import annotations
 
@@ -63,15 +66,16 @@ class Cut(Tactic):
         if best is None:
             return None
         t, push, _ = best
+        slack = t - (ctx.now + st.min_plan_time + ctx.lead_extra)
         puck = situation.at(t)
         reason = (f"cut: puck crosses the defend line at y {c.y:+.2f} m in {c.time - ctx.now:.2f} s after "
                   f"{c.impacts_before} rim impact(s); met in {t - ctx.now:.2f} s, mallet "
                   f"{push.mallet_speed:.2f} m/s, to stop at ({push.rest[0]:.2f}, {push.rest[1]:.2f})")
         if push.mallet_speed == 0.0:  # parked on the path, arriving just before the puck
             return Proposal(CUT, push.hit_point, np.zeros(2), t - st.cut_arrive_early, reason, puck=puck[:2],
-                            target=push.rest, later_ok=True)
+                            target=push.rest, later_ok=True, slack=slack)
         return Proposal(CUT, push.hit_point, push.mallet_velocity, t, reason, puck=puck[:2], target=push.rest,
-                        later_ok=True)
+                        later_ok=True, slack=slack)
 
     def _ranked(self, situation: Situation, ctx: Context, crossing_time: float) -> list[tuple]:
         """The contacts the arm can make, for :class:`LazyRanked`: each item is (contact time, contact,

@@ -15,9 +15,11 @@ Every decision period the selector looks at the referee's status and the tracker
   at the reported maximum, "beyond the joint limits" slows a self-timed hit down by ``limits_slowdown``
   (a tactic with nothing to play under its cap is blocked like a refused one),
   "too late" adds lead time to tactics that choose their own hit time (and makes a Cut meet the puck
-  at least that much later on its path), and
+  at least that much later on its path than the refused contact), and
   any other refusal (or "too late" for a puck that will not wait) blocks that tactic for
   ``retry_delay`` so the next one is tried. A hit is only committed to once the planner accepted it.
+* When a re-plan of a hit or cut under way finds nothing the planner accepts, the command under way is
+  kept while the prediction still brings the puck to it (rather than falling back to Ready).
 * A forced tactic (strategy test) is the only one tried until released.
 """
 from __future__ import annotations
@@ -65,6 +67,16 @@ class _Sent:
     accepted: bool | None = None
 
 
+def path_gap(path: np.ndarray, point: np.ndarray) -> float:
+    """Smallest distance [m] from ``point`` (2,) to the polyline through ``path`` (n, 2) positions."""
+    if len(path) == 1:
+        return float(np.linalg.norm(path[0] - point))
+    a, ab = path[:-1], np.diff(path, axis=0)
+    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
+    s = np.clip(np.einsum("ij,ij->i", point - a, ab) / length2, 0.0, 1.0)
+    return float(np.min(np.hypot(*(a + s[:, None] * ab - point).T)))
+
+
 def default_tactics() -> dict[int, Tactic]:
     return {t.tactic: t for t in (Init(), Home(), Ready(), Smash(), Cut(), Prepare(), Repel())}
 
@@ -78,6 +90,7 @@ class TacticsSelector:
         self.tactics = tactics or default_tactics()
         self.current, self.reason, self.forced, self.variant = INIT, "game stopped", None, ""
         self.sent: _Sent | None = None
+        self.executing: Proposal | None = None  # the last accepted command (the arm runs it until another one is)
         self.blocked: dict[int, float] = {}
         self.lead_extra, self.speed_cap = 0.0, math.inf
         self.own_half_since: float | None = None  # [s] when the puck last came onto the own half
@@ -91,7 +104,7 @@ class TacticsSelector:
         if variant and (tactic != SMASH or variant not in VARIANTS):
             raise ValueError(f"variant '{variant}' needs tactic smash and one of {', '.join(VARIANTS)}")
         self.forced, self.variant = tactic, variant
-        self.sent, self.blocked = None, {}
+        self.sent, self.executing, self.blocked = None, None, {}
         self.lead_extra, self.speed_cap = 0.0, math.inf
         if tactic is None:
             return "released to the state machine"
@@ -103,7 +116,7 @@ class TacticsSelector:
         if sent is None or abs(stamp - sent.stamp) > 1e-6:
             return  # an answer to a command already replaced
         if outcome == ACCEPTED:
-            sent.accepted = True
+            sent.accepted, self.executing = True, sent.proposal
             return
         sent.accepted = False
         proposal = sent.proposal
@@ -118,7 +131,8 @@ class TacticsSelector:
                               else self.s.limits_slowdown * speed)
         elif (outcome == TOO_LATE and (proposal.flexible_time or proposal.later_ok)
               and self.lead_extra < self.s.max_lead_extra):
-            self.lead_extra = min(self.lead_extra + self.s.lead_time_step, self.s.max_lead_extra)
+            self.lead_extra = min(self.lead_extra + max(proposal.slack, 0.0) + self.s.lead_time_step,
+                                  self.s.max_lead_extra)
         else:
             self.blocked[proposal.tactic] = now + self.s.retry_delay
         self.sent = None
@@ -130,7 +144,7 @@ class TacticsSelector:
         position [m] and velocity [m/s] (own frame; None when unknown)."""
         self._track_possession(now, status, situation)
         if status == STOPPED:
-            self.sent, self.blocked = None, {}
+            self.sent, self.executing, self.blocked = None, None, {}
             return self._decide(INIT, "game stopped: holding", None)
         if status == PAUSED:
             wanted = [HOME]
@@ -145,7 +159,11 @@ class TacticsSelector:
         possession = 0.0 if self.own_half_since is None or self.forced is not None else now - self.own_half_since
         ctx = Context(now, self.s, self.reach, self.shots, mallet, mallet_velocity, self.lead_extra, self.speed_cap,
                       self.variant, running, possession)
-        for tactic in wanted:
+        for i, tactic in enumerate(wanted):
+            kept = self._still_valid(now, situation, wanted[:i])
+            if kept is not None:  # its own tactic, tried before this one, had nothing new to play
+                return self._decide(kept.tactic, f"{NAMES[kept.tactic]} under way kept (its re-plan was refused)",
+                                    None)
             if self.blocked.get(tactic, -math.inf) > now:
                 continue
             proposal = self.tactics[tactic].propose(situation, ctx)
@@ -199,6 +217,20 @@ class TacticsSelector:
         else:
             expected, tolerance = situation.at(p.time), self.s.resend_distance
         return float(np.linalg.norm(expected[:2] - p.puck)) <= tolerance
+
+    def _still_valid(self, now: float, situation: Situation | None, tried: list[int]) -> Proposal | None:
+        """The command the arm is running, kept when nothing new could be planned: a hit or cut of a tactic
+        among those just ``tried`` (it still applies but had nothing to play), not yet at its time, whose
+        puck the prediction still brings within ``contact_distance`` of where it was planned to be met (the
+        mallet still meets it) before the command's follow-through ends. Falling back to Ready replaced
+        it: a Cut re-planned as the prediction moved and refused as too late sent the arm away from the
+        puck's path, and the next decision often asked for the Cut again."""
+        p = self.executing
+        if p is None or p.puck is None or situation is None or p.tactic not in tried or now >= p.time:
+            return None
+        end = p.time + self.s.settle_time
+        path = np.vstack([situation.puck[None, :2], situation.states[situation.times <= end, :2]])
+        return p if path_gap(path, p.puck) <= self.s.contact_distance else None
 
     def _to_send(self, proposal: Proposal, now: float) -> Proposal | None:
         """The proposal if it should be sent now; None when the last command already says the same
