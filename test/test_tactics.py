@@ -13,7 +13,7 @@ from air_hockey_agent.core.game.arm_reach import ArmReach
 from air_hockey_agent.core.game.shots import ShotPredictor, puck_after_hit
 from air_hockey_agent.core.game.situation import build_situation, own_frame_physics, to_own_frame
 from air_hockey_agent.core.game.speed_map import SpeedMap
-from air_hockey_agent.core.game.tactics.base import CUT, HOME, INIT, PREPARE, READY, REPEL, SMASH
+from air_hockey_agent.core.game.tactics.base import CUT, HOME, INIT, PREPARE, READY, REPEL, SMASH, path_gap
 from air_hockey_agent.core.game.tactics.selector import (LIMITS, PAUSED, RUNNING, STOPPED, TOO_FAST, TOO_LATE,
                                                          TacticsSelector)
 from air_hockey_agent.core.game.tactics.settings import TacticsSettings
@@ -779,3 +779,20 @@ def test_the_puck_physics_file_is_read_and_a_bad_one_is_a_one_line_error(tmp_pat
         with pytest.raises(ParameterFileError, match=rf"^parameter 'puck_params_file': .*{path.name}") as info:
             puck_model_for_tactics(str(path))
         assert "\n" not in str(info.value)
+
+
+def test_path_gap_is_the_distance_to_the_nearest_segment():
+    """Closed forms: a perpendicular foot inside a segment, a nearest end point, a single point, a
+    zero-length segment; random polylines against a dense sampling of their segments."""
+    path = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0]])
+    assert path_gap(path, np.array([0.5, 0.3])) == pytest.approx(0.3)
+    assert path_gap(path, np.array([1.4, 0.5])) == pytest.approx(0.4)
+    assert path_gap(path, np.array([-0.3, -0.4])) == pytest.approx(0.5)  # before the first end: 3-4-5
+    assert path_gap(path[:1], np.array([0.3, 0.4])) == pytest.approx(0.5)
+    assert path_gap(np.array([[0.2, 0.2], [0.2, 0.2]]), np.array([0.2, 0.5])) == pytest.approx(0.3)
+    rng = np.random.default_rng(7)
+    for _ in range(20):
+        poly, point = rng.normal(size=(5, 2)), rng.normal(size=2)
+        s = np.linspace(0.0, 1.0, 2001)[:, None]
+        dense = np.vstack([a + s * (b - a) for a, b in zip(poly[:-1], poly[1:])])
+        assert path_gap(poly, point) == pytest.approx(np.min(np.hypot(*(dense - point).T)), abs=1e-3)

@@ -73,6 +73,16 @@ class Tactic:
         raise NotImplementedError
 
 
+def path_gap(path: np.ndarray, point: np.ndarray) -> float:
+    """Smallest distance [m] from ``point`` (2,) to the polyline through ``path`` (n, 2) positions."""
+    if len(path) == 1:
+        return float(np.linalg.norm(path[0] - point))
+    a, ab = path[:-1], np.diff(path, axis=0)
+    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
+    s = np.clip(np.einsum("ij,ij->i", point - a, ab) / length2, 0.0, 1.0)
+    return float(np.min(np.hypot(*(a + s[:, None] * ab - point).T)))
+
+
 def approach_clear(puck: np.ndarray, hit_point: np.ndarray, velocity: np.ndarray, ctx: Context) -> bool:
     """The mallet's straight way from where it is to the strike's start (behind ``hit_point`` along the
     hit ``velocity`` [m/s]) keeps ``approach_clearance`` beyond contact off the puck at ``puck`` [m] (else it would
@@ -80,11 +90,8 @@ def approach_clear(puck: np.ndarray, hit_point: np.ndarray, velocity: np.ndarray
     if ctx.mallet is None:
         return True
     speed = float(np.linalg.norm(velocity))
-    a, b = np.asarray(ctx.mallet, float), ctx.reach.run_up_start(hit_point, velocity / speed, speed)
-    ab = b - a
-    s = 0.0 if not ab.any() else float(np.clip((puck[:2] - a) @ ab / (ab @ ab), 0.0, 1.0))
-    gap = float(np.linalg.norm(puck[:2] - (a + s * ab)))
-    return gap >= ctx.settings.contact_distance + ctx.settings.approach_clearance
+    way = np.array([ctx.mallet, ctx.reach.run_up_start(hit_point, velocity / speed, speed)], float)
+    return path_gap(way, puck[:2]) >= ctx.settings.contact_distance + ctx.settings.approach_clearance
 
 
 def self_timed_hit_time(tactic: int, ctx: Context) -> float:

@@ -33,7 +33,7 @@ from air_hockey_agent.core.game.arm_reach import ArmReach
 from air_hockey_agent.core.game.shots import VARIANTS, ShotPredictor
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import (CUT, HOME, INIT, NAMES, PREPARE, READY, REPEL, SMASH, Context,
-                                                     Proposal, Tactic)
+                                                     Proposal, Tactic, path_gap)
 from air_hockey_agent.core.game.tactics.cut import Cut
 from air_hockey_agent.core.game.tactics.home import Home
 from air_hockey_agent.core.game.tactics.init import Init
@@ -65,16 +65,6 @@ class _Sent:
     proposal: Proposal
     stamp: float                 # [s] when it was sent; the planner's answer carries it back
     accepted: bool | None = None
-
-
-def path_gap(path: np.ndarray, point: np.ndarray) -> float:
-    """Smallest distance [m] from ``point`` (2,) to the polyline through ``path`` (n, 2) positions."""
-    if len(path) == 1:
-        return float(np.linalg.norm(path[0] - point))
-    a, ab = path[:-1], np.diff(path, axis=0)
-    length2 = np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-18)
-    s = np.clip(np.einsum("ij,ij->i", point - a, ab) / length2, 0.0, 1.0)
-    return float(np.min(np.hypot(*(a + s[:, None] * ab - point).T)))
 
 
 def default_tactics() -> dict[int, Tactic]:
