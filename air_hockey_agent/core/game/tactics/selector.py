@@ -150,10 +150,11 @@ class TacticsSelector:
         ctx = Context(now, self.s, self.reach, self.shots, mallet, mallet_velocity, self.lead_extra, self.speed_cap,
                       self.variant, running, possession)
         for i, tactic in enumerate(wanted):
-            kept = self._still_valid(now, situation, wanted[:i])
-            if kept is not None:  # its own tactic, tried before this one, had nothing new to play
-                return self._decide(kept.tactic, f"{NAMES[kept.tactic]} under way kept (its re-plan was refused)",
-                                    None)
+            if i and self.executing is not None and wanted[i - 1] == self.executing.tactic:
+                kept = self._still_valid(now, situation)  # its own tactic, just tried, had nothing new to play
+                if kept is not None:
+                    return self._decide(kept.tactic,
+                                        f"{NAMES[kept.tactic]} under way kept (its re-plan was refused)", None)
             if self.blocked.get(tactic, -math.inf) > now:
                 continue
             proposal = self.tactics[tactic].propose(situation, ctx)
@@ -208,15 +209,15 @@ class TacticsSelector:
             expected, tolerance = situation.at(p.time), self.s.resend_distance
         return float(np.linalg.norm(expected[:2] - p.puck)) <= tolerance
 
-    def _still_valid(self, now: float, situation: Situation | None, tried: list[int]) -> Proposal | None:
-        """The command the arm is running, kept when nothing new could be planned: a hit or cut of a tactic
-        among those just ``tried`` (it still applies but had nothing to play), not yet at its time, whose
+    def _still_valid(self, now: float, situation: Situation | None) -> Proposal | None:
+        """The command the arm is running, kept when nothing new could be planned (the caller checks that its
+        tactic was just tried: it still applies but had nothing to play): a hit or cut not yet at its time, whose
         puck the prediction still brings within ``contact_distance`` of where it was planned to be met (the
         mallet still meets it) before the command's follow-through ends. Falling back to Ready replaced
         it: a Cut re-planned as the prediction moved and refused as too late sent the arm away from the
         puck's path, and the next decision often asked for the Cut again."""
         p = self.executing
-        if p is None or p.puck is None or situation is None or p.tactic not in tried or now >= p.time:
+        if p is None or p.puck is None or situation is None or now >= p.time:
             return None
         end = p.time + self.s.settle_time
         path = np.vstack([situation.puck[None, :2], situation.states[situation.times <= end, :2]])
