@@ -72,6 +72,7 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("cut_contact_steps", int, "contact times a Cut tries on the puck's predicted path", 1, 50),
     ParamSpec("cut_normal_steps", int, "contact normals a Cut tries around head-on", 1, 90),
     ParamSpec("cut_normal_range", float, "[rad] largest angle of a Cut's contact normal from head-on", 0.0, 1.5),
+    ParamSpec("cut_offset_noise", float, "[m] sideways error of where a Cut's puck meets the mallet", 0.0, 0.07),
     ParamSpec("cut_catch", list, "[-] fractions of the speed that stops the puck's normal motion a Cut tries",
               0.0, 1.5),
     ParamSpec("reach_time_margin", float, "[-] multiple of the shortest reach time given to a reach", 1.0, 10.0),

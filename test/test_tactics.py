@@ -796,3 +796,68 @@ def test_path_gap_is_the_distance_to_the_nearest_segment():
         s = np.linspace(0.0, 1.0, 2001)[:, None]
         dense = np.vstack([a + s * (b - a) for a, b in zip(poly[:-1], poly[1:])])
         assert path_gap(poly, point) == pytest.approx(np.min(np.hypot(*(dense - point).T)), abs=1e-3)
+
+
+def _first_contact_normal(relative_position: np.ndarray, relative_velocity: np.ndarray, distance: float):
+    """Where a puck at ``relative_position`` (to the mallet) moving at ``relative_velocity`` first touches a
+    mallet ``distance`` away (ray against circle): the unit normal, or None when it passes by."""
+    w = relative_velocity / np.linalg.norm(relative_velocity)
+    b = relative_position @ w
+    disc = b * b - (relative_position @ relative_position - distance ** 2)
+    if disc < 0.0:
+        return None
+    return (relative_position + (-b - math.sqrt(disc)) * w) / distance
+
+
+@pytest.mark.parametrize("angle_deg", [0.0, 25.0, -50.0, 70.0])
+def test_a_cut_contact_turns_as_the_puck_meets_the_mallet_off_sideways(settings, angle_deg):
+    """offset_turns against geometry: the puck's way shifted cut_offset_noise sideways meets the mallet at the
+    normal the turns give (less the aim noise); a glancing contact turns most, and one the offset lets
+    pass turns to 90 deg from head-on (no impulse)."""
+    from air_hockey_agent.core.game.tactics.cut import _rotate, offset_turns
+    relative = np.array([-2.0, 0.7])
+    head_on = -relative / np.linalg.norm(relative)
+    n = _rotate(head_on, math.radians(angle_deg))
+    lower, upper = offset_turns(relative, n, settings)
+    lat = np.array([-relative[1], relative[0]]) / np.linalg.norm(relative)
+    turns = []
+    for side in (-1.0, 1.0):
+        start = n * settings.contact_distance - 0.5 * relative + side * settings.cut_offset_noise * lat
+        normal = _first_contact_normal(start, relative, settings.contact_distance)
+        if normal is None:
+            turns.append(math.copysign(math.pi / 2, angle_deg) - math.radians(angle_deg))  # passes by
+        else:
+            turns.append(math.atan2(n[0] * normal[1] - n[1] * normal[0], n @ normal))
+    assert sorted(turns) == pytest.approx([lower + settings.aim_noise, upper - settings.aim_noise], abs=1e-9)
+    spread = upper - lower - 2 * settings.aim_noise
+    head_on_spread = 2 * math.asin(settings.cut_offset_noise / settings.contact_distance)
+    assert spread == pytest.approx(head_on_spread, abs=1e-9) if angle_deg == 0.0 else spread > head_on_spread
+
+
+def test_a_contact_a_sideways_offset_may_turn_into_the_goal_ranks_below_a_safe_one(settings):
+    """lazy_candidate: a candidate whose contact turned by a risk is rejected ranks below every safe one, even
+    one with a smaller margin; among safe ones the larger margin first; an aimed contact rejected is dropped."""
+    from air_hockey_agent.core.game.tactics.outcome import LazyRanked, lazy_candidate
+    def candidate(name, margin, goal_turn):  # the contact turned by goal_turn enters the goal
+        return lazy_candidate(settings, lambda turn: (turn, margin - abs(turn)), lambda push: push[0] == goal_turn,
+                              lambda push: push[1], lambda score: (score,), lambda push: (name, push),
+                              risks=(-0.3, 0.3))
+    ranked = LazyRanked([candidate("risky", 5.0, 0.3), candidate("safe", 1.0, None)])
+    assert [ranked.item(i)[0] for i in range(2)] == ["safe", "risky"]
+    ranked = LazyRanked([candidate("wide", 5.0, None), candidate("safe", 1.0, None)])
+    assert [ranked.item(i)[0] for i in range(2)] == ["wide", "safe"]
+    assert candidate("aimed_in", 5.0, 0.0) is None  # the aimed contact itself enters the goal: never played
+
+
+def test_a_contact_whose_prediction_ends_in_the_goal_enters_it(selector, model, settings):
+    """A puck crossing the sampled goal line just outside the mouth but still turning in scores in the model
+    (it ends beyond scored_x): such a contact enters the goal."""
+    from air_hockey_agent.core.game.shots import NO_Q
+    table = model.table
+    puck = np.array([-0.80, -0.236, -1.0, 1.0, 0.0, 0.0])
+    line = selector.shots.line
+    pred = predict_fast(model, puck, None, 1.5, DT, NO_Q, lines=(-line,))
+    assert abs(pred.crossings[-line].y) > table.goal_mouth and pred.state[0] < -table.scored_x  # the case
+    push = selector.shots.contact(puck, np.array([-0.7071, 0.7071]), np.zeros(2), settings.prepare_end_speed,
+                                  settings.prepare_horizon)  # the mallet behind the puck: no impulse
+    assert np.allclose(push.after[:4], puck[:4]) and push.enters_goal

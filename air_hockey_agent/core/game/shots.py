@@ -90,7 +90,7 @@ class Push:
     mallet_velocity: np.ndarray  # [m/s] mallet velocity at the contact
     rest: np.ndarray            # [m] predicted position where the puck (nearly) stops
     crosses_centre: bool        # the prediction crosses the centre line on the way
-    enters_goal: bool           # ... or the own goal line inside the goal mouth
+    enters_goal: bool           # ... or the own goal line inside the goal mouth, or ends in the own goal
     after: np.ndarray           # puck state (6) right after the contact
     bounces: bool               # the prediction meets a rim
 
@@ -112,6 +112,7 @@ class ShotPredictor:
         table = model.table
         self.line = table.length / 2 - table.puck_radius - LINE_INSET
         self.mouth = table.goal_mouth
+        self.scored_x = table.scored_x  # [m] the model keeps a puck that has scored beyond this |x|
         self.defend_line = table.length / 2 - settings.defend_line   # the opponent's, in our frame
         self.guard_y = -settings.ready_point[1]  # where the opponent's mallet waits (the same agent's ready point)
         prepare_prediction()  # not in the first decision
@@ -157,9 +158,10 @@ class ShotPredictor:
         own_line = -self.line
         pred = predict_fast(self.model, state, None, max(t, self.dt), self.dt, NO_Q, lines=(0.0, own_line))
         goal = pred.crossings.get(own_line)
+        scored = (goal is not None and abs(goal.y) < self.mouth) or pred.state[0] < -self.scored_x
         return Push(np.asarray(normal, float), puck[:2] - normal * self.s.contact_distance,
                     np.asarray(mallet_velocity, float), pred.state[:2].copy(), 0.0 in pred.crossings,
-                    goal is not None and abs(goal.y) < self.mouth, state, bool(pred.impacts))
+                    scored, state, bool(pred.impacts))
 
     def _after(self, puck: np.ndarray, mallet_velocity: np.ndarray, normal: np.ndarray) -> np.ndarray:
         """The puck's state right after a contact (:func:`puck_after_contact`), its angle set to 0 (the

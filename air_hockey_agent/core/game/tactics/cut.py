@@ -12,7 +12,10 @@ came to rest outside the smash area. Here the mallet may also give way: moving a
 predicted with the puck model (:meth:`ShotPredictor.contact`: the contact as Routh's impact with the
 mallet's friction, which takes tangential speed into spin); the one that stops deepest inside the
 smash area, also with the normal off by the aim noise, is played. A contact that sends the puck into
-the own goal or back into the mallet is never played. When the planner answers "too late" (the arm
+the own goal or back into the mallet is never played, and one that would send it in were the puck to
+meet the mallet ``cut_offset_noise`` off sideways (the prediction's and the arm's error at the contact;
+:func:`offset_turns`) ranks below every contact without that risk: glancing contacts that were meant to
+turn a fast puck just past the goal post met it a centimetre off in games and turned it in. When the planner answers "too late" (the arm
 cannot be there by then), the next proposal meets the puck at least ``lead_time_step`` later on its path
 than the refused one (``Context.lead_extra`` grows by the step and by how much later than the earliest
 allowed contact the refused one lay: ``Proposal.slack``), so the best contact the arm can still make is
@@ -30,6 +33,7 @@ import numpy as np
 from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import CUT, Context, Proposal, Tactic
+from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 from air_hockey_agent.core.game.tactics.outcome import LazyRanked, Ranked, lazy_candidate, margin_steps
 
 CACHE_SIZE = 16
@@ -40,6 +44,19 @@ KEY_POSITION = 0.005  # [m] ... and in y share the ranked contacts
 def _rotate(v: np.ndarray, angle: float) -> np.ndarray:
     c, s = math.cos(angle), math.sin(angle)
     return np.array([c * v[0] - s * v[1], s * v[0] + c * v[1]])
+
+
+def offset_turns(relative: np.ndarray, n: np.ndarray, st: TacticsSettings) -> tuple[float, float]:
+    """How far [rad] a contact normal ``n`` (unit, mallet to puck) turns either way when the puck, moving at
+    ``relative`` [m/s] relative to the mallet, meets it ``cut_offset_noise`` [m] off to either side across
+    its way, plus the aim noise: at angle a from head-on the normal turns to asin(sin a +- offset /
+    contact distance), a head-on contact hardly, a glancing one by tens of degrees; past 90 deg the puck
+    passes the mallet (the contact at 90 deg gives it no impulse)."""
+    head_on = -relative / float(np.hypot(*relative))
+    a = math.atan2(head_on[0] * n[1] - head_on[1] * n[0], float(head_on @ n))
+    shift = st.cut_offset_noise / st.contact_distance
+    lower, upper = (math.asin(min(max(math.sin(a) + s, -1.0), 1.0)) - a for s in (-shift, shift))
+    return lower - st.aim_noise, upper + st.aim_noise
 
 
 class Cut(Tactic):
@@ -112,14 +129,17 @@ class Cut(Tactic):
             speed = k * st.mallet_restitution * closing / (1.0 + st.mallet_restitution)
             if speed > min(top, ctx.speed_cap) or (0.0 < speed < st.prepare_speed[0]):
                 continue
-            def contact(turn: float, speed: float = speed) -> Push:  # the mallet gives way along its normal
-                normal = _rotate(n, turn)
-                return ctx.shots.contact(puck, normal, -speed * normal, st.prepare_end_speed, st.prepare_horizon)
+
+            def contact(turn: float, speed: float = speed) -> Push:  # the mallet gives way along its aimed
+                aim = math.copysign(min(abs(turn), st.aim_noise), turn)  # normal (off by the aim noise at most)
+                return ctx.shots.contact(puck, _rotate(n, turn), -speed * _rotate(n, aim), st.prepare_end_speed,
+                                         st.prepare_horizon)
             follow = run_on if speed > 0.0 else 0.0
             candidate = lazy_candidate(st, contact, lambda push: push.enters_goal,
                                        lambda push: margin_steps(st, push),
                                        lambda score, speed=speed: (score, -t, -speed),
-                                       lambda push, follow=follow: (t, push, follow))
+                                       lambda push, follow=follow: (t, push, follow),
+                                       offset_turns(puck[2:4] + speed * n, n, st))
             if candidate is not None:
                 out.append(candidate)
         return out

@@ -64,6 +64,7 @@ class TacticsSettings:
     cut_contact_steps: int
     cut_normal_steps: int
     cut_normal_range: float
+    cut_offset_noise: float
     cut_catch: tuple[float, ...]
     reach_time_margin: float
     stale_estimate: float
