@@ -15,8 +15,8 @@ smash area, also with the normal off by the aim noise, is played. A contact that
 the own goal or back into the mallet is never played, and one that would send it in were the puck to
 meet the mallet ``cut_offset_noise`` off sideways (the prediction's and the arm's error at the contact;
 :func:`offset_turns`) ranks below every contact without that risk: glancing contacts that were meant to
-turn a fast puck just past the goal post met it a centimetre off in games and turned it in. When the planner answers "too late" (the arm
-cannot be there by then), the next proposal meets the puck at least ``lead_time_step`` later on its path
+turn a fast puck just past the goal post met it a centimetre off in games and turned it in.
+When the planner answers "too late" (the arm cannot be there by then), the next proposal meets the puck at least ``lead_time_step`` later on its path
 than the refused one (``Context.lead_extra`` grows by the step and by how much later than the earliest
 allowed contact the refused one lay: ``Proposal.slack``), so the best contact the arm can still make is
 played. Before, the Cut was blocked for ``retry_delay`` and then asked for the same contact again,
