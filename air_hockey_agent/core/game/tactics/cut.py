@@ -16,13 +16,13 @@ the own goal or back into the mallet is never played, and one that would send it
 meet the mallet ``cut_offset_noise`` off sideways (the prediction's and the arm's error at the contact;
 :func:`offset_turns`) ranks below every contact without that risk: glancing contacts that were meant to
 turn a fast puck just past the goal post met it a centimetre off in games and turned it in.
-When the planner answers "too late" (the arm cannot be there by then), the next proposal meets the puck at least ``lead_time_step`` later on its path
-than the refused one (``Context.lead_extra`` grows by the step and by how much later than the earliest
-allowed contact the refused one lay: ``Proposal.slack``), so the best contact the arm can still make is
-played. Before, the Cut was blocked for ``retry_delay`` and then asked for the same contact again,
-nearer in time: in ten games a third of its commands (95 of 301) were refused as too late; and while the
-lead grew from the earliest allowed contact alone, a refused contact that lay later than that was asked
-again until the lead passed it.
+When the planner answers "too late" (the arm cannot be there by then), the next proposal meets the puck
+at least ``lead_time_step`` later on its path than the refused one (``Context.lead_extra`` grows by the
+step and by how much later than the earliest allowed contact the refused one lay: ``Proposal.slack``),
+so the best contact the arm can still make is played. Before, the Cut was blocked for ``retry_delay``
+and then asked for the same contact again, nearer in time: in ten games a third of its commands (95 of
+301) were refused as too late; and while the lead grew from the earliest allowed contact alone, a
+refused contact that lay later than that was asked again until the lead passed it.
 """
 from __future__ import annotations
 
@@ -33,8 +33,8 @@ import numpy as np
 from air_hockey_agent.core.game.shots import Push
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import CUT, Context, Proposal, Tactic
-from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 from air_hockey_agent.core.game.tactics.outcome import LazyRanked, Ranked, lazy_candidate, margin_steps
+from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 
 CACHE_SIZE = 16
 KEY_TIME = 0.02       # [s] predicted defend-line crossings closer than this in time ...
@@ -77,13 +77,14 @@ class Cut(Tactic):
             if len(self._cache) >= CACHE_SIZE:
                 self._cache.clear()
             self._cache[key] = LazyRanked(self._ranked(situation, ctx, c.time))
+        lead = st.min_plan_time + ctx.lead_extra  # [s] the earliest contact the Cut may ask for, from now
         best = self._cache[key].first(
-            lambda t, push, run_on: t - ctx.now >= st.min_plan_time + ctx.lead_extra,
+            lambda t, push, run_on: t - ctx.now >= lead,
             lambda t, push, run_on: not ctx.shots.rebounds_into_mallet(push, run_on, st.recontact_watch))
         if best is None:
             return None
         t, push, _ = best
-        slack = t - (ctx.now + st.min_plan_time + ctx.lead_extra)
+        slack = t - ctx.now - lead
         puck = situation.at(t)
         reason = (f"cut: puck crosses the defend line at y {c.y:+.2f} m in {c.time - ctx.now:.2f} s after "
                   f"{c.impacts_before} rim impact(s); met in {t - ctx.now:.2f} s, mallet "
