@@ -24,6 +24,10 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("status_period", float, "[s] re-publication period of the current tactic", 0.01, 3600.0),
     ParamSpec("defend_line", float, "[m] depth of the defend line from the own goal line", 0.0, 1.0),
     ParamSpec("ready_point", list, "[m] depth, y of the waiting point", -1.0, 1.0, 2),
+    ParamSpec("ready_guard_depth", float, "[m] a puck closer to the own goal line than this is guarded: the mallet "
+                                          "waits between it and the goal (0: never)", 0.0, 1.0),
+    ParamSpec("ready_guard_speed", float, "[m/s] ... when it is slower than this (else the mallet keeps off "
+                                          "its path)", 0.0, 10.0),
     ParamSpec("home_point", list, "[m] depth, y of the home point (pause)", -1.0, 1.0, 2),
     ParamSpec("smash_depth", list, "[m] depth range of the smash area", 0.0, 1.0, 2),
     ParamSpec("smash_rim_margin", float, "[m] smash area distance from the long rims beyond the puck radius", 0.0, 0.5),

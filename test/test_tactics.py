@@ -543,6 +543,65 @@ def test_puck_leaving_on_the_opponents_half_means_ready(selector, model, setting
     np.testing.assert_allclose(d.command.point, settings.point(settings.ready_point))
 
 
+def _gap(settings) -> float:
+    return settings.contact_distance + settings.approach_clearance
+
+
+def test_ready_guards_a_slow_puck_behind_the_ready_line_from_the_goal_side(selector, model, settings):
+    goal = np.array([-settings.table.length / 2, 0.0])
+    puck = np.array([goal[0] + 0.12, -0.30])  # deeper than the ready point, beside the goal, sliding along y
+    d = selector.step(0.0, RUNNING, situation(model, [*puck, 0.0, 0.3, 0, 0]))
+    assert d.tactic == READY and d.reason.startswith("guarding")
+    p = d.command.point
+    assert abs(np.linalg.norm(p - puck) - _gap(settings)) < 1e-9  # a contact distance and a clearance short
+    cross = (puck - goal)[0] * (p - goal)[1] - (puck - goal)[1] * (p - goal)[0]
+    assert abs(cross) < 1e-9 and np.linalg.norm(p - goal) < np.linalg.norm(puck - goal)  # between goal and puck
+    assert selector.reach.region.contains(p)
+
+
+def test_ready_does_not_guard_a_puck_too_deep_fast_or_far(selector, model, settings):
+    ready = settings.point(settings.ready_point)
+    x0 = -settings.table.length / 2
+    for state, waits_there in (([x0 + 0.05, 0.30, 0.0, 0.3, 0, 0], True),  # its guard point: behind the region
+                               ([x0 + 0.12, -0.30, 0.0, settings.ready_guard_speed + 0.2, 0, 0], False),  # fast
+                               ([x0 + settings.ready_guard_depth + 0.02, -0.42, 0.3, 0.0, 0, 0], True)):  # far
+        fresh = TacticsSelector(settings, selector.reach, selector.shots)
+        d = fresh.step(0.0, RUNNING, situation(model, state))
+        assert d.tactic == READY and not d.reason.startswith("guarding"), state
+        if waits_there:
+            assert d.reason == "waiting at the ready point", state
+            np.testing.assert_allclose(d.command.point, ready)
+
+
+def _clear_of_path(point, sit, gap) -> bool:
+    path = np.vstack([sit.puck[:2], sit.states[:, :2]])
+    deeper = path[path[:, 0] < point[0]]
+    return not len(deeper) or np.min(np.hypot(*(deeper - point).T)) >= gap - 1e-9
+
+
+def test_ready_waits_clear_of_a_puck_between_the_ready_point_and_the_goal(selector, model, settings):
+    x0 = -settings.table.length / 2
+    puck = np.array([x0 + 0.11, 0.01])  # in front of the goal, a few centimetres from the ready point
+    sit = situation(model, [*puck, 0.0, 0.1, 0, 0])
+    d = selector.step(0.0, RUNNING, sit)
+    assert d.tactic == READY and "clear of it" in d.reason
+    p = d.command.point
+    assert p[1] == settings.ready_point[1] and p[0] > puck[0]  # moved away from the goal, not beside the puck
+    assert _clear_of_path(p, sit, _gap(settings))
+    assert np.linalg.norm(p - puck) < _gap(settings) + 0.01  # and no farther than that needs
+
+
+def test_ready_steps_out_of_the_way_of_a_puck_sliding_behind_the_ready_point(selector, model, settings):
+    """A puck sliding along y behind the ready point would meet the waiting mallet from behind (the
+    own goal of seed 37 at 43.2 s in self-play); the mallet waits where the predicted path passes it."""
+    x0 = -settings.table.length / 2
+    sit = situation(model, [x0 + 0.11, -0.35, 0.0, 1.0, 0, 0])  # too fast to guard, passes under the ready point
+    d = selector.step(0.0, RUNNING, sit)
+    assert d.tactic == READY and "clear of it" in d.reason
+    assert _clear_of_path(d.command.point, sit, _gap(settings))
+    assert not _clear_of_path(settings.point(settings.ready_point), sit, settings.contact_distance)
+
+
 def test_the_back_robot_plays_in_its_own_frame(selector, model):
     d = selector.step(0.0, RUNNING, situation(model, [0.5, -0.1, 0, 0, 0, 0], robot="iiwa_back"))
     assert d.tactic == SMASH  # (0.5, -0.1) in the table is (-0.5, 0.1) on the back robot's own half

@@ -19,6 +19,8 @@ class TacticsSettings:
     mallet_radius: float
     defend_line: float
     ready_point: tuple[float, float]
+    ready_guard_depth: float
+    ready_guard_speed: float
     home_point: tuple[float, float]
     smash_depth: tuple[float, float]
     smash_rim_margin: float
