@@ -13,13 +13,14 @@ import numpy as np
 
 from air_hockey_agent.core.game.tactics.base import READY, Context, Proposal, Tactic, reach_proposal
 
+
 def guard_point(puck: np.ndarray, ctx: Context) -> np.ndarray | None:
     """Where the mallet waits for a puck at ``puck`` (x, y [m], own frame) closer to the own goal line than
     ``ready_guard_depth`` [m]: on the line from the goal's centre to the puck, ``contact_distance +
     approach_clearance`` short of the puck. None for a puck farther out, or one so deep that this point lies
     outside the arm's region (behind its back edge, 0.07 m deep): a mallet nearer the goal line than the
     puck can only push it goal-ward, and one pulled into the region beside such a puck sat in its way
-    along the end rim and turned it into the goal; the ready point is then out of its reach."""
+    along the end rim and turned it into the goal (:class:`Ready` then keeps the mallet clear of it)."""
     st = ctx.settings
     puck = np.asarray(puck[:2], float)
     goal = np.array([-st.table.length / 2, 0.0])
