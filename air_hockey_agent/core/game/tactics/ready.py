@@ -14,21 +14,18 @@ import numpy as np
 from air_hockey_agent.core.game.tactics.base import READY, Context, Proposal, Tactic, reach_proposal
 
 
-def guard_point(puck: np.ndarray, ctx: Context) -> np.ndarray | None:
-    """Where the mallet waits for a puck at ``puck`` (x, y [m], own frame) closer to the own goal line than
-    ``ready_guard_depth`` [m]: on the line from the goal's centre to the puck, ``contact_distance +
-    approach_clearance`` short of the puck. None for a puck farther out, or one so deep that this point lies
-    outside the arm's region (behind its back edge, 0.07 m deep): a mallet nearer the goal line than the
-    puck can only push it goal-ward, and one pulled into the region beside such a puck sat in its way
-    along the end rim and turned it into the goal (:class:`Ready` then keeps the mallet clear of it)."""
-    st = ctx.settings
+def guard_point(puck: np.ndarray, gap: float, ctx: Context) -> np.ndarray | None:
+    """Where the mallet waits for a puck at ``puck`` (x, y [m], own frame) behind the ready line: on the line
+    from the own goal's centre to the puck, ``gap`` [m] short of the puck. None when this point lies outside
+    the arm's region (behind its back edge, 0.07 m deep, for a puck that deep): a mallet nearer the goal line
+    than the puck can only push it goal-ward, and one pulled into the region beside such a puck sat in its
+    way along the end rim and turned it into the goal (:class:`Ready` then keeps the mallet clear of it)."""
     puck = np.asarray(puck[:2], float)
-    goal = np.array([-st.table.length / 2, 0.0])
-    rel = puck - goal
+    rel = puck - np.array([ctx.settings.x_at_depth(0.0), 0.0])
     distance = float(np.hypot(*rel))
-    if rel[0] >= st.ready_guard_depth or distance <= 0.0:
+    if distance <= 0.0:
         return None
-    point = puck - (st.contact_distance + st.approach_clearance) * rel / distance
+    point = puck - gap * rel / distance
     return point if ctx.reach.region.contains(point) else None
 
 
@@ -55,12 +52,12 @@ class Ready(Tactic):
         ready = st.point(st.ready_point)
         if situation is None or situation.puck[0] + st.table.length / 2 >= st.ready_guard_depth:
             return reach_proposal(READY, ready, ctx, "waiting at the ready point")
-        puck = situation.puck[:2]
-        guard = guard_point(puck, ctx) if situation.speed <= st.ready_guard_speed else None
+        puck, gap = situation.puck[:2], st.contact_distance + st.approach_clearance
+        guard = guard_point(puck, gap, ctx) if situation.speed <= st.ready_guard_speed else None
         if guard is not None:
             return reach_proposal(READY, guard, ctx,
                                   f"guarding the goal from the puck at ({puck[0]:.2f}, {puck[1]:.2f})")
         path = np.vstack([puck, situation.states[:, :2]])
-        clear = clear_of(ready, path, st.contact_distance + st.approach_clearance, ctx.reach.region.x_max)
+        clear = clear_of(ready, path, gap, ctx.reach.region.x_max)
         return reach_proposal(READY, clear, ctx, "waiting at the ready point" if clear[0] == ready[0] else
                               f"waiting in front of the puck at ({puck[0]:.2f}, {puck[1]:.2f}), clear of it")
