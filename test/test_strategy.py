@@ -39,7 +39,41 @@ def test_trials_depend_only_on_seed_strategy_and_index(s):
     assert make_trial("cut", 3, 1, s) != make_trial("cut", 4, 1, s) != make_trial("cut", 3, 2, s)
     with pytest.raises(ValueError):
         make_trial("dribble", 0, 0, s)
-    assert len(STRATEGIES) == 6
+    assert len(STRATEGIES) == 7
+
+
+def test_guard_trials_start_behind_the_ready_line_in_any_direction(s):
+    """Guard (ours): a puck between the ready line and the own goal, slower than guard_speed, heading any way."""
+    states = [make_trial("guard", i, 3, s).state for i in range(300)]
+    depth = np.array([st[0] + HALF for st in states])
+    speed = np.array([math.hypot(st[2], st[3]) for st in states])
+    assert depth.min() >= s.guard_depth[0] and depth.max() <= s.guard_depth[1]
+    assert max(abs(st[1]) for st in states) <= s.table.y_limit - s.guard_rim_margin
+    assert speed.max() <= s.guard_speed and speed.min() < 0.1 * s.guard_speed
+    toward_goal = sum(st[2] < 0 for st in states)
+    assert 100 < toward_goal < 200  # any direction: about half toward the goal
+    assert make_trial("guard", 5, 3, s).tactic == "" and make_trial("guard", 5, 3, s).variant == ""  # nothing forced
+
+
+def test_no_trial_starts_on_the_mallet_waiting_at_the_ready_point(s):
+    """With the waiting mallet known (the configured settings: the agent's ready point), a draw within start_gap of
+    contact with it is drawn again; every other trial keeps its state. Without it (NaN) nothing is redrawn:
+    seed 0's Prepare trials 20, 25, 52 and 56 then start on the mallet."""
+    from air_hockey_agent.strategy_params import trial_settings
+    known = trial_settings()
+    x0, y0 = known.waiting
+    assert x0 == pytest.approx(-HALF + 0.16) and y0 == 0.0
+    assert known.contact_distance == pytest.approx(0.03165 + 0.04815)  # config/table.yaml puck and mallet radii
+
+    def gap(st):
+        return math.hypot(st[0] - x0, st[1] - y0) - known.contact_distance
+    for kind in ("smash_straight", "smash_right", "prepare", "guard"):
+        for i in range(100):
+            plain, kept = make_trial(kind, i, 0, s).state, make_trial(kind, i, 0, known).state
+            assert gap(kept) >= known.start_gap
+            assert kept == plain or gap(plain) < known.start_gap
+    on_mallet = [i for i in range(100) if gap(make_trial("prepare", i, 0, s).state) < known.start_gap]
+    assert on_mallet == [20, 25, 52, 56]
 
 
 def play(trial, s, states, hits=()):
@@ -127,6 +161,22 @@ def test_states_from_before_a_reported_contact_ended_are_not_a_rest_after_the_hi
     assert w.done and w.result().goal
 
 
+def test_guard_succeeds_unless_the_puck_enters_the_own_goal(s):
+    """A guard trial ends at a goal conceded (failure), when the puck has left the goal's zone, or after guard_time
+    (both successes); a puck at rest does not end it (the mallet may still push it in)."""
+    trial = make_trial("guard", 0, 0, s)
+    x0, y0 = trial.state[:2]
+    conceded = play(trial, s, straight(0.0, 1.0, x0, y0, -0.5, 0.0), hits=[0.05]).result()
+    assert conceded.conceded and not conceded.success and conceded.reason == "conceded" and conceded.hit
+    out = play(trial, s, straight(0.0, 2.0, x0, y0, 0.6, 0.0)).result()
+    assert out.success and out.reason == "left the goal's zone"
+    assert out.duration == pytest.approx((s.guard_exit_depth - HALF - x0) / 0.6, abs=0.011)
+    resting = play(trial, s, [(t, (x0, y0, 0.0, 0.0)) for t in np.arange(0.0, 10.0, 0.01)])
+    r = resting.result()
+    assert resting.done and r.success and r.reason == f"no goal in {s.guard_time:g} s"
+    assert s.guard_time < r.duration <= s.guard_time + 0.011
+
+
 def test_a_slow_slide_is_decided_once_its_remaining_travel_cannot_change_the_outcome():
     """With the table's damping d a puck at v slides at most v / d: a Cut or Prepare trial ends when that
     disc is clear of the smash area's edge, the rims and the centre line, and not before."""
@@ -176,9 +226,11 @@ def test_the_summary_and_its_table_per_strategy():
               trial("smash_straight", False, reason="no goal"),
               trial("cut", True, partial=True), trial("cut", False, partial=True, reason="at rest"),
               trial("cut", False, reason="conceded"), trial("cut", False, reason="at rest"),
-              trial("repel", True, goal=True, speed=None)]
+              trial("repel", True, goal=True, speed=None),
+              trial("guard", True), trial("guard", False, reason="conceded")]
+    trials[-1]["hit"], trials[-2]["hit"] = True, False
     summary = summarise(trials)
-    assert list(summary) == ["smash_straight", "cut", "repel"]  # KEYS' order, only those played
+    assert list(summary) == ["smash_straight", "cut", "repel", "guard"]  # KEYS' order, only those played
     smash, cut, repel = summary["smash_straight"], summary["cut"], summary["repel"]
     assert smash["success_rate"] == pytest.approx(2 / 3) and smash["offset_mean_m"] == pytest.approx(-0.01)
     assert smash["offset_std_m"] == pytest.approx(0.02) and cut["partial_rate"] == 0.5
@@ -188,6 +240,10 @@ def test_the_summary_and_its_table_per_strategy():
     assert "offset -1.0 +- 2.0 cm" in lines[1]
     assert lines[2].split()[:9] == ["cut", "4", "25.0", "%", "34.3", "%", "50.0", "%", "76.7"]
     assert "goals 100.0 % (thesis 13 %), speed at the defend line - (thesis 1.57)" in lines[3]
-    assert lines[4] == "12 s of wall time"
-    assert lines[5] == "  smash_straight failures: no goal x1"
-    assert lines[6] == "  cut failures: at rest x2, conceded x1"
+    assert summary["guard"]["touched_rate"] == 0.5 and "partial_rate" not in summary["guard"]
+    assert lines[4].split()[:6] == ["guard", "2", "50.0", "%", "-", "-"]  # ours: no thesis figure
+    assert lines[4].endswith("no goal conceded; the mallet touched the puck in 50.0 %")
+    assert lines[5] == "12 s of wall time"
+    assert lines[6] == "  smash_straight failures: no goal x1"
+    assert lines[7] == "  cut failures: at rest x2, conceded x1"
+    assert lines[8] == "  guard failures: conceded x1"

@@ -3,7 +3,8 @@
 For each trial of the ``trials`` parameter ("strategy:index,..."; initial states from
 :mod:`air_hockey_agent.core.game.strategy.trials`): homes the robots (table_sim's ``/reset_robots``),
 lets the robot wait at its ready point for ``settle`` (Ready forced, as in a game), forces the tested
-tactic through ``/iiwa_front/force_tactic`` (the agent's only test hook), sets the puck
+tactic through ``/iiwa_front/force_tactic`` (the agent's only test hook; Guard releases it to the state
+machine), sets the puck
 through ``/set_puck_state`` and follows ``/sim/puck_true_state`` and ``/sim/contacts`` until the trial
 ends (:class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher`). Each result is printed as
 one line ``TRIAL_RESULT {json}``, with the tested robot's tactic and its reason when the trial ended
@@ -28,12 +29,11 @@ from std_srvs.srv import Trigger
 from air_hockey_msgs.msg import GameStatus, MalletContact, PuckState, TacticState
 from air_hockey_msgs.srv import ForceTactic, SetPuckState
 from air_hockey_agent.core.game.strategy.scoring import TrialResult, TrialWatcher
-from air_hockey_agent.core.game.strategy.trials import PARK, TrialSettings, make_trial
+from air_hockey_agent.core.game.strategy.trials import PARK, make_trial
 from air_hockey_agent.core.game.tactics.base import TACTIC_IDS
 from air_hockey_agent.nodes.messages import to_seconds
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
-from air_hockey_agent.strategy_params import PARAM_FILES, STRATEGY_PARAMS
-from air_hockey_agent.sim.params import load_sim_params
+from air_hockey_agent.strategy_params import PARAM_FILES, STRATEGY_PARAMS, trial_settings
 
 ROBOT = "iiwa_front"
 WALL_CHECK_PERIOD = 0.05  # [s] wall time between checks for the services at start and for wall_timeout
@@ -58,8 +58,7 @@ class StrategyTestNode(AirHockeyNode):
     def __init__(self) -> None:
         super().__init__()
         p = self.params
-        # the outcome of a slow slide is decided before it stops, by the simulated table's own damping
-        self.settings = TrialSettings.from_params(p, damping=load_sim_params()["surface_damping"])
+        self.settings = trial_settings(p)
         try:
             self.queue = [make_trial(name, index, p["seed"], self.settings) for name, index in parse_trials(p["trials"])]
         except ValueError as exc:
@@ -131,7 +130,8 @@ class StrategyTestNode(AirHockeyNode):
             self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS["ready"]))
         elif self.phase == "ready" and now - self.phase_start >= self.params["settle"]:
             self.phase = "settle"
-            self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS[self.trial.tactic],
+            tactic = self.trial.tactic  # "": released to the state machine
+            self.call(self.force_client, ForceTactic.Request(force=bool(tactic), tactic=TACTIC_IDS.get(tactic, 0),
                                                              variant=self.trial.variant))
         elif self.phase == "settle":
             x, y, vx, vy, theta, omega = self.trial.state

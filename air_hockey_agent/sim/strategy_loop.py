@@ -2,7 +2,7 @@
 
 Each trial runs as the ``strategy_test`` node runs it (thesis sec. 4.6): the puck parked on the
 opponent's half, the robots homed, ``iiwa_front`` waiting at its ready point for ``settle``, the tested
-tactic forced, the puck set to the trial's initial state, and the true puck states and the robot's
+tactic forced (for Guard none: the state machine decides), the puck set to the trial's initial state, and the true puck states and the robot's
 contacts fed to the core :class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher` until it
 scores the trial. The agent, tracker and table are :class:`~air_hockey_agent.sim.game_loop.InProcessGame`
 with ``iiwa_front``'s agent only (the opponent holds its home pose) and no referee (always running).
@@ -37,10 +37,8 @@ def chunk_seed(seed: int, chunk: int) -> int:
 
 
 def trial_settings() -> TrialSettings:
-    from air_hockey_agent.sim.params import load_sim_params
-    from air_hockey_agent.strategy_params import load_strategy_params
-    # the outcome of a slow slide is decided before it stops, by the simulated table's own damping
-    return TrialSettings.from_params(load_strategy_params(), damping=load_sim_params()["surface_damping"])
+    from air_hockey_agent.strategy_params import trial_settings as configured
+    return configured()
 
 
 def run_chunk(seed: int, chunk: int, trials: Sequence[tuple[str, int]]) -> list[dict]:
@@ -61,7 +59,7 @@ def play_trial(game, trial: Trial, settings: TrialSettings) -> dict:
     game.world.reset_robots()
     selector.force(TACTIC_IDS["ready"])
     _advance(game, settings.settle)
-    selector.force(TACTIC_IDS[trial.tactic], trial.variant)
+    selector.force(TACTIC_IDS[trial.tactic] if trial.tactic else None, trial.variant)
     watcher = TrialWatcher(trial, settings)
     game.world.move_puck(list(trial.state))
     allowed = settings.timeout + settings.after_hit + SIM_GUARD

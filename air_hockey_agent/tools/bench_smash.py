@@ -64,14 +64,14 @@ def _plan(selector, planner, situation, mallet: np.ndarray, start):
 def run(args: argparse.Namespace) -> int:
     from air_hockey_agent.agent_params import build_selector, load_agent_params
     from air_hockey_agent.core.game.situation import build_situation
-    from air_hockey_agent.core.game.strategy.trials import TrialSettings, make_trial
+    from air_hockey_agent.core.game.strategy.trials import make_trial
     from air_hockey_agent.core.game.tactics.base import SMASH
     from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
     from air_hockey_agent.core.motion.planner import ArmState
     from air_hockey_agent.motion_params import build_planner, load_motion_params
     from air_hockey_agent.sim.params import load_sim_params
     from air_hockey_agent.sim.world import ARM_JOINTS, SimSettings, TableWorld
-    from air_hockey_agent.strategy_params import load_strategy_params
+    from air_hockey_agent.strategy_params import trial_settings
     from air_hockey_agent.tools.bench_planner import ready_state
     planner = build_planner(load_motion_params(), ROBOT)
     from air_hockey_agent.paths import config_file
@@ -79,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
     agent = load_agent_params()
     agent["puck_params_file"] = str(config_file(SIM_TABLE_FILE))  # the shots fly in the simulated world
     selector, kin = build_selector(agent, ROBOT)
-    trials = TrialSettings.from_params(load_strategy_params())
+    trials = trial_settings()  # the strategy test's: no puck on the waiting mallet
     start = ready_state(planner, selector.s.point(selector.s.ready_point))  # iiwa_front: own frame = table frame
     sim = SimSettings.from_params(load_sim_params())
     world = TableWorld(replace(sim, robot_bases={ROBOT: sim.robot_bases[ROBOT]}))

@@ -20,8 +20,8 @@ def write_plots(summary: dict, results: list[dict], out: Path) -> list[Path]:
     fig, ax = plt.subplots(figsize=(8, 4))
     ours = [summary[k]["success_rate"] for k in keys]
     partial = [summary[k].get("partial_rate", np.nan) for k in keys]
-    thesis = [THESIS[k]["success_rate"] for k in keys]
-    thesis_partial = [THESIS[k].get("partial_rate", np.nan) for k in keys]
+    thesis = [THESIS.get(k, {}).get("success_rate", np.nan) for k in keys]  # guard: ours, no thesis figure
+    thesis_partial = [THESIS.get(k, {}).get("partial_rate", np.nan) for k in keys]
     ax.bar(x - 0.2, partial, 0.4, color="tab:blue", alpha=0.35, label="partial success (ours)")
     ax.bar(x - 0.2, ours, 0.4, color="tab:blue", label="success (ours)")
     ax.bar(x + 0.2, thesis_partial, 0.4, color="tab:gray", alpha=0.35, label="partial success (thesis)")

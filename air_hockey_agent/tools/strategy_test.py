@@ -1,4 +1,5 @@
-"""``air-hockey strategy-test``: Smash, Cut, Prepare and Repel success rates (thesis sec. 4.6, 5.4).
+"""``air-hockey strategy-test``: Smash, Cut, Prepare and Repel success rates (thesis sec. 4.6, 5.4), and
+ours beyond the thesis, Guard: Ready keeping a puck left behind the ready line out of the own goal.
 
 Each worker runs its own simulation and the agent of ``iiwa_front`` (``table_sim`` as fast as possible,
 ``puck_tracker``, ``tactics``, ``trajectory_generator``) and a ``strategy_test`` node that plays its
@@ -35,16 +36,17 @@ from air_hockey_agent.tools.argtypes import count, seed
 
 ROBOT = "iiwa_front"
 GROUPS = {"smash": ("smash_straight", "smash_left", "smash_right"), "cut": ("cut",), "prepare": ("prepare",),
-          "repel": ("repel",)}
+          "repel": ("repel",), "guard": ("guard",)}
 RESULT, DONE = "TRIAL_RESULT ", "STRATEGY_DONE"
 WORKER_GRACE = 5.0  # [s] per shutdown signal when a worker's processes are stopped
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
-    parser = subparsers.add_parser("strategy-test", help="success rates of Smash, Cut, Prepare and Repel",
+    parser = subparsers.add_parser("strategy-test", help="success rates of Smash, Cut, Prepare, Repel and Guard",
                                    description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     parser.add_argument("--strategies", nargs="+", choices=sorted(GROUPS), default=sorted(GROUPS),
-                        help="strategies to test (smash = straight, left and right bank; default: all)")
+                        help="strategies to test (smash = straight, left and right bank; guard = Ready forced on a "
+                             "puck behind the ready line; default: all)")
     parser.add_argument("--trials", type=count(1), default=100, help="trials per reported strategy (default 100)")
     parser.add_argument("--seed", type=seed, default=0, help="random seed of the initial states (default 0)")
     parser.add_argument("--workers", type=count(1, 16), default=1, help="parallel simulations (default 1)")

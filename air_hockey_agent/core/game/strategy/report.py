@@ -11,7 +11,8 @@ THESIS = {"smash_straight": {"success_rate": 0.822}, "smash_left": {"success_rat
           "smash_right": {"success_rate": 0.736}, "cut": {"success_rate": 0.343, "partial_rate": 0.767},
           "prepare": {"success_rate": 0.2615, "partial_rate": 0.4462},
           "repel": {"success_rate": 0.92, "goal_rate": 0.13, "mean_speed_mps": 1.57}}
-KEYS = ("smash_straight", "smash_left", "smash_right", "cut", "prepare", "repel")
+# guard: ours, no thesis figure
+KEYS = ("smash_straight", "smash_left", "smash_right", "cut", "prepare", "repel", "guard")
 
 
 def _mean_std(values: Sequence[float]) -> tuple[float | None, float | None]:
@@ -38,6 +39,8 @@ def summarise(results: Iterable[dict]) -> dict:
             entry["offset_mean_m"], entry["offset_std_m"] = _mean_std([t["offset"] for t in trials if t["offset"] is not None])
         elif key in ("cut", "prepare"):
             entry["partial_rate"] = rate("partial")
+        elif key == "guard":
+            entry["touched_rate"] = rate("hit")
         else:
             entry["goal_rate"] = rate("goal")
             speeds = [t["defend_speed"] for t in trials if t["defend_speed"] is not None]
@@ -58,14 +61,16 @@ def _pct(v) -> str:
 def table(summary: dict, seconds: float) -> str:
     lines = [f"{'strategy':<16}{'trials':>7}{'success':>10}{'thesis':>10}{'partial':>10}{'thesis':>10}  other"]
     for key, e in summary.items():
-        ref = THESIS[key]
+        ref = THESIS.get(key, {})
         other = ""
         if key.startswith("smash") and e.get("offset_mean_m") is not None:
             other = f"offset {e['offset_mean_m'] * 100:+.1f} +- {e['offset_std_m'] * 100:.1f} cm"
+        if key == "guard":
+            other = f"no goal conceded; the mallet touched the puck in {_pct(e['touched_rate']).strip()}"
         if key == "repel":
             speed = "-" if e["mean_speed_mps"] is None else f"{e['mean_speed_mps']:.2f} m/s"
             other = f"goals {_pct(e['goal_rate'])} (thesis 13 %), speed at the defend line {speed} (thesis 1.57)"
-        lines.append(f"{key:<16}{e['trials']:>7}{_pct(e['success_rate']):>10}{_pct(ref['success_rate']):>10}"
+        lines.append(f"{key:<16}{e['trials']:>7}{_pct(e['success_rate']):>10}{_pct(ref.get('success_rate')):>10}"
                      f"{_pct(e.get('partial_rate')):>10}{_pct(ref.get('partial_rate')):>10}  {other}")
     lines.append(f"{seconds:.0f} s of wall time")
     for key, e in summary.items():

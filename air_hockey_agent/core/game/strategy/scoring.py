@@ -8,6 +8,8 @@ the goal at x = -L/2.
 * Prepare: success = at rest in the smash area; partial = at rest on the own half (success included);
   crossing the centre line is a failure.
 * Repel: success = hit; also the puck's speed where it crosses the opponent's defend line, and goals.
+* Guard (ours, Ready forced): success = no goal conceded until the puck leaves the goal's zone
+  (``guard_exit_depth``) or ``guard_time`` has passed.
 """
 from __future__ import annotations
 
@@ -85,6 +87,8 @@ class TrialWatcher:
             return self._end("goal", goal=True)
         if x < -half:
             return self._end("conceded", conceded=True)
+        if self.trial.strategy == "guard":
+            return self._guard_end(x, r.duration)
         if x > 0.0 and not self._crossed_centre:
             self._crossed_centre = True
             if self.trial.strategy in ("prepare", "cut") and r.hit:
@@ -102,6 +106,16 @@ class TrialWatcher:
             return self._end(f"timeout after {s.hit_timeout:g} s without a hit")
         if r.duration > s.timeout:
             return self._end(f"timeout after {s.timeout:g} s")
+
+    def _guard_end(self, x: float, duration: float) -> None:
+        """A guard trial ends without a goal once the puck is ``guard_exit_depth`` [m] from the own goal
+        line (out of the goal's zone: the other tactics' business in a game) or after ``guard_time`` [s];
+        a puck at rest does not end it (the mallet may still push it in)."""
+        s = self.s
+        if x > s.guard_exit_depth - s.table.length / 2:
+            self._end("left the goal's zone")
+        elif duration > s.guard_time:
+            self._end(f"no goal in {s.guard_time:g} s")
 
     def _decided(self, x: float, y: float, speed: float) -> bool:
         """The puck cannot change the outcome any more: under the table's damping it slides at most
@@ -140,4 +154,6 @@ def score(trial: Trial, r: TrialResult, s: TrialSettings) -> TrialResult:
         r.partial = r.hit and own_half
     elif kind == "repel":
         r.success = r.hit
+    elif kind == "guard":
+        r.success = not r.conceded
     return r
