@@ -247,3 +247,11 @@ def test_the_summary_and_its_table_per_strategy():
     assert lines[6] == "  smash_straight failures: no goal x1"
     assert lines[7] == "  cut failures: at rest x2, conceded x1"
     assert lines[8] == "  guard failures: conceded x1"
+
+
+def test_strategy_test_runs_the_thesiss_four_unless_guard_is_asked_for():
+    """Guard is ours: the default run is the thesis's 600 trials (issue #12's time); Guard only on request."""
+    from air_hockey_agent.tools.cli import build_parser
+    parser = build_parser()
+    assert sorted(parser.parse_args(["strategy-test"]).strategies) == ["cut", "prepare", "repel", "smash"]
+    assert parser.parse_args(["strategy-test", "--strategies", "guard"]).strategies == ["guard"]
