@@ -3,10 +3,13 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Iterable, Mapping
+from typing import TYPE_CHECKING, Any, Iterable, Mapping
 
 from air_hockey_agent.params import ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import TABLE_PARAMS
+
+if TYPE_CHECKING:
+    from air_hockey_agent.core.game.strategy.trials import TrialSettings
 
 NODE_NAME = "/strategy_test"
 PARAM_FILES = ("table.yaml", "strategy_test.yaml")
@@ -45,7 +48,7 @@ def load_strategy_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     return load_node_params(PARAM_FILES, NODE_NAME, STRATEGY_PARAMS, extra_files)
 
 
-def trial_settings(params: Mapping[str, Any] | None = None):
+def trial_settings(params: Mapping[str, Any] | None = None) -> "TrialSettings":
     """The trials' :class:`~air_hockey_agent.core.game.strategy.trials.TrialSettings` from ``params`` (default:
     the configured ones), with the simulated table's damping (a slow slide's outcome is decided before it
     stops, ``config/sim.yaml``) and where the tested robot's mallet waits when a trial's puck is set: its

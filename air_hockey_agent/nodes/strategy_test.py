@@ -1,15 +1,14 @@
 """``strategy_test`` node: runs strategy-test trials against the agent of ``iiwa_front`` (thesis sec. 4.6).
 
 For each trial of the ``trials`` parameter ("strategy:index,..."; initial states from
-:mod:`air_hockey_agent.core.game.strategy.trials`): homes the robots (table_sim's ``/reset_robots``),
-lets the robot wait at its ready point for ``settle`` (Ready forced, as in a game), forces the tested
-tactic through ``/iiwa_front/force_tactic`` (the agent's only test hook; Guard releases it to the state
-machine), sets the puck
-through ``/set_puck_state`` and follows ``/sim/puck_true_state`` and ``/sim/contacts`` until the trial
-ends (:class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher`). Each result is printed as
-one line ``TRIAL_RESULT {json}``, with the tested robot's tactic and its reason when the trial ended
-(``<robot>/tactic``); at the end ``STRATEGY_DONE`` and the node exits. It publishes a
-running ``/game_status`` (latched) so the tactics play; the opponent runs no agent and holds its home pose.
+:mod:`air_hockey_agent.core.game.strategy.trials`): homes the robots (table_sim's ``/reset_robots``), lets the
+robot wait at its ready point for ``settle`` (Ready forced, as in a game), forces the tested tactic through
+``/iiwa_front/force_tactic`` (the agent's only test hook; Guard releases it to the state machine), sets the
+puck through ``/set_puck_state`` and follows ``/sim/puck_true_state`` and ``/sim/contacts`` until the trial
+ends (:class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher`). Each result is printed as one line
+``TRIAL_RESULT {json}``, with the tested robot's tactic and its reason when the trial ended
+(``<robot>/tactic``); at the end ``STRATEGY_DONE`` and the node exits. It publishes a running ``/game_status``
+(latched) so the tactics play; the opponent runs no agent and holds its home pose.
 
 The node runs on events, not on a clock: its simulated time is the stamp of the latest true puck state
 (published at every mocap tick, whether the puck moves or not), and a trial moves on when a service

@@ -1,11 +1,12 @@
 """The strategy test's trials in one process, without ROS (``air-hockey strategy-test --in-process``).
 
-Each trial runs as the ``strategy_test`` node runs it (thesis sec. 4.6): the puck parked on the
-opponent's half, the robots homed, ``iiwa_front`` waiting at its ready point for ``settle``, the tested
-tactic forced (for Guard none: the state machine decides), the puck set to the trial's initial state, and the true puck states and the robot's
-contacts fed to the core :class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher` until it
-scores the trial. The agent, tracker and table are :class:`~air_hockey_agent.sim.game_loop.InProcessGame`
-with ``iiwa_front``'s agent only (the opponent holds its home pose) and no referee (always running).
+Each trial runs as the ``strategy_test`` node runs it (thesis sec. 4.6): the puck parked on the opponent's
+half, the robots homed, ``iiwa_front`` waiting at its ready point for ``settle``, the tested tactic forced
+(for Guard none: the state machine decides), the puck set to the trial's initial state, and the true puck
+states and the robot's contacts fed to the core
+:class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher` until it scores the trial. The agent,
+tracker and table are :class:`~air_hockey_agent.sim.game_loop.InProcessGame` with ``iiwa_front``'s agent only
+(the opponent holds its home pose) and no referee (always running).
 
 Trials run in chunks of ``CHUNK`` consecutive trials of the run's list, each chunk on a fresh table
 whose simulation seed is drawn from the run's seed and the chunk's number, so a trial's outcome does

@@ -1,5 +1,6 @@
 """``air-hockey strategy-test``: Smash, Cut, Prepare and Repel success rates (thesis sec. 4.6, 5.4), and
-ours beyond the thesis, Guard: Ready keeping a puck left behind the ready line out of the own goal.
+ours beyond the thesis, Guard: the agent (nothing forced) keeping a puck left behind its ready line out of
+its goal (only when asked for: the default is the thesis's four).
 
 Each worker runs its own simulation and the agent of ``iiwa_front`` (``table_sim`` as fast as possible,
 ``puck_tracker``, ``tactics``, ``trajectory_generator``) and a ``strategy_test`` node that plays its

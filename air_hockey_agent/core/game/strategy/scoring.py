@@ -8,7 +8,7 @@ the goal at x = -L/2.
 * Prepare: success = at rest in the smash area; partial = at rest on the own half (success included);
   crossing the centre line is a failure.
 * Repel: success = hit; also the puck's speed where it crosses the opponent's defend line, and goals.
-* Guard (ours, Ready forced): success = no goal conceded until the puck leaves the goal's zone
+* Guard (ours, nothing forced): success = no goal conceded until the puck leaves the goal's zone
   (``guard_exit_depth``) or ``guard_time`` has passed.
 """
 from __future__ import annotations
