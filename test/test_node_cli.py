@@ -201,11 +201,12 @@ def test_game_stopped_by_sigterm_while_starting_stops_every_node(ros_env):
 @pytest.mark.integration
 def test_strategy_test_small_run_reports_real_hits(ros_env, tmp_path):
     """The README's small strategy test (README "Strategy test", run here with --json, --results and a
-    private domain): one trial each of the three smashes and Repel, as fast as possible: the report has
-    the documented structure, every trial counted as a success was touched by the robot (contacts from
-    the sim), and the plots are drawn."""
+    private domain): one trial each of the three smashes, Repel and Guard, as fast as possible: the report
+    has the documented structure, every smash or repel counted as a success was touched by the robot
+    (contacts from the sim), the Guard trial (the force released) ended by its own rules, and the
+    plots are drawn."""
     (line,) = readme_block("## Strategy test", 1)
-    assert line[:5] == ["strategy-test", "--strategies", "smash", "repel", "--trials"] and "--plot" in line
+    assert line[:6] == ["strategy-test", "--strategies", "smash", "repel", "guard", "--trials"] and "--plot" in line
     plots = tmp_path / line[line.index("--plot") + 1]
     line[line.index("--plot") + 1] = str(plots)
     lines_file = tmp_path / "trials.jsonl"
@@ -215,13 +216,17 @@ def test_strategy_test_small_run_reports_real_hits(ros_env, tmp_path):
     for name in ("strategy_success.png", "smash_spread.png"):
         assert (plots / name).read_bytes()[:8] == b"\x89PNG\r\n\x1a\n", name
     report = json.loads(result.stdout.strip().splitlines()[-1])
-    assert set(report) == {"smash_straight", "smash_left", "smash_right", "repel", "seconds"}
+    assert set(report) == {"smash_straight", "smash_left", "smash_right", "repel", "guard", "seconds"}
     assert {"success_rate", "offset_mean_m", "offset_std_m", "trials"} <= set(report["smash_left"])
     assert {"success_rate", "goal_rate", "mean_speed_mps", "trials"} <= set(report["repel"])
+    assert {"success_rate", "touched_rate", "trials"} <= set(report["guard"])
     trials = [json.loads(line) for line in lines_file.read_text().splitlines()]
-    assert len(trials) == 4
-    assert all(t["hit"] for t in trials if t["success"])
-    assert all(t["tactic"].startswith(("smash: ", "repel: ")) for t in trials)  # the forced tactic and why
-    assert sum(t["hit"] for t in trials) >= 2  # the robot played, not only the clock
+    assert len(trials) == 5 and not any(t["error"] for t in trials), trials
+    forced = [t for t in trials if t["strategy"] != "guard"]
+    assert all(t["hit"] for t in forced if t["success"])
+    assert all(t["tactic"].startswith(("smash: ", "repel: ")) for t in forced)  # the forced tactic and why
+    assert sum(t["hit"] for t in forced) >= 2  # the robot played, not only the clock
+    (guard,) = [t for t in trials if t["strategy"] == "guard"]
+    assert guard["reason"] in ("left the goal's zone", "no goal in 4 s", "conceded"), guard
     leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|strategy_test|tactics|puck_tracker|trajectory_generator)"])
     assert leftovers.stdout.strip() == ""
