@@ -92,6 +92,20 @@ def load_agent_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     return load_node_params(PARAM_FILES, NODE_NAME, AGENT_PARAMS, extra_files)
 
 
+VARIANT_NODES = ("tactics", "trajectory_generator")  # the nodes one robot's agent variant may set (--versus)
+
+
+def load_agent_variant(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
+    """One robot's agent variant (``air-hockey game --versus``): the tactics' and the trajectory generator's
+    parameters with the ROS 2 parameter YAML ``path`` over their defaults. Raises
+    :class:`~air_hockey_agent.params.ParameterFileError` (a parameter of another node, a misspelled one) or
+    ``ParameterValueError`` naming the file and the parameter."""
+    from air_hockey_agent.motion_params import load_motion_params
+    from air_hockey_agent.params import check_only_nodes
+    check_only_nodes(path, VARIANT_NODES, "--versus")
+    return load_agent_params([path]), load_motion_params([path])
+
+
 def puck_model_for_tactics(puck_params_file: str = ""):
     """The tracker's puck model (``config/table.yaml``, ``config/tracker.yaml``, then ``puck_params_file``
     when given): shots are predicted with the physics the filter uses."""
@@ -113,9 +127,10 @@ def _tracker_params(puck_params_file: str) -> dict[str, Any]:
         raise ParameterFileError(f"parameter 'puck_params_file': {exc}") from None
 
 
-def build_selector(params: dict[str, Any], robot: str, log=None):
+def build_selector(params: dict[str, Any], robot: str, log=None, motion: dict[str, Any] | None = None):
     """The tactics state machine of ``robot`` with its puck model (the tracker's), arm (the trajectory
-    generator's region and the cached fastest-hit table) and settings. Returns (selector, kinematics)."""
+    generator's region and the cached fastest-hit table, from the motion parameters ``motion``, default
+    ``config/motion.yaml``'s) and settings. Returns (selector, kinematics)."""
     from air_hockey_agent.core.game.arm_reach import ArmReach
     from air_hockey_agent.core.game.shots import ShotPredictor
     from air_hockey_agent.core.game.situation import own_frame_physics
@@ -126,7 +141,7 @@ def build_selector(params: dict[str, Any], robot: str, log=None):
     if params["drift_speed"] > params["static_speed"]:
         raise ParameterValueError(f"parameter 'drift_speed' = {params['drift_speed']!r} must not exceed "
                                   f"'static_speed' = {params['static_speed']!r}")
-    motion = load_motion_params()
+    motion = load_motion_params() if motion is None else motion
     planner = build_planner(motion, robot)
     speeds = load_or_build(planner, motion, params["speed_map_grid"], log=log)
     s = planner.s

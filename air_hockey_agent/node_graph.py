@@ -45,10 +45,12 @@ def parameter_text(value: Any) -> str:
     return str(value).lower() if isinstance(value, bool) else str(value)
 
 
-def agent_nodes(robot: str, use_sim_time: bool, sim_table: bool) -> list[NodeRun]:
+def agent_nodes(robot: str, use_sim_time: bool, sim_table: bool, variant_file: str = "") -> list[NodeRun]:
     """``robot``'s agent: tracker, tactics and trajectory generator in its namespace. ``sim_table``: the
     tracker and the tactics take the simulated table's puck physics (``config/tracker_sim_table.yaml``;
-    the tracker's defaults are a real table's). ``use_sim_time``: on the simulation's /clock."""
+    the tracker's defaults are a real table's). ``use_sim_time``: on the simulation's /clock.
+    ``variant_file``: a parameter YAML the tactics and the trajectory generator read after their defaults
+    (``air-hockey game --versus``)."""
     from air_hockey_agent.param_registry import node_parameters
     from air_hockey_agent.tracker_params import SIM_TABLE_FILE
     if robot not in ROBOTS:
@@ -60,20 +62,24 @@ def agent_nodes(robot: str, use_sim_time: bool, sim_table: bool) -> list[NodeRun
         parameters: list[tuple[str, Any]] = [("use_sim_time", True)] if use_sim_time else []
         parameters += [("robot", robot)] if "robot" in declared[node] else []
         files = (physics,) if sim_table and node == "puck_tracker" else ()
+        files += (variant_file,) if variant_file and node != "puck_tracker" else ()
         parameters += [("puck_params_file", physics)] if sim_table and node == "tactics" else []
         nodes.append(NodeRun(node, f"/{robot}", files, tuple(parameters)))
     return nodes
 
 
-def game_nodes(gui: bool, real_time_factor: float, seed: int, markers: bool = False) -> list[NodeRun]:
+def game_nodes(gui: bool, real_time_factor: float, seed: int, markers: bool = False,
+               versus: tuple[str, str] | None = None) -> list[NodeRun]:
     """The simulated two-robot game: the table, the referee (which restarts play itself after a robot's
     fault: nobody watches), both agents on the simulated table's physics, all on sim time; ``markers``:
-    with the visualizer."""
+    with the visualizer; ``versus`` (robot, parameter YAML): that robot's agent reads the file too."""
     nodes = [NodeRun("table_sim", parameters=(("gui", gui), ("real_time_factor", real_time_factor), ("seed", seed))),
              NodeRun("referee", parameters=(("use_sim_time", True), ("seed", seed), ("restart_after_fault", True)))]
     if markers:
         nodes.append(NodeRun(VIEW_NODE, parameters=(("use_sim_time", True),)))
-    return nodes + [n for robot in ROBOTS for n in agent_nodes(robot, use_sim_time=True, sim_table=True)]
+    variant = {versus[0]: versus[1]} if versus is not None else {}
+    return nodes + [n for robot in ROBOTS for n in agent_nodes(robot, use_sim_time=True, sim_table=True,
+                                                                variant_file=variant.get(robot, ""))]
 
 
 # --- ros2 launch (launch/*.launch.py) -----------------------------------------------------------------

@@ -284,6 +284,27 @@ def _check_document(document: Mapping[str, Any] | None, path: Path, node: str, o
                                          f"{closest(name, names)}")
 
 
+def check_only_nodes(path: Path, allowed: Sequence[str], what: str) -> None:
+    """Raise :class:`ParameterFileError` naming ``path``, the section and the key when the file sets a
+    parameter of a node other than ``allowed`` (a section named for another node, or in a section for
+    every node a name none of ``allowed`` declares); ``what`` says where the file was given, e.g.
+    '--versus'. The names themselves are checked by :func:`check_parameter_file`."""
+    from air_hockey_agent.param_registry import node_parameters
+    document = _read_document(path) or {}
+    nodes = node_parameters()
+    names = set().union(*(nodes[n] for n in allowed))
+    for key, block in document.items():
+        target = _section_node(str(key))
+        if target is not None and target not in allowed:
+            raise ParameterFileError(f"{path}: section '{key}': {what} sets only {' and '.join(allowed)} "
+                                     "parameters")
+        params = block.get("ros__parameters") if isinstance(block, Mapping) else None
+        for name in _flatten(params or {}) if target is None else ():
+            if name not in names and not _builtin(name):
+                raise ParameterFileError(f"{path}: section '{key}': '{name}' is not a parameter of "
+                                         f"{' or '.join(allowed)} ({what} sets only theirs){closest(name, names)}")
+
+
 def check_command_line(argv: Iterable[str], node: str, own: Iterable[str]) -> None:
     """Raise :class:`ParameterValueError` for a ``-p NAME:=VALUE`` whose name the node does not declare."""
     own = set(own)

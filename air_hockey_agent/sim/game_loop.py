@@ -21,7 +21,7 @@ tactics and planner (README "Frames and units").
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
@@ -48,17 +48,22 @@ JOINT_NAMES = ARM_JOINTS + STRIKER_JOINTS  # as table_sim's joint_states name th
 @dataclass
 class GameConfig:
     """The parameters of every part, as the node graph loads them (``air-hockey game`` passes the same
-    overrides: seed, the referee's unattended restart, the simulated table's puck physics)."""
+    overrides: seed, the referee's unattended restart, the simulated table's puck physics). ``variants``:
+    robot -> its own (agent, motion) parameters (``--versus``); the other robots play with ``agent`` and
+    ``motion``."""
 
     sim: dict
     tracker: dict
     agent: dict
     motion: dict
     referee: dict
+    variants: dict = field(default_factory=dict)
 
     @classmethod
-    def load(cls, seed: int) -> "GameConfig":
-        from air_hockey_agent.agent_params import load_agent_params
+    def load(cls, seed: int, versus: tuple[str, str] | None = None) -> "GameConfig":
+        """The defaults; with ``versus`` (robot, parameter YAML) that robot's agent reads the file's tactics
+        and trajectory_generator parameters too (:func:`~air_hockey_agent.agent_params.load_agent_variant`)."""
+        from air_hockey_agent.agent_params import load_agent_params, load_agent_variant
         from air_hockey_agent.motion_params import load_motion_params
         from air_hockey_agent.params import load_node_params
         from air_hockey_agent.paths import config_file
@@ -71,7 +76,16 @@ class GameConfig:
                                       referee_params.REFEREE_PARAMS),
                    "seed": seed, "restart_after_fault": True, "sim": True}
         agent = {**load_agent_params(), "puck_params_file": str(physics)}
-        return cls(sim, load_tracker_params([physics]), agent, load_motion_params(), referee)
+        variants = {}
+        if versus is not None:
+            robot, path = versus
+            variant_agent, variant_motion = load_agent_variant(Path(path))
+            variants[robot] = ({**variant_agent, "puck_params_file": str(physics)}, variant_motion)
+        return cls(sim, load_tracker_params([physics]), agent, load_motion_params(), referee, variants)
+
+    def agent_for(self, robot: str) -> tuple[dict, dict]:
+        """``robot``'s (agent, motion) parameters."""
+        return self.variants.get(robot, (self.agent, self.motion))
 
 
 class Player:
@@ -81,11 +95,11 @@ class Player:
         from air_hockey_agent.agent_params import build_selector
         from air_hockey_agent.motion_params import build_planner
         self.robot = robot
-        self.selector, self.kin = build_selector({**config.agent, "robot": robot}, robot, log=log)
-        m = config.motion
+        self.agent, m = config.agent_for(robot)
+        self.selector, self.kin = build_selector({**self.agent, "robot": robot}, robot, log=log, motion=m)
         self.arm = ArmCommander(build_planner(m, robot), m["planning_delay"], m["max_tracking_error"])
-        self.stale_estimate = config.agent["stale_estimate"]
-        self.tick = Every(config.agent["rate"])
+        self.stale_estimate = self.agent["stale_estimate"]
+        self.tick = Every(self.agent["rate"])
         self.situation: Situation | None = None
         self.mallet: np.ndarray | None = None
         self.mallet_velocity: np.ndarray | None = None
@@ -131,12 +145,14 @@ class Player:
 class InProcessGame:
     """One game on the pybullet table; :meth:`run` plays it and returns the scoreboard's result.
     ``robots``: the robots with an agent (the others hold their home pose); ``refereed`` False: no
-    referee, the game always running (the strategy test's setting)."""
+    referee, the game always running (the strategy test's setting); ``versus`` (robot, parameter YAML): that
+    robot's agent variant (:meth:`GameConfig.load`)."""
 
     def __init__(self, seed: int, gui: bool = False, log: Callable[[str], None] | None = None,
-                 robots: tuple[str, ...] = ROBOTS, refereed: bool = True) -> None:
+                 robots: tuple[str, ...] = ROBOTS, refereed: bool = True,
+                 versus: tuple[str, str] | None = None) -> None:
         from air_hockey_agent.paths import model_path
-        self.config = c = GameConfig.load(seed)
+        self.config = c = GameConfig.load(seed, versus)
         self.world = TableWorld(SimSettings.from_params(c.sim), gui=gui)
         self.runner = SimRunner(self.world, c.sim["mocap_rate"], MocapImperfections.from_params(c.sim),
                                 np.random.default_rng(seed), c.sim["clock_rate"], c.sim["joint_state_rate"],
@@ -158,8 +174,8 @@ class InProcessGame:
         if self.ekf.learned == self._learned:
             return
         self._learned = self.ekf.learned
-        if self.config.agent["physics_from_tracker"]:
-            for robot, player in self.players.items():
+        for robot, player in self.players.items():
+            if player.agent["physics_from_tracker"]:
                 player.selector.shots.use_physics(own_frame_physics(self.ekf.model.params, robot))
 
     def close(self) -> None:
@@ -280,11 +296,12 @@ class InProcessGame:
 
 def play_game(seed: int, duration: float, goals: int = 0, gui: bool = False, real_time_factor: float = 0.0,
               progress_period: float = 10.0, progress: Callable[[str], None] | None = None,
-              record: Path | None = None) -> dict:
+              record: Path | None = None, versus: tuple[str, str] | None = None) -> dict:
     """One game of ``duration`` [s] (or ``goals`` goals) with ``seed``; the scoreboard's result. With
     ``record``, the game is also written to that MCAP bag directory (:mod:`air_hockey_agent.sim.game_record`;
-    the result's ``"recording"``). A module-level function, so worker processes can run it."""
-    game = InProcessGame(seed, gui=gui)
+    the result's ``"recording"``); with ``versus`` (robot, parameter YAML), that robot plays the file's agent
+    variant. A module-level function, so worker processes can run it."""
+    game = InProcessGame(seed, gui=gui, versus=versus)
     try:
         if record is None:
             return game.run(duration, goals, progress, progress_period, real_time_factor)

@@ -13,6 +13,11 @@ stopped at the end, on Ctrl-C, or when any node dies.
 the same agent, simulation, tracker and referee code called in a fixed order), so a seed repeats a
 game exactly, and faster; nothing is published, and ``--record`` writes the same topics as the node graph's
 (:mod:`air_hockey_agent.sim.game_record`).
+
+``--versus FILE`` plays head to head: one robot's tactics and trajectory generator also read FILE (a ROS 2
+parameter YAML), the other robot plays the defaults; with ``--in-process --games N`` the sides alternate
+from game to game, and the summary adds the goals, hits and games won of each agent and a sign test of the
+goals (:mod:`air_hockey_agent.core.game.versus`).
 """
 from __future__ import annotations
 
@@ -23,6 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
+from air_hockey_agent.core.game.versus import VersusTally, variant_robot
 from air_hockey_agent.node_graph import NodeRun, game_nodes
 from air_hockey_agent.params import ParamSpec, load_defaults
 from air_hockey_agent.paths import config_file
@@ -58,9 +64,10 @@ def process(node: NodeRun, label: str | None = None) -> ProcessSpec:
     return ProcessSpec(label or node.label, [*node_executable(node.executable), *node.ros_arguments()])
 
 
-def game_processes(gui: bool, real_time_factor: float, seed: int, markers: bool = False) -> list[ProcessSpec]:
+def game_processes(gui: bool, real_time_factor: float, seed: int, markers: bool = False,
+                   versus: tuple[str, str] | None = None) -> list[ProcessSpec]:
     """The node processes of one game (:func:`air_hockey_agent.node_graph.game_nodes`)."""
-    return [process(node) for node in game_nodes(gui, real_time_factor, seed, markers)]
+    return [process(node) for node in game_nodes(gui, real_time_factor, seed, markers, versus)]
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -93,6 +100,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="play without ROS in this process: a seed repeats the game exactly (--record "
                              "records it; with --games, OUT is a directory of one bag per game, seed_<SEED>; "
                              "no --markers, --log or --domain-id)")
+    parser.add_argument("--versus", type=Path, default=None, metavar="FILE",
+                        help="head to head: one robot's tactics and trajectory_generator also read this ROS 2 "
+                             "parameter YAML (only their parameters), the other plays the defaults; the variant "
+                             f"plays {ROBOTS[0]} in the first game and the sides alternate with --games; the "
+                             "summary adds each agent's goals, hits and games won and a sign test of the goals")
     parser.set_defaults(run=run)
 
 
@@ -121,12 +133,27 @@ def _check_args(args: argparse.Namespace) -> None:
                             "--in-process (or them)", 2)
     if args.log is not None and not args.log.parent.is_dir():
         raise GameError(f"--log {args.log}: directory {args.log.parent} does not exist", 2)
+    if args.versus is not None:
+        _check_variant(args.versus)
     if args.record is not None:
         bag = output_bag_directory(args.record)
         if bag.exists():
             raise GameError(f"--record {args.record}: {bag} exists already, not overwriting", 2)
         if not bag.parent.is_dir():
             raise GameError(f"--record {args.record}: directory {bag.parent} does not exist", 2)
+
+
+def _check_variant(path: Path) -> None:
+    """A --versus file that cannot be read, sets another node's parameter, or a parameter that does not
+    exist or is out of its range: a one-line GameError naming the file and the parameter."""
+    from air_hockey_agent.agent_params import load_agent_variant
+    from air_hockey_agent.params import ParameterFileError, ParameterValueError
+    if not path.is_file():
+        raise GameError(f"--versus {path}: no such file", 2)
+    try:
+        load_agent_variant(path)
+    except (ParameterFileError, ParameterValueError) as exc:
+        raise GameError(f"--versus: {exc}" if str(path) in str(exc) else f"--versus {path}: {exc}", 2) from None
 
 
 def prepare_for_nodes(say) -> None:
@@ -186,7 +213,8 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
             print(f"[{label}] {line}", file=sys.stderr, flush=True)
 
     markers = args.markers or args.record is not None
-    specs = game_processes(args.gui, rtf, args.seed, markers)
+    versus = (variant_robot(ROBOTS, 0), str(args.versus)) if args.versus is not None else None
+    specs = game_processes(args.gui, rtf, args.seed, markers, versus)
     say(f"starting {len(specs)} nodes (real-time factor {rtf:g}, seed {args.seed})")
     with Launcher(env, echo=None, on_line=on_line) as launcher:
         for spec in specs:
@@ -214,7 +242,7 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
         print(monitor.board.table(result["recording"]), flush=True)
         if result["recording"] is None:
             print("  to watch one: add --record OUT.mcap and open it in Foxglove (README \"Watching a game\")")
-    return result
+    return _with_versus(args, [result], result)
 
 
 def _play_in_process(args, settings, rtf: float, say) -> dict:
@@ -229,8 +257,11 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
         + (f" or {args.goals} goals" if args.goals else "") + " per game")
     run_args = (args.duration, args.goals, args.gui, rtf, settings["progress_period"])
     bags = _game_bags(args.record, seeds)
+    variants = [(variant_robot(ROBOTS, k), str(args.versus)) if args.versus is not None else None
+                for k in range(len(seeds))]
     if args.workers == 1:
-        results = [play_game(seed, *run_args, progress=say, record=bag) for seed, bag in zip(seeds, bags)]
+        results = [play_game(seed, *run_args, progress=say, record=bag, versus=variant)
+                   for seed, bag, variant in zip(seeds, bags, variants)]
     else:
         from air_hockey_agent.tools.worker_pool import run_in_processes
 
@@ -238,18 +269,30 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
             if isinstance(result, Exception):
                 raise GameError(f"game with seed {seeds[index]} failed: {type(result).__name__}: {result}")
             say(f"seed {seeds[index]}: {Scoreboard.total(ROBOTS, [result]).progress()}")
-        results = run_in_processes(play_game, [(seed, *run_args, None, bag) for seed, bag in zip(seeds, bags)],
-                                   args.workers, done)
+        results = run_in_processes(play_game, [(seed, *run_args, None, bag, variant)
+                                               for seed, bag, variant in zip(seeds, bags, variants)], args.workers, done)
     if not args.json:
         for r in results:
             print(Scoreboard.total(ROBOTS, [r]).table(r.get("recording")), flush=True)
     if args.games == 1:
-        return results[0]
+        return _with_versus(args, results, results[0])
     total = Scoreboard.total(ROBOTS, results)
     if not args.json:
         print(f"{args.games} games, seeds {seeds[0]}-{seeds[-1]}: "
               + total.table(None).replace("game over after", "in all", 1), flush=True)
-    return {"games": [{"seed": seed, **r} for seed, r in zip(seeds, results)], "total": total.result(None)}
+    games = [{"seed": seed, **r, **({"versus_robot": v[0]} if v else {})} for seed, r, v in zip(seeds, results, variants)]
+    return {"games": games, "total": _with_versus(args, results, total.result(None))}
+
+
+def _with_versus(args, results: list[dict], summary: dict) -> dict:
+    """``summary`` with the head-to-head tally of ``results`` under "versus" (with --versus; printed as a line
+    without --json): the variant played robot ``variant_robot(ROBOTS, k)`` in game k."""
+    if args.versus is None:
+        return summary
+    tally = VersusTally.from_results(results, [variant_robot(ROBOTS, k) for k in range(len(results))])
+    if not args.json:
+        print(tally.line(str(args.versus)), flush=True)
+    return {**summary, "versus": {**tally.result(str(args.versus)), "first_robot": variant_robot(ROBOTS, 0)}}
 
 
 def _game_bags(record: Path | None, seeds: list[int]) -> list[Path | None]:
@@ -283,4 +326,5 @@ def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(run(argparse.Namespace(duration=60.0, goals=0, real_time_factor=None, seed=0, gui=False, record=None,
-                                    json=False, log=None, domain_id=None, markers=False, in_process=False, games=1, workers=1)))
+                                    json=False, log=None, domain_id=None, markers=False, in_process=False, games=1, workers=1,
+                                    versus=None)))

@@ -1,0 +1,142 @@
+"""Head to head (`air-hockey game --versus FILE`): the tally and its sign test, which parameters a variant
+may set, the variant reaching one robot's agent (in process and in the node graph's arguments), the CLI."""
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from air_hockey_agent.core.game.versus import DEFAULTS, VARIANT, VersusTally, variant_robot
+from air_hockey_agent.params import ParameterFileError
+from air_hockey_agent.sim.params import ROBOTS
+
+BIN = Path(sys.executable).parent
+
+
+def result(front: int, back: int, hits=(10, 20)) -> dict:
+    return {"score": {"iiwa_front": front, "iiwa_back": back}, "hits": {"iiwa_front": hits[0], "iiwa_back": hits[1]}}
+
+
+def write(path: Path, text: str) -> Path:
+    path.write_text(text)
+    return path
+
+
+def test_the_variant_alternates_sides_and_its_goals_are_counted_on_its_side():
+    robots = [variant_robot(ROBOTS, k) for k in range(4)]
+    assert robots == ["iiwa_front", "iiwa_back", "iiwa_front", "iiwa_back"]
+    # game 0: the variant (front) wins 2:1; game 1: the variant (back) loses 0:3 to the front; game 2 drawn
+    tally = VersusTally.from_results([result(2, 1, (5, 6)), result(3, 0, (7, 8)), result(1, 1, (1, 2))], robots[:3])
+    assert tally.goals == {VARIANT: 2 + 0 + 1, DEFAULTS: 1 + 3 + 1}
+    assert tally.hits == {VARIANT: 5 + 8 + 1, DEFAULTS: 6 + 7 + 2}
+    assert tally.won == {VARIANT: 1, DEFAULTS: 1, "drawn": 1}
+    with pytest.raises(ValueError):  # a game without its side
+        VersusTally.from_results([result(1, 0)], [])
+
+
+def test_the_sign_test_is_the_exact_binomial_one():
+    """7 : 1 goals: two-sided p = 2 (C(8,7) + C(8,8)) / 2^8 = 18 / 256; (7 - 1) / sqrt(8) standard deviations;
+    no goal: no test."""
+    tally = VersusTally(1, {VARIANT: 7, DEFAULTS: 1}, {VARIANT: 0, DEFAULTS: 0}, {})
+    assert tally.p_value == pytest.approx(18 / 256)
+    assert tally.standard_deviations == pytest.approx(6 / math.sqrt(8))
+    even = VersusTally(1, {VARIANT: 5, DEFAULTS: 5}, {VARIANT: 0, DEFAULTS: 0}, {})
+    assert even.p_value == pytest.approx(1.0) and even.standard_deviations == 0.0
+    none = VersusTally(1, {VARIANT: 0, DEFAULTS: 0}, {VARIANT: 0, DEFAULTS: 0}, {VARIANT: 0, DEFAULTS: 0, "drawn": 1})
+    assert none.p_value is None and "no goal, no test" in none.line("f.yaml")
+    assert set(none.result("f.yaml")) == {"params_file", "games", "goals", "hits", "won", "p_value",
+                                          "standard_deviations"}
+
+
+def test_a_variant_sets_tactics_and_trajectory_generator_parameters_only(tmp_path):
+    from air_hockey_agent.agent_params import load_agent_variant, load_agent_params
+    from air_hockey_agent.motion_params import load_motion_params
+    good = write(tmp_path / "good.yaml", "/**:\n  ros__parameters:\n    hit_speed_fraction: 0.8\n"
+                                         "/**/trajectory_generator:\n  ros__parameters:\n    planning_delay: 0.02\n")
+    agent, motion = load_agent_variant(good)
+    assert agent["hit_speed_fraction"] == 0.8 and motion["planning_delay"] == 0.02
+    defaults_agent, defaults_motion = load_agent_params(), load_motion_params()
+    assert {k for k in agent if agent[k] != defaults_agent[k]} == {"hit_speed_fraction"}
+    assert {k for k in motion if motion[k] != defaults_motion[k]} == {"planning_delay"}
+    for text, words in [
+        ("/**/puck_tracker:\n  ros__parameters:\n    damping: 0.1\n", ["section '/**/puck_tracker'", "sets only"]),
+        ("/**:\n  ros__parameters:\n    damping: 0.1\n", ["'damping' is not a parameter of tactics or"]),
+        ("/**:\n  ros__parameters:\n    ready_gard_depth: 0.0\n", ["did you mean 'ready_guard_depth'"]),
+        ("/**/tactics:\n  ros__parameters:\n    ready_gard_depth: 0.0\n", ["'ready_gard_depth'"]),
+    ]:
+        bad = write(tmp_path / "bad.yaml", text)
+        with pytest.raises(ParameterFileError) as err:
+            load_agent_variant(bad)
+        assert str(bad) in str(err.value) and all(w in str(err.value) for w in words), err.value
+
+
+def test_the_node_graph_gives_the_file_to_one_robots_tactics_and_trajectory_generator():
+    from air_hockey_agent.node_graph import game_nodes
+    plain = game_nodes(False, 0.0, 4)
+    nodes = game_nodes(False, 0.0, 4, versus=("iiwa_back", "/v.yaml"))
+    with_file = {n.label for n in nodes if "/v.yaml" in n.params_files}
+    assert with_file == {"iiwa_back/tactics", "iiwa_back/trajectory_generator"}
+    for node, before in zip(nodes, plain):  # the file comes after the node's own files; nothing else changes
+        assert node.params_files[:len(before.params_files)] == before.params_files
+        assert node.parameters == before.parameters
+        assert (node.params_files[-1:] == ("/v.yaml",)) == (node.label in with_file)
+
+
+@pytest.mark.slow  # in-process: no ROS node
+def test_in_process_the_variant_reaches_one_robot_only_and_defaults_change_nothing(tmp_path):
+    """The variant robot's selector, planner and tick read the file; the other robot's the defaults; a file
+    that repeats a default plays the default game exactly."""
+    from air_hockey_agent.sim.game_loop import InProcessGame
+    variant = write(tmp_path / "v.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.0\n"
+                                         "/**/trajectory_generator:\n  ros__parameters:\n    planning_delay: 0.02\n")
+    game = InProcessGame(3, versus=("iiwa_back", str(variant)))
+    try:
+        back, front = game.players["iiwa_back"], game.players["iiwa_front"]
+        assert back.selector.s.ready_guard_depth == 0.0 and front.selector.s.ready_guard_depth > 0.0
+        assert back.arm.planning_delay == 0.02 and front.arm.planning_delay != 0.02
+        assert back.agent["puck_params_file"] == front.agent["puck_params_file"]  # the sim table's physics
+    finally:
+        game.close()
+    same = write(tmp_path / "same.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.24\n")
+    results = []
+    for versus in (None, ("iiwa_front", str(same))):
+        game = InProcessGame(3, versus=versus)
+        try:
+            results.append(game.run(4.0))
+        finally:
+            game.close()
+    assert results[0] == results[1]
+
+
+@pytest.mark.slow  # in-process: no ROS node
+def test_versus_games_alternate_sides_and_report_the_tally(tmp_path):
+    variant = write(tmp_path / "v.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.0\n")
+    command = [str(BIN / "air-hockey"), "game", "--in-process", "--games", "2", "--workers", "2", "--seed", "5",
+               "--duration", "3", "--versus", str(variant)]
+    out = subprocess.run([*command, "--json"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    data = json.loads(out.stdout)
+    assert [g["versus_robot"] for g in data["games"]] == ["iiwa_front", "iiwa_back"]
+    versus = data["total"]["versus"]
+    expected = VersusTally.from_results(data["games"], ["iiwa_front", "iiwa_back"])
+    assert versus == {**expected.result(str(variant)), "first_robot": "iiwa_front"}
+    assert versus["games"] == 2 and sum(versus["hits"].values()) == sum(data["total"]["hits"].values())
+    text = subprocess.run(command, capture_output=True, text=True, timeout=300)
+    assert text.returncode == 0 and f"versus {variant} against the defaults, 2 games: goals" in text.stdout
+
+
+@pytest.mark.parametrize("text, words", [
+    (None, ["--versus", "no such file"]),
+    ("/**/referee:\n  ros__parameters:\n    rate: 50.0\n", ["--versus", "section '/**/referee'"]),
+    ("/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 7.0\n", ["--versus", "ready_guard_depth", "outside"]),
+])
+def test_a_bad_variant_file_is_a_one_line_error(tmp_path, text, words):
+    path = tmp_path / "v.yaml"
+    if text is not None:
+        path.write_text(text)
+    out = subprocess.run([str(BIN / "air-hockey"), "game", "--in-process", "--duration", "1", "--versus", str(path)],
+                         capture_output=True, text=True, timeout=120)
+    assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
+    assert str(path) in out.stderr and all(w in out.stderr for w in words), out.stderr
