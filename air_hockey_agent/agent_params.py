@@ -92,18 +92,31 @@ def load_agent_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     return load_node_params(PARAM_FILES, NODE_NAME, AGENT_PARAMS, extra_files)
 
 
-VARIANT_NODES = ("tactics", "trajectory_generator")  # the nodes one robot's agent variant may set (--versus)
+VARIANT_NODES = ("tactics", "trajectory_generator")  # the nodes an agent variant may set (--versus, --params-file)
 
 
-def load_agent_variant(path: Path) -> tuple[dict[str, Any], dict[str, Any]]:
-    """One robot's agent variant (``air-hockey game --versus``): the tactics' and the trajectory generator's
-    parameters with the ROS 2 parameter YAML ``path`` over their defaults. Raises
+def load_agent_variant(path: Path, flag: str = "--versus") -> tuple[dict[str, Any], dict[str, Any]]:
+    """One robot's agent variant (``air-hockey game --versus``, ``strategy-test --params-file``: ``flag``): the
+    tactics' and the trajectory generator's parameters with the ROS 2 parameter YAML ``path`` over their defaults. Raises
     :class:`~air_hockey_agent.params.ParameterFileError` (a parameter of another node, a misspelled one) or
     ``ParameterValueError`` naming the file and the parameter."""
     from air_hockey_agent.motion_params import load_motion_params
     from air_hockey_agent.params import check_only_nodes
-    check_only_nodes(path, VARIANT_NODES, "--versus")
+    check_only_nodes(path, VARIANT_NODES, flag)
     return load_agent_params([path]), load_motion_params([path])
+
+
+def agent_variant_problem(path: Path, flag: str) -> str:
+    """What is wrong with the agent variant file ``path`` given as ``flag`` (``--versus``, ``--params-file``), as
+    one line naming the file and the parameter; '' when it loads (:func:`load_agent_variant`)."""
+    from air_hockey_agent.params import ParameterFileError
+    if not path.is_file():
+        return f"{flag} {path}: no such file"
+    try:
+        load_agent_variant(path, flag)
+    except (ParameterFileError, ParameterValueError) as exc:
+        return f"{flag}: {exc}" if str(path) in str(exc) else f"{flag} {path}: {exc}"
+    return ""
 
 
 def puck_model_for_tactics(puck_params_file: str = ""):

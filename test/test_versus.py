@@ -140,3 +140,38 @@ def test_a_bad_variant_file_is_a_one_line_error(tmp_path, text, words):
                          capture_output=True, text=True, timeout=120)
     assert out.returncode == 2 and len(out.stderr.strip().splitlines()) == 1, out.stderr
     assert str(path) in out.stderr and all(w in out.stderr for w in words), out.stderr
+
+
+def test_the_strategy_tests_workers_give_the_file_to_the_agents_two_nodes():
+    from air_hockey_agent.tools.strategy_test import worker_processes
+    specs = {spec.label: spec.command for spec in worker_processes([("guard", 0)], 3, "/v.yaml")}
+    with_file = {label for label, command in specs.items() if "/v.yaml" in command}
+    assert with_file == {"tactics", "trajectory_generator"}
+    assert not any("/v.yaml" in c for c in (s.command for s in worker_processes([("guard", 0)], 3))), \
+        "no variant: no file"
+
+
+@pytest.mark.slow  # in-process: no ROS node
+def test_a_strategy_test_variant_meets_the_same_pucks(tmp_path, monkeypatch):
+    """`strategy-test --params-file`: a file that repeats a default plays the trials exactly as the defaults
+    do; the JSON names the file."""
+    from air_hockey_agent.sim.strategy_loop import run_chunk
+    same = write(tmp_path / "same.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.24\n")
+    off = write(tmp_path / "off.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.0\n")
+    trials = [("guard", 0), ("guard", 1)]
+    assert run_chunk(1, 0, trials) == run_chunk(1, 0, trials, str(same))
+    from air_hockey_agent.sim import game_loop
+    made = []
+
+    class Spy(game_loop.InProcessGame):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append(self.players["iiwa_front"].selector.s.ready_guard_depth)
+    monkeypatch.setattr(game_loop, "InProcessGame", Spy)
+    run_chunk(1, 0, trials[:1], str(off))
+    assert made == [0.0]
+    out = subprocess.run([str(BIN / "air-hockey"), "strategy-test", "--in-process", "--strategies", "guard", "--trials",
+                          "1", "--params-file", str(off), "--json"], capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    report = json.loads(out.stdout)
+    assert report["params_file"] == str(off) and report["guard"]["trials"] == 1

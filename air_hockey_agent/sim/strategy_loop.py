@@ -42,11 +42,14 @@ def trial_settings() -> TrialSettings:
     return configured()
 
 
-def run_chunk(seed: int, chunk: int, trials: Sequence[tuple[str, int]]) -> list[dict]:
-    """Play ``trials`` ((strategy, index) pairs) on a fresh table; their ``--results`` records in order."""
+def run_chunk(seed: int, chunk: int, trials: Sequence[tuple[str, int]], params_file: str = "") -> list[dict]:
+    """Play ``trials`` ((strategy, index) pairs) on a fresh table; their ``--results`` records in order.
+    ``params_file``: the agent reads this variant too (``strategy-test --params-file``); the trials' initial
+    states stay those of the defaults, so a variant meets the same pucks."""
     from air_hockey_agent.sim.game_loop import InProcessGame
     settings = trial_settings()
-    game = InProcessGame(chunk_seed(seed, chunk), robots=(ROBOT,), refereed=False)
+    game = InProcessGame(chunk_seed(seed, chunk), robots=(ROBOT,), refereed=False,
+                         versus=(ROBOT, params_file) if params_file else None)
     try:
         return [play_trial(game, make_trial(name, index, seed, settings), settings) for name, index in trials]
     finally:

@@ -134,26 +134,16 @@ def _check_args(args: argparse.Namespace) -> None:
     if args.log is not None and not args.log.parent.is_dir():
         raise GameError(f"--log {args.log}: directory {args.log.parent} does not exist", 2)
     if args.versus is not None:
-        _check_variant(args.versus)
+        from air_hockey_agent.agent_params import agent_variant_problem
+        problem = agent_variant_problem(args.versus, "--versus")
+        if problem:
+            raise GameError(problem, 2)
     if args.record is not None:
         bag = output_bag_directory(args.record)
         if bag.exists():
             raise GameError(f"--record {args.record}: {bag} exists already, not overwriting", 2)
         if not bag.parent.is_dir():
             raise GameError(f"--record {args.record}: directory {bag.parent} does not exist", 2)
-
-
-def _check_variant(path: Path) -> None:
-    """A --versus file that cannot be read, sets another node's parameter, or a parameter that does not
-    exist or is out of its range: a one-line GameError naming the file and the parameter."""
-    from air_hockey_agent.agent_params import load_agent_variant
-    from air_hockey_agent.params import ParameterFileError, ParameterValueError
-    if not path.is_file():
-        raise GameError(f"--versus {path}: no such file", 2)
-    try:
-        load_agent_variant(path)
-    except (ParameterFileError, ParameterValueError) as exc:
-        raise GameError(f"--versus: {exc}" if str(path) in str(exc) else f"--versus {path}: {exc}", 2) from None
 
 
 def prepare_for_nodes(say) -> None:
@@ -215,7 +205,8 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
     markers = args.markers or args.record is not None
     versus = (variant_robot(ROBOTS, 0), str(args.versus)) if args.versus is not None else None
     specs = game_processes(args.gui, rtf, args.seed, markers, versus)
-    say(f"starting {len(specs)} nodes (real-time factor {rtf:g}, seed {args.seed})")
+    say(f"starting {len(specs)} nodes (real-time factor {rtf:g}, seed {args.seed})"
+        + (f"; {versus[0]} plays {versus[1]}" if versus else ""))
     with Launcher(env, echo=None, on_line=on_line) as launcher:
         for spec in specs:
             launcher.start(spec)
@@ -255,6 +246,9 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
         f"{seeds[0]}{f'-{seeds[-1]}' if len(seeds) > 1 else ''}"
         + (f", {args.workers} workers" if args.workers > 1 else "") + f"): {args.duration:g} s of simulated time"
         + (f" or {args.goals} goals" if args.goals else "") + " per game")
+    if args.versus is not None:
+        say(f"versus: {ROBOTS[0]} plays {args.versus} in the first game" + (", the sides alternate"
+                                                                              if args.games > 1 else ""))
     run_args = (args.duration, args.goals, args.gui, rtf, settings["progress_period"])
     bags = _game_bags(args.record, seeds)
     variants = [(variant_robot(ROBOTS, k), str(args.versus)) if args.versus is not None else None
@@ -269,8 +263,8 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
             if isinstance(result, Exception):
                 raise GameError(f"game with seed {seeds[index]} failed: {type(result).__name__}: {result}")
             say(f"seed {seeds[index]}: {Scoreboard.total(ROBOTS, [result]).progress()}")
-        results = run_in_processes(play_game, [(seed, *run_args, None, bag, variant)
-                                               for seed, bag, variant in zip(seeds, bags, variants)], args.workers, done)
+        jobs = [(seed, *run_args, None, bag, variant) for seed, bag, variant in zip(seeds, bags, variants)]
+        results = run_in_processes(play_game, jobs, args.workers, done)
     if not args.json:
         for r in results:
             print(Scoreboard.total(ROBOTS, [r]).table(r.get("recording")), flush=True)
@@ -280,7 +274,8 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
     if not args.json:
         print(f"{args.games} games, seeds {seeds[0]}-{seeds[-1]}: "
               + total.table(None).replace("game over after", "in all", 1), flush=True)
-    games = [{"seed": seed, **r, **({"versus_robot": v[0]} if v else {})} for seed, r, v in zip(seeds, results, variants)]
+    games = [{"seed": seed, **r, **({"versus_robot": v[0]} if v else {})}
+             for seed, r, v in zip(seeds, results, variants)]
     return {"games": games, "total": _with_versus(args, results, total.result(None))}
 
 
@@ -326,5 +321,5 @@ def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(run(argparse.Namespace(duration=60.0, goals=0, real_time_factor=None, seed=0, gui=False, record=None,
-                                    json=False, log=None, domain_id=None, markers=False, in_process=False, games=1, workers=1,
-                                    versus=None)))
+                                    json=False, log=None, domain_id=None, markers=False, in_process=False, games=1,
+                                    workers=1, versus=None)))

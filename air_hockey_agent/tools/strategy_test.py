@@ -11,7 +11,8 @@ counted as failures with their reason. Prints a table next to the thesis's fig. 
 ``--json`` exactly one JSON object; ``--plot DIR`` writes the bar chart (fig. 5.7) and the smash
 spread (fig. 5.8) as PNG. ``--in-process`` plays the trials without ROS
 (:mod:`air_hockey_agent.sim.strategy_loop`; workers are processes of this tool): a run repeats exactly,
-whatever the number of workers.
+whatever the number of workers. ``--params-file FILE`` gives the agent a variant (its tactics' and
+trajectory generator's parameters, as ``air-hockey game --versus``) on the same trials.
 """
 from __future__ import annotations
 
@@ -62,13 +63,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--in-process", action="store_true",
                         help="play the trials without ROS (the same agent code; repeats exactly; no --log or "
                              "--domain-id)")
+    parser.add_argument("--params-file", type=Path, default=None, metavar="FILE",
+                        help="the agent's tactics and trajectory_generator also read this ROS 2 parameter YAML "
+                             "(only their parameters; the trials stay the defaults': a variant meets the same pucks)")
     parser.set_defaults(run=run)
 
 
-def worker_processes(trials: list[tuple[str, int]], seed: int) -> list[ProcessSpec]:
+def worker_processes(trials: list[tuple[str, int]], seed: int, params_file: str = "") -> list[ProcessSpec]:
     specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", "-p", "real_time_factor:=0.0",
                                        "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
-    specs += [process(n, label=n.executable) for n in agent_nodes(ROBOT, use_sim_time=True, sim_table=True)]
+    specs += [process(n, label=n.executable) for n in agent_nodes(ROBOT, use_sim_time=True, sim_table=True,
+                                                                        variant_file=params_file)]
     trial_list = ",".join(f"{s}:{i}" for s, i in trials)
     specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args",
                                                "-p", f"seed:={seed}", "-p", f"trials:={trial_list}"]))
@@ -79,9 +84,10 @@ class Worker(threading.Thread):
     """One simulation and agent on its own ROS domain, running a list of trials."""
 
     def __init__(self, domain: int, trials: list[tuple[str, int]], seed: int, results: dict, lock: threading.Lock,
-                 on_result, log=None) -> None:
+                 on_result, log=None, params_file: str = "") -> None:
         super().__init__(daemon=True)
         self.domain, self.trials, self.seed, self.log = domain, trials, seed, log
+        self.params_file = params_file
         self.results, self.lock, self.on_result = results, lock, on_result
         self.error = ""
 
@@ -99,7 +105,7 @@ class Worker(threading.Thread):
         with tempfile.TemporaryDirectory(prefix="air_hockey_strategy_") as tmp:
             env = ros_environment(domain_id=self.domain, ros_home=Path(tmp))
             with Launcher(env, echo=None, on_line=self.on_line) as launcher:
-                for spec in worker_processes(self.trials, self.seed):
+                for spec in worker_processes(self.trials, self.seed, self.params_file):
                     launcher.start(spec)
                 while True:
                     ended = launcher.wait_any_exit(timeout=1.0)
@@ -116,7 +122,8 @@ def _run_trials(pending: list[tuple[str, int]], args, results: dict, progress, t
     lock = threading.Lock()
     count = lambda: progress(len(results), total)  # noqa: E731
     shares = [pending[k::args.workers] for k in range(args.workers)]
-    workers = [Worker(domain0 + k, share, args.seed, results, lock, count, log) for k, share in enumerate(shares) if share]
+    workers = [Worker(domain0 + k, share, args.seed, results, lock, count, log, _variant(args))
+               for k, share in enumerate(shares) if share]
     for w in workers:
         w.start()
     for w in workers:
@@ -129,7 +136,7 @@ def _run_in_process(pending: list[tuple[str, int]], args, results: dict, progres
     from air_hockey_agent.sim.strategy_loop import chunks, run_chunk
     from air_hockey_agent.tools.worker_pool import run_in_processes
     errors: list[str] = []
-    jobs = [(args.seed, chunk, share) for chunk, share in chunks(pending)]
+    jobs = [(args.seed, chunk, share, _variant(args)) for chunk, share in chunks(pending)]
 
     def store(index: int, records) -> None:
         if isinstance(records, Exception):  # its trials are run once more, then counted as failures
@@ -147,6 +154,11 @@ def _run_in_process(pending: list[tuple[str, int]], args, results: dict, progres
     return errors
 
 
+def _variant(args) -> str:
+    """The agent variant's file ('' for the defaults)."""
+    return "" if args.params_file is None else str(args.params_file)
+
+
 def _check(args) -> str:
     if args.in_process and (args.log is not None or args.domain_id is not None):
         return "--log and --domain-id need the node graph: leave out --in-process (or them)"
@@ -158,6 +170,9 @@ def _check(args) -> str:
         return f"--results {args.results}: directory {args.results.parent} does not exist"
     if args.plot is not None and args.plot.exists() and not args.plot.is_dir():
         return f"--plot {args.plot}: exists and is not a directory"
+    if args.params_file is not None:
+        from air_hockey_agent.agent_params import agent_variant_problem
+        return agent_variant_problem(args.params_file, "--params-file")
     return ""
 
 
@@ -168,6 +183,8 @@ def run(args: argparse.Namespace) -> int:
         return 2
     say = lambda text: print(f"[strategy-test] {text}", file=sys.stderr, flush=True)  # noqa: E731
     prepare_for_nodes(say)
+    if args.params_file is not None:
+        say(f"the agent also reads {args.params_file}")
     keys = [k for group in sorted(args.strategies) for k in GROUPS[group]]
     trials = [(k, i) for i in range(args.trials) for k in keys]
     domain0 = args.domain_id or 50 + os.getpid() % (52 - args.workers)
@@ -201,6 +218,8 @@ def run(args: argparse.Namespace) -> int:
     if args.json:
         report = {k: {f: v for f, v in e.items() if f != "failures"} for k, e in summary.items()}
         report["seconds"] = round(seconds, 1)
+        if args.params_file is not None:
+            report["params_file"] = str(args.params_file)
         print(json_text(report))
     else:
         print(table(summary, seconds))
