@@ -97,9 +97,9 @@ VARIANT_NODES = ("tactics", "trajectory_generator")  # the nodes an agent varian
 
 def load_agent_variant(path: Path, flag: str = "--versus") -> tuple[dict[str, Any], dict[str, Any]]:
     """One robot's agent variant (``air-hockey game --versus``, ``strategy-test --params-file``: ``flag``): the
-    tactics' and the trajectory generator's parameters with the ROS 2 parameter YAML ``path`` over their defaults. Raises
-    :class:`~air_hockey_agent.params.ParameterFileError` (a parameter of another node, a misspelled one) or
-    ``ParameterValueError`` naming the file and the parameter."""
+    tactics' and the trajectory generator's parameters with the ROS 2 parameter YAML ``path`` over their
+    defaults. Raises :class:`~air_hockey_agent.params.ParameterFileError` (a parameter of another node, a
+    misspelled one) or ``ParameterValueError`` naming the file and the parameter."""
     from air_hockey_agent.motion_params import load_motion_params
     from air_hockey_agent.params import check_only_nodes
     check_only_nodes(path, VARIANT_NODES, flag)

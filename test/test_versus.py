@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from air_hockey_agent.core.game.versus import DEFAULTS, VARIANT, VersusTally, variant_robot
+from air_hockey_agent.core.game.versus import DEFAULTS, VARIANT, VersusTally, variant_robot, versus_games
 from air_hockey_agent.params import ParameterFileError
 from air_hockey_agent.sim.params import ROBOTS
 
@@ -27,6 +27,7 @@ def write(path: Path, text: str) -> Path:
 def test_the_variant_alternates_sides_and_its_goals_are_counted_on_its_side():
     robots = [variant_robot(ROBOTS, k) for k in range(4)]
     assert robots == ["iiwa_front", "iiwa_back", "iiwa_front", "iiwa_back"]
+    assert versus_games(31, 4, ROBOTS) == [(31, "iiwa_front"), (31, "iiwa_back"), (32, "iiwa_front"), (32, "iiwa_back")]
     # game 0: the variant (front) wins 2:1; game 1: the variant (back) loses 0:3 to the front; game 2 drawn
     tally = VersusTally.from_results([result(2, 1, (5, 6)), result(3, 0, (7, 8)), result(1, 1, (1, 2))], robots[:3])
     assert tally.goals == {VARIANT: 2 + 0 + 1, DEFAULTS: 1 + 3 + 1}
@@ -111,20 +112,26 @@ def test_in_process_the_variant_reaches_one_robot_only_and_defaults_change_nothi
 
 
 @pytest.mark.slow  # in-process: no ROS node
-def test_versus_games_alternate_sides_and_report_the_tally(tmp_path):
-    variant = write(tmp_path / "v.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.0\n")
-    command = [str(BIN / "air-hockey"), "game", "--in-process", "--games", "2", "--workers", "2", "--seed", "5",
-               "--duration", "3", "--versus", str(variant)]
-    out = subprocess.run([*command, "--json"], capture_output=True, text=True, timeout=300)
+def test_versus_plays_each_seed_on_both_sides_and_equal_agents_tie_exactly(tmp_path):
+    """Each seed twice, the variant once per side; a variant equal to the defaults (a file repeating a
+    default) ties every pair exactly, goals and hits; the tally is the results'; the text has the line."""
+    same = write(tmp_path / "same.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.24\n")
+    command = [str(BIN / "air-hockey"), "game", "--in-process", "--games", "4", "--workers", "2", "--seed", "31",
+               "--duration", "20", "--versus", str(same)]
+    out = subprocess.run([*command, "--json"], capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     data = json.loads(out.stdout)
-    assert [g["versus_robot"] for g in data["games"]] == ["iiwa_front", "iiwa_back"]
+    assert [(g["seed"], g["versus_robot"]) for g in data["games"]] == versus_games(31, 4, ROBOTS)
     versus = data["total"]["versus"]
-    expected = VersusTally.from_results(data["games"], ["iiwa_front", "iiwa_back"])
-    assert versus == {**expected.result(str(variant)), "first_robot": "iiwa_front"}
-    assert versus["games"] == 2 and sum(versus["hits"].values()) == sum(data["total"]["hits"].values())
-    text = subprocess.run(command, capture_output=True, text=True, timeout=300)
-    assert text.returncode == 0 and f"versus {variant} against the defaults, 2 games: goals" in text.stdout
+    sides = [robot for _, robot in versus_games(31, 4, ROBOTS)]
+    assert versus == VersusTally.from_results(data["games"], sides).result(str(same))
+    assert versus["goals"][VARIANT] == versus["goals"][DEFAULTS] and versus["hits"][VARIANT] == versus["hits"][DEFAULTS]
+    assert sum(versus["hits"].values()) == sum(data["total"]["hits"].values()) > 0
+    assert data["games"][0]["score"] == data["games"][1]["score"]  # the same game twice
+    text = subprocess.run([*command[:4], "2", *command[5:]], capture_output=True, text=True, timeout=600)
+    assert text.returncode == 0 and f"versus {same} against the defaults, 2 games: goals" in text.stdout
+    odd = subprocess.run([*command[:4], "3", *command[5:]], capture_output=True, text=True, timeout=60)
+    assert odd.returncode == 2 and "an even number" in odd.stderr and len(odd.stderr.strip().splitlines()) == 1
 
 
 @pytest.mark.parametrize("text, words", [

@@ -15,9 +15,9 @@ game exactly, and faster; nothing is published, and ``--record`` writes the same
 (:mod:`air_hockey_agent.sim.game_record`).
 
 ``--versus FILE`` plays head to head: one robot's tactics and trajectory generator also read FILE (a ROS 2
-parameter YAML), the other robot plays the defaults; with ``--in-process --games N`` the sides alternate
-from game to game, and the summary adds the goals, hits and games won of each agent and a sign test of the
-goals (:mod:`air_hockey_agent.core.game.versus`).
+parameter YAML), the other robot plays the defaults; with ``--in-process --games N`` each seed is played
+twice, the variant once on each side, and the summary adds the goals, hits and games won of each agent and
+a sign test of the goals (:mod:`air_hockey_agent.core.game.versus`).
 """
 from __future__ import annotations
 
@@ -28,7 +28,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from air_hockey_agent.core.game.versus import VersusTally, variant_robot
+from air_hockey_agent.core.game.versus import VersusTally, variant_robot, versus_games
 from air_hockey_agent.node_graph import NodeRun, game_nodes
 from air_hockey_agent.params import ParamSpec, load_defaults
 from air_hockey_agent.paths import config_file
@@ -93,7 +93,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--domain-id", type=count(1, 101), default=None, help="ROS_DOMAIN_ID (1..101; default: inherited)")
     parser.add_argument("--games", type=count(1), default=1,
                         help="with --in-process: play this many games, seeds SEED, SEED+1, ..., and add them up "
-                             "(default 1)")
+                             "(with --versus each seed twice; default 1)")
     parser.add_argument("--workers", type=count(1, 16), default=1,
                         help="with --in-process --games: games played at once, each in its own process (default 1)")
     parser.add_argument("--in-process", action="store_true",
@@ -103,8 +103,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--versus", type=Path, default=None, metavar="FILE",
                         help="head to head: one robot's tactics and trajectory_generator also read this ROS 2 "
                              "parameter YAML (only their parameters), the other plays the defaults; the variant "
-                             f"plays {ROBOTS[0]} in the first game and the sides alternate with --games; the "
-                             "summary adds each agent's goals, hits and games won and a sign test of the goals")
+                             f"plays {ROBOTS[0]}; with --games (even) each seed is played twice, the variant once "
+                             "on each side; the summary adds each agent's goals, hits and games won and a sign test "
+                             "of the goals")
     parser.set_defaults(run=run)
 
 
@@ -123,6 +124,9 @@ def _check_args(args: argparse.Namespace) -> None:
         raise GameError("--workers needs --in-process and --games (each game on its own process)", 2)
     if args.workers > 1 and args.gui:
         raise GameError("--workers and --gui: one window per game is not offered; leave one out", 2)
+    if args.versus is not None and args.games > 1 and args.games % 2:
+        raise GameError(f"--versus with --games {args.games}: an even number (each seed is played twice, the "
+                        "variant once on each side)", 2)
     if not 0 <= args.seed + args.games - 1 < 2 ** 31:
         raise GameError(f"--seed {args.seed} with --games {args.games}: the seeds must stay in 0..{2 ** 31 - 1}", 2)
     if args.in_process:
@@ -241,18 +245,21 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
     [...], "total": {...}}``, each game's result with its ``"seed"``, in seed order)."""
     from air_hockey_agent.core.game.scoreboard import Scoreboard
     from air_hockey_agent.sim.game_loop import play_game
-    seeds = list(range(args.seed, args.seed + args.games))
+    if args.versus is None:
+        seeds, variants = list(range(args.seed, args.seed + args.games)), [None] * args.games
+    else:
+        pairs = versus_games(args.seed, args.games, ROBOTS)
+        seeds, variants = [seed for seed, _ in pairs], [(robot, str(args.versus)) for _, robot in pairs]
     say(f"in process, without ROS (real-time factor {rtf:g}, seed{'s' if len(seeds) > 1 else ''} "
         f"{seeds[0]}{f'-{seeds[-1]}' if len(seeds) > 1 else ''}"
         + (f", {args.workers} workers" if args.workers > 1 else "") + f"): {args.duration:g} s of simulated time"
         + (f" or {args.goals} goals" if args.goals else "") + " per game")
     if args.versus is not None:
-        say(f"versus: {ROBOTS[0]} plays {args.versus} in the first game" + (", the sides alternate"
-                                                                              if args.games > 1 else ""))
+        say(f"versus: {ROBOTS[0]} plays {args.versus}" + (f", then {ROBOTS[1]} on the same seed, and so on for each "
+                                                         "seed" if args.games > 1 else ""))
     run_args = (args.duration, args.goals, args.gui, rtf, settings["progress_period"])
-    bags = _game_bags(args.record, seeds)
-    variants = [(variant_robot(ROBOTS, k), str(args.versus)) if args.versus is not None else None
-                for k in range(len(seeds))]
+    names = [f"seed_{seed}" + (f"_{v[0]}" if v else "") for seed, v in zip(seeds, variants)]
+    bags = _game_bags(args.record, names)
     if args.workers == 1:
         results = [play_game(seed, *run_args, progress=say, record=bag, versus=variant)
                    for seed, bag, variant in zip(seeds, bags, variants)]
@@ -261,8 +268,8 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
 
         def done(index: int, result) -> None:
             if isinstance(result, Exception):
-                raise GameError(f"game with seed {seeds[index]} failed: {type(result).__name__}: {result}")
-            say(f"seed {seeds[index]}: {Scoreboard.total(ROBOTS, [result]).progress()}")
+                raise GameError(f"game {names[index]} failed: {type(result).__name__}: {result}")
+            say(f"{names[index].replace('_', ' ')}: {Scoreboard.total(ROBOTS, [result]).progress()}")
         jobs = [(seed, *run_args, None, bag, variant) for seed, bag, variant in zip(seeds, bags, variants)]
         results = run_in_processes(play_game, jobs, args.workers, done)
     if not args.json:
@@ -287,20 +294,20 @@ def _with_versus(args, results: list[dict], summary: dict) -> dict:
     tally = VersusTally.from_results(results, [variant_robot(ROBOTS, k) for k in range(len(results))])
     if not args.json:
         print(tally.line(str(args.versus)), flush=True)
-    return {**summary, "versus": {**tally.result(str(args.versus)), "first_robot": variant_robot(ROBOTS, 0)}}
+    return {**summary, "versus": tally.result(str(args.versus))}
 
 
-def _game_bags(record: Path | None, seeds: list[int]) -> list[Path | None]:
+def _game_bags(record: Path | None, names: list[str]) -> list[Path | None]:
     """Where each in-process game is recorded: nowhere without ``--record``; one game in ``OUT``; several
-    in the new directory ``OUT``, one bag ``seed_<SEED>`` each (the games already played stay when the run is
-    interrupted)."""
+    in the new directory ``OUT``, one bag per game, named ``names[k]`` (``seed_<SEED>``, with --versus
+    ``seed_<SEED>_<ROBOT>``: the variant's robot; the games already played stay when the run is interrupted)."""
     if record is None:
-        return [None] * len(seeds)
+        return [None] * len(names)
     out = output_bag_directory(record)
-    if len(seeds) == 1:
+    if len(names) == 1:
         return [out]
     out.mkdir()
-    return [out / f"seed_{seed}" for seed in seeds]
+    return [out / name for name in names]
 
 
 def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:

@@ -1,9 +1,10 @@
 """Head to head (ROS-free): one robot plays an agent variant, the other the defaults, over several games
 (``air-hockey game --in-process --versus FILE --games N``), and the tally says which agent scored more.
 
-The variant plays the first robot in the even games (counted from the first one) and the second in the
-odd ones, so a side's advantage (where the referee puts the first puck, a robot's base) does not favour
-either agent. The sign test takes every goal as a coin flip between the two agents: a two-sided exact
+Each seed is played twice, the variant on the first robot, then on the second (:func:`versus_games`), so
+neither a side's advantage nor a seed's (where the referee puts the first puck, the mocap noise) favours
+either agent: two equal agents tie every pair exactly, and a pair's games part only where the variant
+plays otherwise. The sign test takes every goal as a coin flip between the two agents: a two-sided exact
 binomial test of the variant's share of the goals against one half, and the same difference in standard
 deviations of that coin, (a - b) / sqrt(a + b). Goals in one game are not quite independent, so read a
 p-value near the line with care; more games narrow it (128 games of 60 s gave 70-80 goals here).
@@ -20,6 +21,12 @@ VARIANT, DEFAULTS = "versus", "defaults"
 def variant_robot(robots: Sequence[str], game_index: int) -> str:
     """The robot that plays the variant in game ``game_index`` (0-based): the sides alternate."""
     return robots[game_index % len(robots)]
+
+
+def versus_games(seed: int, games: int, robots: Sequence[str]) -> list[tuple[int, str]]:
+    """(seed, the variant's robot) of each of ``games`` games from ``seed``: each seed twice, the variant on
+    ``robots[0]``, then on ``robots[1]``."""
+    return [(seed + k // len(robots), variant_robot(robots, k)) for k in range(games)]
 
 
 @dataclass
