@@ -287,8 +287,9 @@ def _check_document(document: Mapping[str, Any] | None, path: Path, node: str, o
 def check_only_nodes(path: Path, allowed: Sequence[str], what: str) -> None:
     """Raise :class:`ParameterFileError` naming ``path``, the section and the key when the file sets a
     parameter of a node other than ``allowed`` (a section named for another node, or in a section for
-    every node a name none of ``allowed`` declares); ``what`` says where the file was given, e.g.
-    '--versus'. The names themselves are checked by :func:`check_parameter_file`."""
+    every node a name none of ``allowed`` declares), or a section for one namespace only (the robot a
+    variant plays changes from game to game); ``what`` says where the file was given, e.g. '--versus'. The
+    names themselves are checked by :func:`check_parameter_file`."""
     from air_hockey_agent.param_registry import node_parameters
     document = _read_document(path) or {}
     nodes = node_parameters()
@@ -298,6 +299,9 @@ def check_only_nodes(path: Path, allowed: Sequence[str], what: str) -> None:
         if target is not None and target not in allowed:
             raise ParameterFileError(f"{path}: section '{key}': {what} sets only {' and '.join(allowed)} "
                                      "parameters")
+        if key not in ("/**", f"/**/{target}"):  # rcl matches these in every namespace, as the in-process game does
+            raise ParameterFileError(f"{path}: section '{key}': {what} takes sections for any namespace, "
+                                     f"'/**/{target or 'tactics'}' or '/**' (the variant's robot is chosen per game)")
         params = block.get("ros__parameters") if isinstance(block, Mapping) else None
         for name in _flatten(params or {}) if target is None else ():
             if name not in names and not _builtin(name):

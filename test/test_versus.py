@@ -66,6 +66,7 @@ def test_a_variant_sets_tactics_and_trajectory_generator_parameters_only(tmp_pat
         ("/**:\n  ros__parameters:\n    damping: 0.1\n", ["'damping' is not a parameter of tactics or"]),
         ("/**:\n  ros__parameters:\n    ready_gard_depth: 0.0\n", ["did you mean 'ready_guard_depth'"]),
         ("/**/tactics:\n  ros__parameters:\n    ready_gard_depth: 0.0\n", ["'ready_gard_depth'"]),
+        ("/iiwa_front/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.0\n", ["for any namespace"]),
     ]:
         bad = write(tmp_path / "bad.yaml", text)
         with pytest.raises(ParameterFileError) as err:
