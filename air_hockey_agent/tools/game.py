@@ -237,7 +237,7 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
         print(monitor.board.table(result["recording"]), flush=True)
         if result["recording"] is None:
             print("  to watch one: add --record OUT.mcap and open it in Foxglove (README \"Watching a game\")")
-    return _with_versus(args, [result], result)
+    return _with_versus(args, [result], result, [versus[0]] if versus else [])
 
 
 def _play_in_process(args, settings, rtf: float, say) -> dict:
@@ -277,22 +277,22 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
         for r in results:
             print(Scoreboard.total(ROBOTS, [r]).table(r.get("recording")), flush=True)
     if args.games == 1:
-        return _with_versus(args, results, results[0])
+        return _with_versus(args, results, results[0], [v[0] for v in variants if v])
     total = Scoreboard.total(ROBOTS, results)
     if not args.json:
         print(f"{args.games} games, seeds {seeds[0]}-{seeds[-1]}: "
               + total.table(None).replace("game over after", "in all", 1), flush=True)
     games = [{"seed": seed, **r, **({"versus_robot": v[0]} if v else {})}
              for seed, r, v in zip(seeds, results, variants)]
-    return {"games": games, "total": _with_versus(args, results, total.result(None))}
+    return {"games": games, "total": _with_versus(args, results, total.result(None), [v[0] for v in variants if v])}
 
 
-def _with_versus(args, results: list[dict], summary: dict) -> dict:
+def _with_versus(args, results: list[dict], summary: dict, variant_robots: list[str]) -> dict:
     """``summary`` with the head-to-head tally of ``results`` under "versus" (with --versus; printed as a line
-    without --json): the variant played robot ``variant_robot(ROBOTS, k)`` in game k."""
+    without --json): the variant played robot ``variant_robots[k]`` in game k."""
     if args.versus is None:
         return summary
-    tally = VersusTally.from_results(results, [variant_robot(ROBOTS, k) for k in range(len(results))])
+    tally = VersusTally.from_results(results, variant_robots)
     if not args.json:
         print(tally.line(str(args.versus)), flush=True)
     return {**summary, "versus": tally.result(str(args.versus))}
