@@ -37,16 +37,12 @@ def chunk_seed(seed: int, chunk: int) -> int:
     return int(np.random.SeedSequence([seed, chunk]).generate_state(1)[0] % 2 ** 31)
 
 
-def trial_settings() -> TrialSettings:
-    from air_hockey_agent.strategy_params import trial_settings as configured
-    return configured()
-
-
 def run_chunk(seed: int, chunk: int, trials: Sequence[tuple[str, int]], params_file: str = "") -> list[dict]:
     """Play ``trials`` ((strategy, index) pairs) on a fresh table; their ``--results`` records in order.
     ``params_file``: the agent reads this variant too (``strategy-test --params-file``); the trials' initial
     states stay those of the defaults, so a variant meets the same pucks."""
     from air_hockey_agent.sim.game_loop import InProcessGame
+    from air_hockey_agent.strategy_params import trial_settings
     settings = trial_settings()
     game = InProcessGame(chunk_seed(seed, chunk), robots=(ROBOT,), refereed=False,
                          versus=(ROBOT, params_file) if params_file else None)
