@@ -82,6 +82,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("reach_time_margin", float, "[-] multiple of the shortest reach time given to a reach", 1.0, 10.0),
     ParamSpec("stale_estimate", float, "[s] no estimate for this long: puck unseen", 0.01, 60.0),
     ParamSpec("settle_time", float, "[s] time after a hit before re-deciding", 0.0, 5.0),
+    ParamSpec("keep_checks_outcome", bool, "a hit or cut under way is kept (its re-plan refused) only while its "
+              "contact, on the current prediction, does not send the puck into the own goal"),
     ParamSpec("speed_map_grid", list, "points along depth, along y, hit directions of the fastest-hit table",
               2, 100, 3),
 ) + ROBOT_BASE_PARAMS

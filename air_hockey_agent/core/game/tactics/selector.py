@@ -19,7 +19,8 @@ Every decision period the selector looks at the referee's status and the tracker
   any other refusal (or "too late" for a puck that will not wait) blocks that tactic for
   ``retry_delay`` so the next one is tried. A hit is only committed to once the planner accepted it.
 * When a re-plan of a hit or cut under way finds nothing the planner accepts, the command under way is
-  kept while the prediction still brings the puck to it (rather than falling back to Ready).
+  kept while the prediction still brings the puck to it (rather than falling back to Ready) and, with
+  ``keep_checks_outcome``, while the contact it then makes does not send the puck into the own goal.
 * A forced tactic (strategy test) is the only one tried until released.
 """
 from __future__ import annotations
@@ -33,7 +34,7 @@ from air_hockey_agent.core.game.arm_reach import ArmReach
 from air_hockey_agent.core.game.shots import VARIANTS, ShotPredictor
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import (CUT, HOME, INIT, NAMES, PREPARE, READY, REPEL, SMASH, Context,
-                                                     Proposal, Tactic, path_gap)
+                                                     Proposal, Tactic, first_meeting, path_gap)
 from air_hockey_agent.core.game.tactics.cut import Cut
 from air_hockey_agent.core.game.tactics.home import Home
 from air_hockey_agent.core.game.tactics.init import Init
@@ -215,13 +216,21 @@ class TacticsSelector:
         puck the prediction still brings within ``contact_distance`` of where it was planned to be met (the
         mallet still meets it) before the command's follow-through ends. Falling back to Ready replaced
         it: a Cut re-planned as the prediction moved and refused as too late sent the arm away from the
-        puck's path, and the next decision often asked for the Cut again."""
-        p = self.executing
+        puck's path, and the next decision often asked for the Cut again. With ``keep_checks_outcome``, not
+        while the contact the mallet then makes (:func:`first_meeting`) sends the puck into the own goal: a
+        kept Cut meeting a fast puck a few centimetres off its plan turned it in (7 of 69 goals in self-play)."""
+        p, st = self.executing, self.s
         if p is None or p.puck is None or situation is None or now >= p.time:
             return None
-        end = p.time + self.s.settle_time
+        end = p.time + st.settle_time
         path = np.vstack([situation.puck[None, :2], situation.states[situation.times <= end, :2]])
-        return p if path_gap(path, p.puck) <= self.s.contact_distance else None
+        if path_gap(path, p.puck) > st.contact_distance:
+            return None
+        meeting = first_meeting(p, situation, st.contact_distance, end) if st.keep_checks_outcome else None
+        if meeting is not None and self.shots.contact(*meeting, p.velocity, st.prepare_end_speed,
+                                                      st.prepare_horizon).enters_goal:
+            return None
+        return p
 
     def _to_send(self, proposal: Proposal, now: float) -> Proposal | None:
         """The proposal if it should be sent now; None when the last command already says the same

@@ -71,6 +71,7 @@ class TacticsSettings:
     reach_time_margin: float
     stale_estimate: float
     settle_time: float
+    keep_checks_outcome: bool
 
     @classmethod
     def from_params(cls, p: Mapping[str, Any]) -> "TacticsSettings":
