@@ -13,7 +13,8 @@ from air_hockey_agent.core.game.arm_reach import ArmReach
 from air_hockey_agent.core.game.shots import ShotPredictor, puck_after_hit
 from air_hockey_agent.core.game.situation import build_situation, own_frame_physics, to_own_frame
 from air_hockey_agent.core.game.speed_map import SpeedMap
-from air_hockey_agent.core.game.tactics.base import CUT, HOME, INIT, PREPARE, READY, REPEL, SMASH, path_gap
+from air_hockey_agent.core.game.tactics.base import (CUT, HOME, INIT, PREPARE, READY, REPEL, SMASH, Proposal,
+                                                     first_meeting, path_gap)
 from air_hockey_agent.core.game.tactics.selector import (LIMITS, PAUSED, RUNNING, STOPPED, TOO_FAST, TOO_LATE,
                                                          TacticsSelector)
 from air_hockey_agent.core.game.tactics.settings import TacticsSettings
@@ -786,6 +787,49 @@ def test_a_running_cut_is_kept_when_its_re_plan_is_refused(selector, model, sett
     far = situation(model, [0.3, 0.2 + 0.25, -1.5, 0.9, 0, 0], t0=0.06, horizon=1.5)
     selector.blocked[CUT] = math.inf  # nothing new for the Cut: only the kept command or Ready remain
     assert selector.step(0.06, RUNNING, far).tactic == READY
+
+
+PARKED = np.array([-0.82, -0.09])  # [m] own frame: a Cut's mallet parked beside the goal mouth (a game's)
+
+
+def _parked_cut(sit) -> Proposal:
+    """A parked Cut at PARKED planned for the puck where ``sit``'s path passes nearest to it."""
+    path = np.vstack([sit.puck[None, :2], sit.states[:, :2]])
+    nearest = path[int(np.argmin(np.hypot(*(path - PARKED).T)))]
+    return Proposal(CUT, PARKED, np.zeros(2), 0.3, "cut", puck=nearest)
+
+
+@pytest.mark.parametrize("state, meets", [([-0.331, 0.422, -2.32, -2.06, 0, 0], True),
+                                          ([-0.30, -0.09, -2.0, 0.0, 0, 0], True),
+                                          ([-0.30, 0.20, -2.0, 0.0, 0, 0], False)])
+def test_first_meeting_is_where_the_puck_first_touches_the_mallet(model, settings, state, meets):
+    """The puck state where it first comes within a contact distance of the parked mallet, between the
+    prediction's samples (50 ms, 10 cm apart here), with the normal from the mallet to it; None for a path
+    passing by."""
+    sit = situation(model, state, horizon=0.6)
+    meeting = first_meeting(_parked_cut(sit), sit, settings.contact_distance, 0.6)
+    assert (meeting is not None) == meets
+    if meets:
+        puck, normal = meeting
+        assert np.hypot(*(puck[:2] - PARKED)) == pytest.approx(settings.contact_distance, abs=2e-3)
+        np.testing.assert_allclose(normal, (puck[:2] - PARKED) / np.hypot(*(puck[:2] - PARKED)), atol=1e-9)
+        assert float(puck[2:4] @ normal) < 0.0  # closing in
+
+
+def test_a_kept_cut_whose_contact_now_turns_the_puck_into_the_own_goal_is_dropped(model, settings):
+    """A game's own goal: a fast puck after a rim impact, predicted to pass the parked mallet's side, meets
+    it glancing and goes into the goal (the Cut under way had been kept, its re-plan refused). With
+    keep_checks_outcome the command is no longer kept (the selector re-decides); a puck met head-on is."""
+    from dataclasses import replace
+    glancing = situation(model, [-0.331, 0.422, -2.32, -2.06, 0, 0], horizon=0.6)
+    head_on = situation(model, [-0.30, -0.09, -2.0, 0.0, 0, 0], horizon=0.6)
+    for checks, kept_glancing in ((True, False), (False, True)):
+        st = replace(settings, keep_checks_outcome=checks)
+        reach = flat_reach(st)
+        selector = TacticsSelector(st, reach, ShotPredictor(model, st, DT, reach.max_speed))
+        for sit, kept in ((glancing, kept_glancing), (head_on, True)):
+            selector.executing = _parked_cut(sit)
+            assert (selector._still_valid(0.0, sit) is not None) == kept, (checks, sit.puck)
 
 
 def test_smash_is_not_played_when_the_approach_would_knock_the_puck(selector, model, settings):
