@@ -62,6 +62,12 @@ class Situation:
     def approaching(self, threshold: float) -> bool:
         return self.puck[2] < -threshold
 
+    def samples_until(self, end: float) -> tuple[np.ndarray, np.ndarray]:
+        """The estimate and the predicted samples up to ``end`` [s]: their times (m,) [s, absolute] and
+        states (m, 6)."""
+        keep = self.times <= end
+        return np.concatenate([[self.t], self.times[keep]]), np.vstack([self.puck[None, :], self.states[keep]])
+
     def at(self, t: float) -> np.ndarray:
         """Predicted state at ``t`` [s]: linear between samples (the estimate is the first), the last
         sample beyond the horizon."""

@@ -89,22 +89,21 @@ def first_meeting(p: Proposal, situation: Situation, contact_distance: float,
     ``contact_distance`` [m] of the mallet of command ``p`` (own frame), taken as moving through
     ``p.point`` at ``p.velocity`` (at rest there for a parked cut): the puck state (6) then and the unit
     contact normal (mallet to puck); None when it does not within the prediction."""
-    keep = situation.times <= until
-    times = np.concatenate([[situation.t], situation.times[keep]])
-    states = np.vstack([situation.puck[None, :], situation.states[keep]])
+    times, states = situation.samples_until(until)
     rel = states[:, :2] - (p.point + np.outer(times - p.time, p.velocity))
     inside = np.flatnonzero(np.hypot(*rel.T) <= contact_distance)
     if not len(inside):
         return None
-    k, s = int(inside[0]), 0.0
-    if k:  # the circle's first crossing on the segment before sample k: |a + s b| = contact distance
-        a, b = rel[k - 1], rel[k] - rel[k - 1]
-        bb, ab = float(b @ b), float(a @ b)
-        s = (-ab - np.sqrt(max(ab * ab - bb * (float(a @ a) - contact_distance ** 2), 0.0))) / bb
-        s = min(max(s, 0.0), 1.0)
-    state = states[k] if not k else (1.0 - s) * states[k - 1] + s * states[k]
-    r = rel[k] if not k else (1.0 - s) * rel[k - 1] + s * rel[k]
-    return state, r / max(float(np.hypot(*r)), 1e-12)
+    k = int(inside[0])
+    if k == 0:  # touching already
+        return states[0], rel[0] / max(float(np.hypot(*rel[0])), 1e-12)
+    # the circle's first crossing on the segment before sample k: |a + s b| = contact distance
+    a, b = rel[k - 1], rel[k] - rel[k - 1]
+    bb, ab = float(b @ b), float(a @ b)
+    s = (-ab - np.sqrt(max(ab * ab - bb * (float(a @ a) - contact_distance ** 2), 0.0))) / bb
+    s = min(max(s, 0.0), 1.0)
+    r = a + s * b
+    return (1.0 - s) * states[k - 1] + s * states[k], r / max(float(np.hypot(*r)), 1e-12)
 
 
 def approach_clear(puck: np.ndarray, hit_point: np.ndarray, velocity: np.ndarray, ctx: Context) -> bool:

@@ -57,7 +57,7 @@ class Ready(Tactic):
         if guard is not None:
             return reach_proposal(READY, guard, ctx,
                                   f"guarding the goal from the puck at ({puck[0]:.2f}, {puck[1]:.2f})")
-        path = np.vstack([puck, situation.states[:, :2]])
+        path = situation.samples_until(np.inf)[1][:, :2]
         clear = clear_of(ready, path, gap, ctx.reach.region.x_max)
         return reach_proposal(READY, clear, ctx, "waiting at the ready point" if clear[0] == ready[0] else
                               f"waiting in front of the puck at ({puck[0]:.2f}, {puck[1]:.2f}), clear of it")

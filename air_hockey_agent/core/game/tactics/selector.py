@@ -223,7 +223,7 @@ class TacticsSelector:
         if p is None or p.puck is None or situation is None or now >= p.time:
             return None
         end = p.time + st.settle_time
-        path = np.vstack([situation.puck[None, :2], situation.states[situation.times <= end, :2]])
+        path = situation.samples_until(end)[1][:, :2]
         if path_gap(path, p.puck) > st.contact_distance:
             return None
         meeting = first_meeting(p, situation, st.contact_distance, end) if st.keep_checks_outcome else None
