@@ -28,6 +28,10 @@ AGENT_PARAMS = TABLE_PARAMS + (
                                           "waits between it and the goal (0: never)", 0.0, 1.0),
     ParamSpec("ready_guard_speed", float, "[m/s] ... when it is slower than this (else the mallet keeps off "
                                           "its path)", 0.0, 10.0),
+    ParamSpec("ready_checks_way", bool, "the waiting mallet moves off a way to its point that would meet the "
+              "puck so as to turn it into the own goal"),
+    ParamSpec("ready_dodge_steps", int, "steps of a contact distance plus approach_clearance the waiting point "
+              "may move to get off such a way (in y either way and away from the goal)", 0, 10),
     ParamSpec("home_point", list, "[m] depth, y of the home point (pause)", -1.0, 1.0, 2),
     ParamSpec("smash_depth", list, "[m] depth range of the smash area", 0.0, 1.0, 2),
     ParamSpec("smash_rim_margin", float, "[m] smash area distance from the long rims beyond the puck radius", 0.0, 0.5),

@@ -293,12 +293,12 @@ def test_speed_map_agrees_with_the_planners_search():
     assert checked >= 10
 
 
-def test_a_reach_timed_with_the_mallets_velocity_is_one_the_planner_accepts(settings):
-    """Right after a hit the follow-through still carries the mallet away: the reach back to the ready
-    point, timed from the mallet's position and velocity, is accepted by the motion planner itself; timed
-    as from rest (the estimate before) the planner answers too late."""
+def _in_a_follow_through(settings):
+    """The real planner and reach, the ready point, and the arm in a hit's follow-through still carrying the
+    mallet away from the ready point: its state, the mallet's position and velocity, and the time the
+    trajectory generator plans a command sent then from (its state a planning delay ahead)."""
     from air_hockey_agent.agent_params import build_selector, load_agent_params
-    from air_hockey_agent.core.motion.planner import ACCEPTED, ArmState, Command, TOO_LATE
+    from air_hockey_agent.core.motion.planner import ACCEPTED, ArmState, Command
     from air_hockey_agent.motion_params import build_planner, load_motion_params
     from air_hockey_agent.tools.bench_planner import ready_state
     planner = build_planner(load_motion_params(), "iiwa_front")
@@ -310,7 +310,15 @@ def test_a_reach_timed_with_the_mallets_velocity_is_one_the_planner_accepts(sett
     start = ArmState(float(hit.times[k]), hit.q[k], hit.dq[k])
     p, v = planner.kin.planar_motion(start.q, start.dq)
     assert v[0] > 0.5
-    now = start.t - reach.planning_delay  # the generator plans from its state this long ahead
+    return planner, reach, ready, start, p, v, start.t - reach.planning_delay
+
+
+def test_a_reach_timed_with_the_mallets_velocity_is_one_the_planner_accepts(settings):
+    """Right after a hit the follow-through still carries the mallet away: the reach back to the ready
+    point, timed from the mallet's position and velocity, is accepted by the motion planner itself; timed
+    as from rest (the estimate before) the planner answers too late."""
+    from air_hockey_agent.core.motion.planner import ACCEPTED, Command, TOO_LATE
+    planner, reach, ready, start, p, v, now = _in_a_follow_through(settings)
     timed = planner.plan(Command(ready, np.zeros(2), now + reach.reach_time(p, ready, v)), start)
     assert timed.outcome == ACCEPTED, timed.message
     from_rest = planner.plan(Command(ready, np.zeros(2), now + reach.reach_time(p, ready)), start)
@@ -601,6 +609,79 @@ def test_ready_steps_out_of_the_way_of_a_puck_sliding_behind_the_ready_point(sel
     assert d.tactic == READY and "clear of it" in d.reason
     assert _clear_of_path(d.command.point, sit, _gap(settings))
     assert not _clear_of_path(settings.point(settings.ready_point), sit, settings.contact_distance)
+
+
+def test_reach_way_is_the_planners_reach(settings):
+    """The way a Ready's outcome check expects the mallet to take (``ArmReach.reach_way``) is the one the
+    motion planner plans: from a follow-through still carrying the mallet away, the planned reach's mallet
+    positions (forward kinematics of its joint knots) lie within 1 cm of it throughout."""
+    from air_hockey_agent.core.motion.planner import ACCEPTED, Command
+    planner, reach, ready, start, p, v, now = _in_a_follow_through(settings)
+    plan = planner.plan(Command(ready, np.zeros(2), now + reach.reach_time(p, ready, v)), start)
+    assert plan.outcome == ACCEPTED, plan.message
+    planned = np.array([planner.kin.planar_motion(q, dq)[0] for q, dq in zip(plan.q, plan.dq)])
+    way, _ = reach.reach_way(p - v * reach.planning_delay, v, ready, plan.times - now)
+    assert np.max(np.hypot(*(planned - way).T)) < 0.01
+    np.testing.assert_allclose(way[-1], ready, atol=1e-9)
+    moved = float(np.max(np.hypot(*(planned - p).T)))
+    assert moved > 0.1  # a real reach, not a mallet standing still
+
+
+def _turned_in(point, sit, selector, mallet, velocity, now=0.0):
+    """Does the mallet's way from ``mallet`` to ``point`` meet the puck so that it goes into the own goal,
+    by the step-by-step reference predictor from the contact (not the shot model's fast one)?"""
+    from air_hockey_agent.core.game.shots import puck_after_contact
+    from air_hockey_agent.core.game.tactics.ready import way_meeting
+    from air_hockey_agent.core.game.tactics.base import Context
+    st = selector.s
+    ctx = Context(now, st, selector.reach, selector.shots, np.asarray(mallet, float), np.asarray(velocity, float))
+    meeting = way_meeting(np.asarray(point, float), sit.samples_until(np.inf), ctx, (st.contact_distance,))
+    if meeting is None:
+        return False
+    after = puck_after_contact(meeting[0], meeting[2], meeting[1], st.mallet_restitution, st.mallet_friction,
+                               st.table.puck_radius)
+    line = -st.table.length / 2 + st.table.puck_radius
+    model = selector.shots.model
+    pred = predict_stepwise(model, after, np.eye(6), 2.0, DT, np.zeros((6, 6)), lines=(line,))
+    crossing = pred.crossings.get(line)
+    return crossing is not None and abs(crossing.y) < st.table.goal_mouth
+
+
+def test_ready_moves_off_a_way_that_would_turn_the_puck_into_the_own_goal(selector, model, settings):
+    """A fast puck sliding along y just in front of the goal line (deeper than the ready point's depth less a
+    contact distance) meets the mallet waiting at the ready point on its side and goes in (the largest cause
+    of own goals in self-play); the mallet waits elsewhere, where it does not."""
+    x0 = -settings.table.length / 2
+    ready = settings.point(settings.ready_point)
+    sit = situation(model, [x0 + 0.13, -0.45, -0.1, 1.8, 0, 0])
+    assert _turned_in(ready, sit, selector, ready, np.zeros(2))  # the reference model agrees: it would go in
+    d = selector.step(0.0, RUNNING, sit, ready, np.zeros(2))
+    assert d.tactic == READY and "off the way" in d.reason, d.reason
+    assert np.linalg.norm(d.command.point - ready) > 0.05
+    assert not _turned_in(d.command.point, sit, selector, ready, np.zeros(2))
+    assert selector.reach.region.contains(d.command.point)
+
+
+def test_ready_stays_on_a_way_whose_meeting_sends_the_puck_away(selector, model, settings):
+    """A slow puck coming at the waiting mallet from the front is met there and sent back: no dodge."""
+    ready = settings.point(settings.ready_point)
+    sit = situation(model, [ready[0] + 0.3, 0.0, -0.4, 0.0, 0, 0])
+    selector.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}  # only Ready left
+    assert first_meeting(Proposal(READY, ready, np.zeros(2), 0.0, ""), sit, settings.contact_distance, 1.0)
+    d = selector.step(0.0, RUNNING, sit, ready, np.zeros(2))
+    assert d.tactic == READY and d.reason == "waiting at the ready point", d.reason
+    np.testing.assert_allclose(d.command.point, ready)
+
+
+def test_ready_checks_way_off_keeps_the_waiting_point(model, settings):
+    from dataclasses import replace
+    off = replace(settings, ready_checks_way=False)
+    reach = flat_reach(off)
+    fresh = TacticsSelector(off, reach, ShotPredictor(model, off, DT, reach.max_speed))
+    x0 = -settings.table.length / 2
+    ready = settings.point(settings.ready_point)
+    d = fresh.step(0.0, RUNNING, situation(model, [x0 + 0.13, -0.45, -0.1, 1.8, 0, 0]), ready, np.zeros(2))
+    assert d.tactic == READY and "off the way" not in d.reason
 
 
 def test_the_back_robot_plays_in_its_own_frame(selector, model):

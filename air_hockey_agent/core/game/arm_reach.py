@@ -9,7 +9,7 @@ import numpy as np
 
 from air_hockey_agent.core.game.speed_map import SpeedMap
 from air_hockey_agent.core.motion.region import Region
-from air_hockey_agent.core.motion.task_motion import run_up_length, shortest_hermite_duration
+from air_hockey_agent.core.motion.task_motion import hermite_at, run_up_length, shortest_hermite_duration
 
 
 UNKNOWN_START_DISTANCE = 0.5  # [m] a reach from an unknown mallet position is timed as one this long
@@ -82,3 +82,21 @@ class ArmReach:
         v0 = np.zeros(2) if velocity is None else np.asarray(velocity, float)
         cubic = shortest_hermite_duration(np.asarray(start, float), v0, target, self.reach_acceleration, self.dt)
         return max(self.min_reach_time, self.planning_delay + self.reach_time_margin * cubic)
+
+    def reach_way(self, start: np.ndarray, velocity: np.ndarray | None, target: np.ndarray,
+                  t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Where a reach-and-stop to ``target`` [m] sent now puts the mallet, at ``velocity`` [m/s] (None: at
+        rest) in ``start`` [m] now: positions and velocities (n, 2) at times ``t`` (n,) [s from now]. The arm
+        runs on at its velocity for the planner's delay, then follows the planner's shortest cubic to the target
+        (:meth:`MotionPlanner._plan_reach`) and rests there."""
+        t = np.asarray(t, float)
+        v0 = np.zeros(2) if velocity is None else np.asarray(velocity, float)
+        p0 = np.asarray(start, float) + v0 * self.planning_delay
+        target = np.asarray(target, float)
+        duration = shortest_hermite_duration(p0, v0, target, self.reach_acceleration, self.dt)
+        pos, vel = hermite_at(p0, v0, target, np.zeros(2), duration,
+                              np.clip(t - self.planning_delay, 0.0, duration))
+        before = t < self.planning_delay
+        pos[before] = np.asarray(start, float) + np.outer(t[before], v0)
+        vel[before] = v0
+        return pos, vel

@@ -62,8 +62,14 @@ def stop(hit: np.ndarray, direction: np.ndarray, speed: float, steps: int, dt: f
 def hermite(p0: np.ndarray, v0: np.ndarray, p1: np.ndarray, v1: np.ndarray, steps: int,
             dt: float) -> tuple[np.ndarray, np.ndarray]:
     """Cubic in time from (``p0``, ``v0``) to (``p1``, ``v1``) over ``steps`` grid steps."""
-    duration = steps * dt
-    s = (np.arange(1, steps + 1) * dt / duration)[:, None]
+    return hermite_at(p0, v0, p1, v1, steps * dt, np.arange(1, steps + 1) * dt)
+
+
+def hermite_at(p0: np.ndarray, v0: np.ndarray, p1: np.ndarray, v1: np.ndarray, duration: float,
+               t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The cubic in time from (``p0``, ``v0``) to (``p1``, ``v1``) over ``duration`` [s]: positions and
+    velocities (n, 2) at times ``t`` (n,) [s] from its start, within [0, duration]."""
+    s = (np.asarray(t, float) / duration)[:, None]
     h00, h10, h01, h11 = 2 * s ** 3 - 3 * s ** 2 + 1, s ** 3 - 2 * s ** 2 + s, -2 * s ** 3 + 3 * s ** 2, s ** 3 - s ** 2
     d00, d10, d01, d11 = 6 * s ** 2 - 6 * s, 3 * s ** 2 - 4 * s + 1, -6 * s ** 2 + 6 * s, 3 * s ** 2 - 2 * s
     pos = h00 * p0 + h10 * duration * v0 + h01 * p1 + h11 * duration * v1

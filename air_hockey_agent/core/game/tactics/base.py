@@ -83,6 +83,34 @@ def path_gap(path: np.ndarray, point: np.ndarray) -> float:
     return float(np.min(np.hypot(*(a + s[:, None] * ab - point).T)))
 
 
+def first_within(rel: np.ndarray, distance: float) -> tuple[int, float, np.ndarray] | None:
+    """Where the relative positions ``rel`` (n, 2) [m] of a puck to a mallet, sampled in time and taken as
+    linear between samples, first come within ``distance`` [m]: (k, s, the relative position there) for the
+    point a fraction ``s`` of the way from sample k - 1 to sample k ((0, 0, rel[0]) when the first sample is
+    within already); None when never."""
+    inside = np.flatnonzero(np.hypot(*rel.T) <= distance)
+    if not len(inside):
+        return None
+    k = int(inside[0])
+    if k == 0:
+        return 0, 0.0, rel[0]
+    # the circle's first crossing on the segment before sample k: |a + s b| = distance
+    a, b = rel[k - 1], rel[k] - rel[k - 1]
+    bb, ab = float(b @ b), float(a @ b)
+    s = (-ab - np.sqrt(max(ab * ab - bb * (float(a @ a) - distance ** 2), 0.0))) / bb
+    s = min(max(s, 0.0), 1.0)
+    return k, s, a + s * b
+
+
+def between(values: np.ndarray, k: int, s: float) -> np.ndarray:
+    """``values`` (sampled rows) a fraction ``s`` of the way from row k - 1 to row k (row 0 for k = 0)."""
+    return values[0] if k == 0 else (1.0 - s) * values[k - 1] + s * values[k]
+
+
+def unit(v: np.ndarray) -> np.ndarray:
+    return v / max(float(np.hypot(*v)), 1e-12)
+
+
 def first_meeting(p: Proposal, situation: Situation, contact_distance: float,
                   until: float) -> tuple[np.ndarray, np.ndarray] | None:
     """Where the puck, on ``situation``'s prediction up to ``until`` [s], first comes within
@@ -91,19 +119,11 @@ def first_meeting(p: Proposal, situation: Situation, contact_distance: float,
     contact normal (mallet to puck); None when it does not within the prediction."""
     times, states = situation.samples_until(until)
     rel = states[:, :2] - (p.point + np.outer(times - p.time, p.velocity))
-    inside = np.flatnonzero(np.hypot(*rel.T) <= contact_distance)
-    if not len(inside):
+    found = first_within(rel, contact_distance)
+    if found is None:
         return None
-    k = int(inside[0])
-    if k == 0:  # touching already
-        return states[0], rel[0] / max(float(np.hypot(*rel[0])), 1e-12)
-    # the circle's first crossing on the segment before sample k: |a + s b| = contact distance
-    a, b = rel[k - 1], rel[k] - rel[k - 1]
-    bb, ab = float(b @ b), float(a @ b)
-    s = (-ab - np.sqrt(max(ab * ab - bb * (float(a @ a) - contact_distance ** 2), 0.0))) / bb
-    s = min(max(s, 0.0), 1.0)
-    r = a + s * b
-    return (1.0 - s) * states[k - 1] + s * states[k], r / max(float(np.hypot(*r)), 1e-12)
+    k, s, r = found
+    return between(states, k, s), unit(r)
 
 
 def approach_clear(puck: np.ndarray, hit_point: np.ndarray, velocity: np.ndarray, ctx: Context) -> bool:

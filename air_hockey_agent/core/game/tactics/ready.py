@@ -6,12 +6,17 @@ the waiting mallet: slower than ``ready_guard_speed``, the mallet waits between 
 until the puck's predicted path passes clear of it (:func:`clear_of`). In in-process self-play (seeds
 31-46, 60 s) 4 of 8 goals had been such pucks, met from behind by the waiting mallet or crept into the
 goal mouth past it (README "Tactics and the game").
+
+With ``ready_checks_way`` the waiting point is then judged by its outcome: when the mallet's way to it
+meets the predicted puck so that the contact sends the puck into the own goal, the mallet waits at the
+nearest other point whose way does not (:func:`off_the_way`).
 """
 from __future__ import annotations
 
 import numpy as np
 
-from air_hockey_agent.core.game.tactics.base import READY, Context, Proposal, Tactic, reach_proposal
+from air_hockey_agent.core.game.tactics.base import (READY, Context, Proposal, Tactic, between, first_within,
+                                                     reach_proposal, unit)
 
 
 def guard_point(puck: np.ndarray, gap: float, ctx: Context) -> np.ndarray | None:
@@ -44,20 +49,98 @@ def clear_of(point: np.ndarray, path: np.ndarray, gap: float, x_max: float) -> n
     return np.array([min(x, x_max), point[1]])
 
 
+def way_meeting(target: np.ndarray, samples: tuple[np.ndarray, np.ndarray], ctx: Context,
+                distances: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
+    """Where the mallet, reaching ``target`` [m] from where it is now (:meth:`ArmReach.reach_way`), first
+    meets the puck predicted at ``samples`` (times [s], states (n, 6)), meeting taken as coming within the
+    first of ``distances`` [m] the puck comes within at all: the puck state, the unit normal (mallet to
+    puck) and the mallet's velocity [m/s] then; None when it comes within none. (A contact distance first:
+    judged where it comes within a larger one, a puck that does touch would get a normal it does not have;
+    a larger one then counts near misses.)"""
+    times, states = samples
+    way, way_velocity = ctx.reach.reach_way(ctx.mallet, ctx.mallet_velocity, target, times - ctx.now)
+    rel = states[:, :2] - way
+    for distance in distances:
+        found = first_within(rel, distance)
+        if found is not None:
+            k, s, r = found
+            return between(states, k, s), unit(r), between(way_velocity, k, s)
+    return None
+
+
+def turns_in(meeting: tuple[np.ndarray, np.ndarray, np.ndarray], ctx: Context) -> bool:
+    """The contact of a :func:`way_meeting` sends the puck into the own goal (:meth:`ShotPredictor.contact`)."""
+    st = ctx.settings
+    return ctx.shots.contact(*meeting, st.prepare_end_speed, st.prepare_horizon).enters_goal
+
+
+def enters_goal_alone(situation, ctx: Context) -> bool:
+    """The puck's prediction crosses the own goal line inside the goal mouth."""
+    crossing = situation.crossing(-ctx.shots.line)
+    return crossing is not None and abs(crossing.y) < ctx.shots.mouth
+
+
+def dodge_points(target: np.ndarray, ctx: Context) -> list[np.ndarray]:
+    """Other waiting points than ``target`` [m], nearest first: the mallet held where it is and a grid
+    around ``target`` in steps of a contact distance plus ``approach_clearance`` (a mallet that far off a
+    puck's path is clear of it), ``ready_dodge_steps`` of them in y either way and away from the goal, one
+    toward it, within the arm's region."""
+    st = ctx.settings
+    step, n = st.contact_distance + st.approach_clearance, st.ready_dodge_steps
+    points = [ctx.reach.clamp(target + step * np.array([i, j], float))
+              for i in range(-1, n + 1) for j in range(-n, n + 1) if i or j]
+    points.append(ctx.reach.clamp(ctx.mallet))
+    points.sort(key=lambda q: float(np.hypot(*(q - target))))
+    return points
+
+
+def off_the_way(target: np.ndarray, situation, ctx: Context) -> np.ndarray | None:
+    """A waiting point to use instead of ``target`` [m] when the mallet's way to it meets the puck so that
+    the contact turns it into the own goal (a near miss, within ``approach_clearance``, counts): the
+    nearest of :func:`dodge_points` whose way meets the puck without that, or misses it while the puck does
+    not go in by itself; None when ``target`` is fine or no such point is found."""
+    st = ctx.settings
+    distances = (st.contact_distance, st.contact_distance + st.approach_clearance)
+    samples = situation.samples_until(np.inf)
+    meeting = way_meeting(target, samples, ctx, distances)
+    if meeting is None or not turns_in(meeting, ctx):
+        return None
+    alone = None
+    for point in dodge_points(target, ctx):
+        meeting = way_meeting(point, samples, ctx, distances)
+        if meeting is not None:
+            if not turns_in(meeting, ctx):
+                return point
+            continue
+        if alone is None:
+            alone = enters_goal_alone(situation, ctx)
+        if not alone:
+            return point
+    return None
+
+
 class Ready(Tactic):
     tactic = READY
 
     def propose(self, situation, ctx: Context) -> Proposal | None:
+        point, reason = self._waiting_point(situation, ctx)
+        if ctx.settings.ready_checks_way and situation is not None and ctx.mallet is not None:
+            dodge = off_the_way(ctx.reach.clamp(point), situation, ctx)
+            if dodge is not None:
+                point, reason = dodge, reason + "; off the way that would turn the puck into the own goal"
+        return reach_proposal(READY, point, ctx, reason)
+
+    @staticmethod
+    def _waiting_point(situation, ctx: Context) -> tuple[np.ndarray, str]:
         st = ctx.settings
         ready = st.point(st.ready_point)
         if situation is None or situation.puck[0] + st.table.length / 2 >= st.ready_guard_depth:
-            return reach_proposal(READY, ready, ctx, "waiting at the ready point")
+            return ready, "waiting at the ready point"
         puck, gap = situation.puck[:2], st.contact_distance + st.approach_clearance
         guard = guard_point(puck, gap, ctx) if situation.speed <= st.ready_guard_speed else None
         if guard is not None:
-            return reach_proposal(READY, guard, ctx,
-                                  f"guarding the goal from the puck at ({puck[0]:.2f}, {puck[1]:.2f})")
+            return guard, f"guarding the goal from the puck at ({puck[0]:.2f}, {puck[1]:.2f})"
         path = situation.samples_until(np.inf)[1][:, :2]
         clear = clear_of(ready, path, gap, ctx.reach.region.x_max)
-        return reach_proposal(READY, clear, ctx, "waiting at the ready point" if clear[0] == ready[0] else
-                              f"waiting in front of the puck at ({puck[0]:.2f}, {puck[1]:.2f}), clear of it")
+        return clear, ("waiting at the ready point" if clear[0] == ready[0] else
+                       f"waiting in front of the puck at ({puck[0]:.2f}, {puck[1]:.2f}), clear of it")

@@ -21,6 +21,8 @@ class TacticsSettings:
     ready_point: tuple[float, float]
     ready_guard_depth: float
     ready_guard_speed: float
+    ready_checks_way: bool
+    ready_dodge_steps: int
     home_point: tuple[float, float]
     smash_depth: tuple[float, float]
     smash_rim_margin: float
