@@ -2,7 +2,9 @@
 
 Plays random puck episodes through the tactics of one robot the way the node does: at every mocap
 frame (120 Hz) the tracker's 1 s prediction of the puck model (what ``puck/prediction`` carries) is
-turned into a situation and the state machine decides; every command is answered "accepted" at once.
+turned into a situation and the state machine decides; every command is answered "accepted" at once,
+and the mallet is taken to be at rest where the last one put it (at the ready point when an episode
+starts), so the checks that need the mallet (a strike's approach, Ready's way) are timed too.
 Episodes: a puck at rest or slow on the own half (Smash, Prepare), shots at the own goal straight and
 off the rims (Repel, Cut), and pucks leaving (Ready). Prints the decision time (mean, p99, max), the
 situation building time, the decisions per tactic, and, as a machine-independent figure, the p99 in
@@ -64,7 +66,7 @@ def run(args: argparse.Namespace) -> int:
     from air_hockey_agent.start_up import freeze_start_up
     from air_hockey_agent.tracker_params import load_tracker_params
     selector, _ = build_selector(load_agent_params(), ROBOT)
-    model = selector.shots.model
+    model, ready = selector.shots.model, selector.s.point(selector.s.ready_point)
     settings = PuckEKF.from_params(load_tracker_params()).settings  # the tracker's prediction, as it publishes it
     rng = np.random.default_rng(args.seed)
     freeze_start_up()  # as the tactics node does once it stands
@@ -73,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     for e in range(args.episodes):
         state = random_episode(rng, model.table.length, model.table.width)
         selector.force(None)  # a fresh episode: nothing sent, nothing blocked
-        t = 0.0
+        mallet, t = ready.copy(), 0.0
         while t < EPISODE:
             w0 = time.perf_counter()
             pred = predict_fast(model, state, settings.p0, HORIZON, FRAME, settings.q, sample_every=SAMPLE_EVERY,
@@ -83,7 +85,7 @@ def run(args: argparse.Namespace) -> int:
             sit = build_situation(ROBOT, t, state, [t + s[0] for s in pred.samples], np.array([s[1] for s in pred.samples]),
                                   [(t + i[0], i[2], i[3]) for i in pred.impacts])
             w2 = time.perf_counter()
-            decision = selector.step(t, RUNNING, sit)
+            decision = selector.step(t, RUNNING, sit, mallet, np.zeros(2))
             w3 = time.perf_counter()
             predict_ms.append((w1 - w0) * 1e3)
             build_ms.append((w2 - w1) * 1e3)
@@ -92,6 +94,7 @@ def run(args: argparse.Namespace) -> int:
             if decision.command is not None:
                 commands += 1
                 selector.on_status(t, ACCEPTED, math.nan, t)
+                mallet = selector.reach.clamp(decision.command.point)
             state = model.step(state, FRAME, with_jacobian=False).state
             t += FRAME
         progress(e + 1, args.episodes)
