@@ -32,6 +32,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
               "puck so as to turn it into the own goal"),
     ParamSpec("ready_dodge_steps", int, "steps of a contact distance plus approach_clearance the waiting point "
               "may move to get off such a way (in y either way and away from the goal)", 0, 10),
+    ParamSpec("ready_blocks", bool, "a puck whose prediction goes into the own goal, which no other tactic "
+              "takes, is blocked: the mallet waits on its path where it meets it head-on"),
     ParamSpec("home_point", list, "[m] depth, y of the home point (pause)", -1.0, 1.0, 2),
     ParamSpec("smash_depth", list, "[m] depth range of the smash area", 0.0, 1.0, 2),
     ParamSpec("smash_rim_margin", float, "[m] smash area distance from the long rims beyond the puck radius", 0.0, 0.5),

@@ -55,6 +55,14 @@ def selector(settings, model):
     return TacticsSelector(settings, reach, ShotPredictor(model, settings, DT, reach.max_speed))
 
 
+def selector_with(model, settings, **changes) -> TacticsSelector:
+    """A selector like the fixture's with ``changes`` to the settings (e.g. a switch off)."""
+    from dataclasses import replace
+    changed = replace(settings, **changes)
+    reach = flat_reach(changed)
+    return TacticsSelector(changed, reach, ShotPredictor(model, changed, DT, reach.max_speed))
+
+
 def situation(model, state, t0=0.0, robot="iiwa_front", horizon=1.0):
     """What the tracker would publish for a table-frame ``state``: its own model's prediction."""
     pred = predict_fast(model, np.asarray(state, float), None, horizon, DT, np.zeros(6), sample_every=6)
@@ -662,8 +670,10 @@ def test_ready_moves_off_a_way_that_would_turn_the_puck_into_the_own_goal(select
     assert selector.reach.region.contains(d.command.point)
 
 
-def test_ready_stays_on_a_way_whose_meeting_sends_the_puck_away(selector, model, settings):
-    """A slow puck coming at the waiting mallet from the front is met there and sent back: no dodge."""
+def test_ready_stays_on_a_way_whose_meeting_sends_the_puck_away(model, settings):
+    """A slow puck coming at the waiting mallet from the front is met there and sent back: no dodge (and,
+    without ``ready_blocks``, which would go to meet it on its path, no block)."""
+    selector = selector_with(model, settings, ready_blocks=False)
     ready = settings.point(settings.ready_point)
     sit = situation(model, [ready[0] + 0.3, 0.0, -0.4, 0.0, 0, 0])
     selector.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}  # only Ready left
@@ -673,15 +683,64 @@ def test_ready_stays_on_a_way_whose_meeting_sends_the_puck_away(selector, model,
     np.testing.assert_allclose(d.command.point, ready)
 
 
+def _into_the_goal(settings, depth, y, speed):
+    """A table-frame puck ``depth`` [m] from the own goal line at ``y`` [m], heading at ``speed`` [m/s] for
+    the goal's centre."""
+    x0 = -settings.table.length / 2
+    d = np.array([-depth, -y]) / math.hypot(depth, y)
+    return [x0 + depth, y, *(speed * d), 0, 0]
+
+
+def test_ready_blocks_a_puck_going_into_the_goal_on_its_path(selector, model, settings):
+    """A slow puck behind the defend line heading into the goal, which no other tactic takes: the mallet
+    waits on its predicted path, inside its region, where its way meets the puck and the contact, by the
+    step-by-step reference predictor, keeps it out."""
+    ready = settings.point(settings.ready_point)
+    sit = situation(model, _into_the_goal(settings, 0.17, 0.25, 0.3))
+    selector.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}  # only Ready left
+    d = selector.step(0.0, RUNNING, sit, ready, np.zeros(2))
+    assert d.tactic == READY and d.reason.startswith("blocking"), d.reason
+    p = d.command.point
+    assert path_gap(np.vstack([sit.puck[:2], sit.states[:, :2]]), p) < 1e-9  # on the predicted path
+    assert selector.reach.region.contains(p)
+    assert _met(p, sit, selector, ready, np.zeros(2)) and not _turned_in(p, sit, selector, ready, np.zeros(2))
+    waiting = settings.point(settings.ready_point)
+    assert _met(waiting, sit, selector, ready, np.zeros(2)) is False  # at the ready point it would pass by
+
+
+def test_ready_does_not_block_a_puck_that_stays_out(selector, model, settings):
+    ready = settings.point(settings.ready_point)
+    x0 = -settings.table.length / 2
+    for state in ([x0 + 0.17, 0.3, -0.05, 0.3, 0, 0],  # sliding toward the side rim
+                  _into_the_goal(settings, 0.6, 0.0, 0.0)):  # at rest
+        fresh = TacticsSelector(settings, selector.reach, selector.shots)
+        fresh.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}
+        d = fresh.step(0.0, RUNNING, situation(model, state), ready, np.zeros(2))
+        assert d.tactic == READY and not d.reason.startswith("blocking"), (state, d.reason)
+
+
+def _met(point, sit, selector, mallet, velocity, now=0.0) -> bool:
+    from air_hockey_agent.core.game.tactics.ready import way_meeting
+    from air_hockey_agent.core.game.tactics.base import Context
+    st = selector.s
+    ctx = Context(now, st, selector.reach, selector.shots, np.asarray(mallet, float), np.asarray(velocity, float))
+    return way_meeting(np.asarray(point, float), sit.samples_until(np.inf), ctx, (st.contact_distance,)) is not None
+
+
 def test_ready_checks_way_off_keeps_the_waiting_point(model, settings):
-    from dataclasses import replace
-    off = replace(settings, ready_checks_way=False)
-    reach = flat_reach(off)
-    fresh = TacticsSelector(off, reach, ShotPredictor(model, off, DT, reach.max_speed))
+    fresh = selector_with(model, settings, ready_checks_way=False)
     x0 = -settings.table.length / 2
     ready = settings.point(settings.ready_point)
     d = fresh.step(0.0, RUNNING, situation(model, [x0 + 0.13, -0.45, -0.1, 1.8, 0, 0]), ready, np.zeros(2))
     assert d.tactic == READY and "off the way" not in d.reason
+
+
+def test_ready_blocks_off_keeps_the_waiting_point(model, settings):
+    fresh = selector_with(model, settings, ready_blocks=False)
+    fresh.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}
+    ready = settings.point(settings.ready_point)
+    d = fresh.step(0.0, RUNNING, situation(model, _into_the_goal(settings, 0.17, 0.25, 0.3)), ready, np.zeros(2))
+    assert d.tactic == READY and not d.reason.startswith("blocking"), d.reason
 
 
 def test_the_back_robot_plays_in_its_own_frame(selector, model):
@@ -766,13 +825,10 @@ def test_a_slow_puck_leaving_the_smash_area_toward_the_line_is_smashed_beyond_it
     """A puck at 0.2 m/s leaving the smash area toward the centre line is smashed where it will be, beyond the
     area's far edge and still moving (faster than static_speed); held to a puck at rest there (the rule
     before beyond_smash_speed), the robot waits while it creeps on into the neutral zone."""
-    import dataclasses
     start = [settings.x_at_depth(0.6), 0.05, 0.2, 0.02, 0.0, 0.0]
     decisions = {}
     for beyond in (settings.static_speed, settings.smash_puck_speed):
-        st = dataclasses.replace(settings, beyond_smash_speed=beyond)
-        reach = flat_reach(st)
-        sel = TacticsSelector(st, reach, ShotPredictor(model, st, DT, reach.max_speed))
+        sel = selector_with(model, settings, beyond_smash_speed=beyond)
         sit = situation(model, start, horizon=1.5)
         decisions[beyond] = (sel.step(0.0, RUNNING, sit), sit)
     assert decisions[settings.static_speed][0].tactic == READY
@@ -901,13 +957,10 @@ def test_a_kept_cut_whose_contact_now_turns_the_puck_into_the_own_goal_is_droppe
     """A game's own goal: a fast puck after a rim impact, predicted to pass the parked mallet's side, meets
     it glancing and goes into the goal (the Cut under way had been kept, its re-plan refused). With
     keep_checks_outcome the command is no longer kept (the selector re-decides); a puck met head-on is."""
-    from dataclasses import replace
     glancing = situation(model, [-0.331, 0.422, -2.32, -2.06, 0, 0], horizon=0.6)
     head_on = situation(model, [-0.30, -0.09, -2.0, 0.0, 0, 0], horizon=0.6)
     for checks, kept_glancing in ((True, False), (False, True)):
-        st = replace(settings, keep_checks_outcome=checks)
-        reach = flat_reach(st)
-        selector = TacticsSelector(st, reach, ShotPredictor(model, st, DT, reach.max_speed))
+        selector = selector_with(model, settings, keep_checks_outcome=checks)
         for sit, kept in ((glancing, kept_glancing), (head_on, True)):
             selector.executing = _parked_cut(sit)
             assert (selector._still_valid(0.0, sit) is not None) == kept, (checks, sit.puck)

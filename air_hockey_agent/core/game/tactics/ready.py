@@ -119,12 +119,50 @@ def off_the_way(target: np.ndarray, situation, ctx: Context) -> np.ndarray | Non
     return None
 
 
+def heading_in(situation, ctx: Context) -> bool:
+    """The puck goes into the own goal by itself: its prediction crosses the own goal line inside the goal
+    mouth, or, still moving toward the goal at the prediction's end (a slow puck takes longer than the
+    horizon), its last sample carried on in a straight line would (:meth:`Situation.expected`'s
+    extrapolation; the damping would only slow it)."""
+    if enters_goal_alone(situation, ctx):
+        return True
+    last = situation.states[-1] if len(situation.states) else situation.puck
+    line = -ctx.shots.line
+    if last[2] >= 0.0 or last[0] <= line:
+        return False
+    return abs(last[1] + last[3] * (line - last[0]) / last[2]) < ctx.shots.mouth
+
+
+def block_point(situation, ctx: Context) -> np.ndarray | None:
+    """Where the mallet waits to keep out a puck that goes into the own goal by itself (:func:`heading_in`):
+    the first predicted position of the puck (own frame [m]) inside the arm's region from which the
+    mallet's way (:func:`way_meeting`) meets the puck without turning it in (met head-on on its path, it goes
+    back out); None when the puck does not go in or no such position is found."""
+    if not heading_in(situation, ctx):
+        return None
+    st, samples = ctx.settings, situation.samples_until(np.inf)
+    distances = (st.contact_distance, st.contact_distance + st.approach_clearance)
+    for state in samples[1]:
+        point = state[:2]
+        if not ctx.reach.region.contains(point):
+            continue
+        meeting = way_meeting(point, samples, ctx, distances)
+        if meeting is not None and not turns_in(meeting, ctx):
+            return point
+    return None
+
+
 class Ready(Tactic):
     tactic = READY
 
     def propose(self, situation, ctx: Context) -> Proposal | None:
+        known = situation is not None and ctx.mallet is not None
+        block = block_point(situation, ctx) if known and ctx.settings.ready_blocks else None
+        if block is not None:
+            return reach_proposal(READY, block, ctx, f"blocking the puck's way into the goal at "
+                                                     f"({block[0]:.2f}, {block[1]:.2f})")
         point, reason = self._waiting_point(situation, ctx)
-        if ctx.settings.ready_checks_way and situation is not None and ctx.mallet is not None:
+        if ctx.settings.ready_checks_way and known:
             dodge = off_the_way(ctx.reach.clamp(point), situation, ctx)
             if dodge is not None:
                 point, reason = dodge, reason + "; off the way that would turn the puck into the own goal"

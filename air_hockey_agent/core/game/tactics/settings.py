@@ -23,6 +23,7 @@ class TacticsSettings:
     ready_guard_speed: float
     ready_checks_way: bool
     ready_dodge_steps: int
+    ready_blocks: bool
     home_point: tuple[float, float]
     smash_depth: tuple[float, float]
     smash_rim_margin: float
