@@ -7,9 +7,11 @@ until the puck's predicted path passes clear of it (:func:`clear_of`). In in-pro
 31-46, 60 s) 4 of 8 goals had been such pucks, met from behind by the waiting mallet or crept into the
 goal mouth past it (README "Tactics and the game").
 
-With ``ready_checks_way`` the waiting point is then judged by its outcome: when the mallet's way to it
-meets the predicted puck so that the contact sends the puck into the own goal, the mallet waits at the
-nearest other point whose way does not (:func:`off_the_way`).
+With ``ready_blocks``, a puck going into the own goal by itself, which no other tactic takes, is met on
+its path where the contact keeps it out (:func:`block_point`). With ``ready_checks_way`` the waiting point
+is judged by its outcome: when the mallet's way to it meets the predicted puck so that the contact sends
+the puck into the own goal, the mallet waits at the nearest other point whose way does not
+(:func:`off_the_way`).
 """
 from __future__ import annotations
 
@@ -68,6 +70,11 @@ def way_meeting(target: np.ndarray, samples: tuple[np.ndarray, np.ndarray], ctx:
     return None
 
 
+def meeting_distances(st) -> tuple[float, float]:
+    """The distances [m] :func:`way_meeting` tries: a contact, then a near miss within ``approach_clearance``."""
+    return st.contact_distance, st.contact_distance + st.approach_clearance
+
+
 def turns_in(meeting: tuple[np.ndarray, np.ndarray, np.ndarray], ctx: Context) -> bool:
     """The contact of a :func:`way_meeting` sends the puck into the own goal (:meth:`ShotPredictor.contact`)."""
     st = ctx.settings
@@ -99,9 +106,7 @@ def off_the_way(target: np.ndarray, situation, ctx: Context) -> np.ndarray | Non
     the contact turns it into the own goal (a near miss, within ``approach_clearance``, counts): the
     nearest of :func:`dodge_points` whose way meets the puck without that, or misses it while the puck does
     not go in by itself; None when ``target`` is fine or no such point is found."""
-    st = ctx.settings
-    distances = (st.contact_distance, st.contact_distance + st.approach_clearance)
-    samples = situation.samples_until(np.inf)
+    distances, samples = meeting_distances(ctx.settings), situation.samples_until(np.inf)
     meeting = way_meeting(target, samples, ctx, distances)
     if meeting is None or not turns_in(meeting, ctx):
         return None
@@ -140,8 +145,7 @@ def block_point(situation, ctx: Context) -> np.ndarray | None:
     back out); None when the puck does not go in or no such position is found."""
     if not heading_in(situation, ctx):
         return None
-    st, samples = ctx.settings, situation.samples_until(np.inf)
-    distances = (st.contact_distance, st.contact_distance + st.approach_clearance)
+    distances, samples = meeting_distances(ctx.settings), situation.samples_until(np.inf)
     for state in samples[1]:
         point = state[:2]
         if not ctx.reach.region.contains(point):
