@@ -163,6 +163,12 @@ class ShotPredictor:
                     np.asarray(mallet_velocity, float), pred.state[:2].copy(), 0.0 in pred.crossings,
                     scored, state, bool(pred.impacts))
 
+    def turns_in(self, puck: np.ndarray, normal: np.ndarray, mallet_velocity: np.ndarray) -> bool:
+        """A contact (as :meth:`contact`, followed as Prepare's pushes are: to ``prepare_end_speed``, at most
+        ``prepare_horizon``) sends the puck into the own goal: what a kept command's and a waiting mallet's
+        meetings with the puck are judged by."""
+        return self.contact(puck, normal, mallet_velocity, self.s.prepare_end_speed, self.s.prepare_horizon).enters_goal
+
     def _after(self, puck: np.ndarray, mallet_velocity: np.ndarray, normal: np.ndarray) -> np.ndarray:
         """The puck's state right after a contact (:func:`puck_after_contact`), its angle set to 0 (the
         prediction does not need it)."""

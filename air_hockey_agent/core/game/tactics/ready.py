@@ -75,12 +75,6 @@ def meeting_distances(st) -> tuple[float, float]:
     return st.contact_distance, st.contact_distance + st.approach_clearance
 
 
-def turns_in(meeting: tuple[np.ndarray, np.ndarray, np.ndarray], ctx: Context) -> bool:
-    """The contact of a :func:`way_meeting` sends the puck into the own goal (:meth:`ShotPredictor.contact`)."""
-    st = ctx.settings
-    return ctx.shots.contact(*meeting, st.prepare_end_speed, st.prepare_horizon).enters_goal
-
-
 def enters_goal_alone(situation, ctx: Context) -> bool:
     """The puck's prediction crosses the own goal line inside the goal mouth."""
     crossing = situation.crossing(-ctx.shots.line)
@@ -108,13 +102,13 @@ def off_the_way(target: np.ndarray, situation, ctx: Context) -> np.ndarray | Non
     not go in by itself; None when ``target`` is fine or no such point is found."""
     distances, samples = meeting_distances(ctx.settings), situation.samples_until(np.inf)
     meeting = way_meeting(target, samples, ctx, distances)
-    if meeting is None or not turns_in(meeting, ctx):
+    if meeting is None or not ctx.shots.turns_in(*meeting):
         return None
     alone = None
     for point in dodge_points(target, ctx):
         meeting = way_meeting(point, samples, ctx, distances)
         if meeting is not None:
-            if not turns_in(meeting, ctx):
+            if not ctx.shots.turns_in(*meeting):
                 return point
             continue
         if alone is None:
@@ -141,8 +135,9 @@ def heading_in(situation, ctx: Context) -> bool:
 def block_point(situation, ctx: Context) -> np.ndarray | None:
     """Where the mallet waits to keep out a puck that goes into the own goal by itself (:func:`heading_in`):
     the first predicted position of the puck (own frame [m]) inside the arm's region from which the
-    mallet's way (:func:`way_meeting`) meets the puck without turning it in (met head-on on its path, it goes
-    back out); None when the puck does not go in or no such position is found."""
+    mallet's way (:func:`way_meeting`) meets the puck without turning it in (:meth:`ShotPredictor.turns_in`;
+    met head-on on its path, it goes back out); None when the puck does not go in or no such position is
+    found."""
     if not heading_in(situation, ctx):
         return None
     distances, samples = meeting_distances(ctx.settings), situation.samples_until(np.inf)
@@ -151,7 +146,7 @@ def block_point(situation, ctx: Context) -> np.ndarray | None:
         if not ctx.reach.region.contains(point):
             continue
         meeting = way_meeting(point, samples, ctx, distances)
-        if meeting is not None and not turns_in(meeting, ctx):
+        if meeting is not None and not ctx.shots.turns_in(*meeting):
             return point
     return None
 

@@ -227,8 +227,7 @@ class TacticsSelector:
         if path_gap(path, p.puck) > st.contact_distance:
             return None
         meeting = first_meeting(p, situation, st.contact_distance, end) if st.keep_checks_outcome else None
-        if meeting is not None and self.shots.contact(*meeting, p.velocity, st.prepare_end_speed,
-                                                      st.prepare_horizon).enters_goal:
+        if meeting is not None and self.shots.turns_in(*meeting, p.velocity):
             return None
         return p
 
