@@ -134,7 +134,7 @@ def approach_clear(puck: np.ndarray, hit_point: np.ndarray, velocity: np.ndarray
         return True
     speed = float(np.linalg.norm(velocity))
     way = np.array([ctx.mallet, ctx.reach.run_up_start(hit_point, velocity / speed, speed)], float)
-    return path_gap(way, puck[:2]) >= ctx.settings.contact_distance + ctx.settings.approach_clearance
+    return path_gap(way, puck[:2]) >= ctx.settings.clear_distance
 
 
 def self_timed_hit_time(tactic: int, ctx: Context) -> float:

@@ -72,7 +72,7 @@ def way_meeting(target: np.ndarray, samples: tuple[np.ndarray, np.ndarray], ctx:
 
 def meeting_distances(st) -> tuple[float, float]:
     """The distances [m] :func:`way_meeting` tries: a contact, then a near miss within ``approach_clearance``."""
-    return st.contact_distance, st.contact_distance + st.approach_clearance
+    return st.contact_distance, st.clear_distance
 
 
 def enters_goal_alone(situation, ctx: Context) -> bool:
@@ -87,7 +87,7 @@ def dodge_points(target: np.ndarray, ctx: Context) -> list[np.ndarray]:
     puck's path is clear of it), ``ready_dodge_steps`` of them in y either way and away from the goal, one
     toward it, within the arm's region."""
     st = ctx.settings
-    step, n = st.contact_distance + st.approach_clearance, st.ready_dodge_steps
+    step, n = st.clear_distance, st.ready_dodge_steps
     points = [ctx.reach.clamp(target + step * np.array([i, j], float))
               for i in range(-1, n + 1) for j in range(-n, n + 1) if i or j]
     points.append(ctx.reach.clamp(ctx.mallet))
@@ -173,7 +173,7 @@ class Ready(Tactic):
         ready = st.point(st.ready_point)
         if situation is None or situation.puck[0] + st.table.length / 2 >= st.ready_guard_depth:
             return ready, "waiting at the ready point"
-        puck, gap = situation.puck[:2], st.contact_distance + st.approach_clearance
+        puck, gap = situation.puck[:2], st.clear_distance
         guard = guard_point(puck, gap, ctx) if situation.speed <= st.ready_guard_speed else None
         if guard is not None:
             return guard, f"guarding the goal from the puck at ({puck[0]:.2f}, {puck[1]:.2f})"

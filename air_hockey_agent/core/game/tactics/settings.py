@@ -99,6 +99,12 @@ class TacticsSettings:
         """Puck and mallet centres touch at this distance [m]."""
         return self.table.puck_radius + self.mallet_radius
 
+    @property
+    def clear_distance(self) -> float:
+        """A mallet this far [m] from the puck's centre (a contact distance plus ``approach_clearance``) is
+        clear of it."""
+        return self.contact_distance + self.approach_clearance
+
     def in_smash_area(self, x: float, y: float) -> bool:
         depth = x + self.table.length / 2
         return (self.smash_depth[0] <= depth <= self.smash_depth[1]
