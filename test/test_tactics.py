@@ -10,7 +10,7 @@ from air_hockey_agent.agent_params import load_agent_params, puck_model_for_tact
 from air_hockey_agent.paths import config_file
 from air_hockey_agent.tracker_params import SIM_TABLE_FILE
 from air_hockey_agent.core.game.arm_reach import ArmReach
-from air_hockey_agent.core.game.shots import ShotPredictor, puck_after_hit
+from air_hockey_agent.core.game.shots import ShotPredictor, puck_after_contact, puck_after_hit
 from air_hockey_agent.core.game.situation import build_situation, own_frame_physics, to_own_frame
 from air_hockey_agent.core.game.speed_map import SpeedMap
 from air_hockey_agent.core.game.tactics.base import (CUT, HOME, INIT, PREPARE, READY, REPEL, SMASH, Proposal,
@@ -828,7 +828,7 @@ def test_a_slow_puck_leaving_the_smash_area_toward_the_line_is_smashed_beyond_it
     start = [settings.x_at_depth(0.6), 0.05, 0.2, 0.02, 0.0, 0.0]
     decisions = {}
     for beyond in (settings.static_speed, settings.smash_puck_speed):
-        sel = selector_with(model, settings, beyond_smash_speed=beyond)
+        sel = selector_with(model, settings, beyond_smash_speed=beyond, smash_chase_speed=0.0)
         sit = situation(model, start, horizon=1.5)
         decisions[beyond] = (sel.step(0.0, RUNNING, sit), sit)
     assert decisions[settings.static_speed][0].tactic == READY
@@ -837,6 +837,63 @@ def test_a_slow_puck_leaving_the_smash_area_toward_the_line_is_smashed_beyond_it
     at_hit = sit.expected(smash.command.time, settings.drift_speed)
     assert settings.beyond_smash_area(smash.command.puck[0])
     assert math.hypot(at_hit[2], at_hit[3]) > settings.static_speed
+
+
+def test_a_puck_leaving_faster_than_smash_puck_speed_is_chased_and_the_shot_scores(model, settings):
+    """A puck sliding away from the own goal at 0.9 m/s, still too fast for smash_puck_speed at the hit time,
+    is smashed with smash_chase_speed (where the prediction puts it then, moving); the contact the command
+    makes (the mallet's velocity on the moving puck) sends it into the opponent's goal by the step-by-step
+    reference predictor. With the chase off (0) the robot waits while it leaves; a puck coming at the goal
+    as fast, or leaving from behind the mallet (it would cross the mallet's way), is not chased."""
+    start = [settings.x_at_depth(0.3), -0.1, 0.85, 0.25, 0.0, 0.0]
+    sit = situation(model, start, horizon=1.5)
+    ready = settings.point(settings.ready_point)
+    chased = selector_with(model, settings).step(0.0, RUNNING, sit, ready, np.zeros(2))
+    assert chased.tactic == SMASH and chased.command is not None, chased.reason
+    c = chased.command
+    at_hit = sit.expected(c.time, settings.drift_speed)
+    assert math.hypot(at_hit[2], at_hit[3]) > settings.smash_puck_speed
+    assert np.allclose(c.puck, at_hit[:2])
+    normal = (at_hit[:2] - c.point) / np.linalg.norm(at_hit[:2] - c.point)
+    after = puck_after_contact(at_hit, c.velocity, normal, settings.mallet_restitution, settings.mallet_friction,
+                               model.table.puck_radius)
+    line = settings.table.length / 2 - model.table.puck_radius
+    path = predict_stepwise(model, after, None, settings.shot_horizon, DT, np.zeros(6), sample_every=1)
+    crossing = next(s for _, s, _ in path.samples if s[0] >= line - 0.01)
+    assert abs(crossing[1]) < model.table.goal_mouth
+    off = selector_with(model, settings, smash_chase_speed=0.0).step(0.0, RUNNING, sit, ready, np.zeros(2))
+    assert off.tactic == READY
+    for state in ([settings.x_at_depth(0.6), -0.1, -0.85, 0.25, 0.0, 0.0],   # coming
+                  [settings.x_at_depth(0.08), 0.2, 0.85, -0.25, 0.0, 0.0]):  # leaving from behind the mallet
+        decision = selector_with(model, settings).step(0.0, RUNNING, situation(model, state, horizon=1.5), ready,
+                                                       np.zeros(2))
+        assert decision.tactic != SMASH, state
+
+
+def test_a_smash_whose_way_to_the_strike_meets_a_puck_leaving_from_behind_the_mallet_is_not_played(model, settings):
+    """A puck at 0.3 m/s leaving from behind the waiting mallet along the table's axis: judged against the puck
+    at the hit time only, a straight smash is played, and the mallet's way to its run-up start (the planner's
+    reach) meets the puck on its path (the step-by-step reference predictor) before the strike; with
+    smash_checks_way no such smash is played. A puck ahead of the mallet is still smashed with the check."""
+    ready = settings.point(settings.ready_point)
+    start = [settings.x_at_depth(0.05), 0.0, 0.3, 0.0, 0.0, 0.0]
+    sit = situation(model, start, horizon=1.5)
+    unchecked = selector_with(model, settings, smash_checks_way=False)
+    blind = unchecked.step(0.0, RUNNING, sit, ready, np.zeros(2))
+    assert blind.tactic == SMASH, blind.reason
+    c = blind.command
+    speed = float(np.linalg.norm(c.velocity))
+    run_up = unchecked.reach.run_up_start(c.point, c.velocity / speed, speed)
+    strike_start = c.time - 2.0 * float(np.linalg.norm(c.point - run_up)) / speed
+    path = predict_stepwise(model, np.asarray(start, float), None, strike_start, DT, np.zeros(6), sample_every=1)
+    times = np.array([t for t, _, _ in path.samples])
+    puck = np.array([s[:2] for _, s, _ in path.samples])
+    way, _ = unchecked.reach.reach_way(ready, np.zeros(2), run_up, times)
+    assert np.min(np.hypot(*(puck - way).T)) < settings.contact_distance
+    checked = selector_with(model, settings).step(0.0, RUNNING, sit, ready, np.zeros(2))
+    assert checked.tactic != SMASH, checked.reason
+    ahead = situation(model, [settings.x_at_depth(0.4), 0.0, 0.3, 0.0, 0.0, 0.0], horizon=1.5)
+    assert selector_with(model, settings).step(0.0, RUNNING, ahead, ready, np.zeros(2)).tactic == SMASH
 
 
 def test_a_prepare_re_aimed_at_a_creeping_puck_keeps_its_hit_time(selector, model, settings):

@@ -8,9 +8,9 @@ Every decision period the selector looks at the referee's status and the tracker
   re-decides at once. S locked every switch for 1.5 s (REFERENCE_FACTS 8.9); here a tactic changes as
   soon as the predicted situation does.
 * Re-deciding tries the tactics whose entry conditions hold, in priority order, and plays the first
-  that proposes a command: **Smash** (slow puck predicted in the smash area), **Repel** (puck straight
-  at the goal, no rim impact), **Cut** (any other approach with time to get there), **Prepare** (puck at
-  rest outside the smash area), else **Ready**.
+  that proposes a command: **Smash** (slow puck predicted in the smash area, or one moving away from the
+  goal, chased), **Repel** (puck straight at the goal, no rim impact), **Cut** (any other approach with
+  time to get there), **Prepare** (puck at rest outside the smash area), else **Ready**.
 * The trajectory generator's answer steers the next try: "faster than the arm allows" caps the speed
   at the reported maximum, "beyond the joint limits" slows a self-timed hit down by ``limits_slowdown``
   (a tactic with nothing to play under its cap is blocked like a refused one),
@@ -175,7 +175,7 @@ class TacticsSelector:
         if situation is None:
             return [READY]
         st, out = self.s, []
-        if situation.speed <= st.smash_puck_speed:
+        if situation.speed <= st.smash_speed_limit(situation.puck[2] > st.approach_speed):
             out.append(SMASH)
         if situation.approaching(st.approach_speed):
             out += [REPEL, CUT]

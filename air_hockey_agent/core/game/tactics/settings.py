@@ -31,6 +31,9 @@ class TacticsSettings:
     drift_speed: float
     smash_puck_speed: float
     beyond_smash_speed: float
+    smash_chase_speed: float
+    smash_chase_lead: float
+    smash_checks_way: bool
     approach_speed: float
     min_plan_time: float
     repel_time: tuple[float, float]
@@ -109,6 +112,22 @@ class TacticsSettings:
         depth = x + self.table.length / 2
         return (self.smash_depth[0] <= depth <= self.smash_depth[1]
                 and abs(y) <= self.table.y_limit - self.smash_rim_margin)
+
+    def smash_speed_limit(self, chased: bool) -> float:
+        """The fastest [m/s] a puck may move at the hit time to be smashed: ``smash_puck_speed``, or for a
+        chased puck (:func:`~air_hockey_agent.core.game.tactics.smash.chased`) ``smash_chase_speed`` when
+        that is larger."""
+        return max(self.smash_puck_speed, self.smash_chase_speed) if chased else self.smash_puck_speed
+
+    def smashable(self, puck: np.ndarray, chased: bool = False) -> bool:
+        """A puck with own-frame state ``puck`` at the hit time may be smashed: no faster than
+        :meth:`smash_speed_limit`, and in the smash area, or beyond it (toward the centre line) and no faster
+        than ``beyond_smash_speed`` there (a chased puck: than the larger of the two)."""
+        speed, limit = float(np.hypot(puck[2], puck[3])), self.smash_speed_limit(chased)
+        if speed > limit:
+            return False
+        beyond = max(self.beyond_smash_speed, limit) if chased else self.beyond_smash_speed
+        return self.in_smash_area(puck[0], puck[1]) or (speed <= beyond and self.beyond_smash_area(puck[0]))
 
     def beyond_smash_area(self, x: float) -> bool:
         """Own-frame ``x`` [m] lies between the smash area's far edge and the centre line."""
