@@ -44,8 +44,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
               "[m/s] smash a puck beyond the smash area's far edge when it is this slow at the hit time", 0.0, 5.0),
     ParamSpec("smash_chase_speed", float, "[m/s] smash a puck moving away from the own goal up to this speed "
               "at the hit time (in the smash area or beyond it)", 0.0, 5.0),
-    ParamSpec("smash_chase_lead", float, "[s] a chased puck is also smashed this soon from now, or sooner than "
-              "smash_lead_time in lead_time_step steps", 0.05, 5.0),
+    ParamSpec("smash_chase_lead", float, "[s] shortest lead a chased puck's smash is planned with (tried after "
+              "smash_lead_time, lead_time_step shorter each time)", 0.05, 5.0),
     ParamSpec("smash_checks_way", bool, "a smash at a moving puck is played only when the mallet's way to the "
               "strike keeps clear of the puck's predicted path until the strike"),
     ParamSpec("approach_speed", float, "[m/s] puck approaches when vx < -this", 0.0, 1.0),
