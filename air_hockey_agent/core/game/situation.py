@@ -62,6 +62,10 @@ class Situation:
     def approaching(self, threshold: float) -> bool:
         return self.puck[2] < -threshold
 
+    def leaving(self, threshold: float) -> bool:
+        """The puck moves away from the own goal: own-frame vx above ``threshold`` [m/s]."""
+        return self.puck[2] > threshold
+
     def samples_until(self, end: float) -> tuple[np.ndarray, np.ndarray]:
         """The estimate and the predicted samples up to ``end`` [s]: their times (m,) [s, absolute] and
         states (m, 6)."""

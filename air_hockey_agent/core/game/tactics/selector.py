@@ -175,7 +175,7 @@ class TacticsSelector:
         if situation is None:
             return [READY]
         st, out = self.s, []
-        if situation.speed <= st.smash_speed_limit(situation.puck[2] > st.approach_speed):
+        if situation.speed <= st.smash_speed_limit(situation.leaving(st.approach_speed)):
             out.append(SMASH)
         if situation.approaching(st.approach_speed):
             out += [REPEL, CUT]

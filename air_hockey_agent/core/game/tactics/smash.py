@@ -99,7 +99,7 @@ def chased(situation: Situation, ctx: Context) -> bool:
     mallet crosses its way to the strike: in the Guard trials such chases hit it early and turned it into
     the goal."""
     st = ctx.settings
-    if st.smash_chase_speed <= st.smash_puck_speed or situation.puck[2] <= st.approach_speed or ctx.mallet is None:
+    if st.smash_chase_speed <= st.smash_puck_speed or not situation.leaving(st.approach_speed) or ctx.mallet is None:
         return False
     smashing = ctx.running is not None and ctx.running.tactic == SMASH
     return smashing or situation.puck[0] > ctx.mallet[0] + st.clear_distance
