@@ -40,6 +40,7 @@ STRATEGY_PARAMS = TABLE_PARAMS + (
               "mallet", 0.0, 0.5),
     ParamSpec("seed", int, "random seed of the trials' initial states", 0, 2**31 - 1),
     ParamSpec("trials", str, "the trials to run: 'strategy:index' separated by commas"),
+    ParamSpec("defended", bool, "the opponent's agent waits until the tested robot's hit, then defends"),
     ParamSpec("wall_timeout", float, "[s] wall time after which a stuck trial is given up", 1.0, 3600.0),
 )
 

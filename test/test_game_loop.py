@@ -176,6 +176,23 @@ def test_the_trackers_hand_regime_leaves_the_agents_repel_its_goals():
     assert sum(r["goal"] for r in records) >= 36, [r["index"] for r in records if not r["goal"]]
 
 
+@pytest.mark.slow  # in-process: no ROS node, about 10 s
+def test_a_defending_opponent_plays_only_after_the_hit():
+    """strategy-test --in-process --defended: the same trials, the opponent's agent held in Ready until the
+    tested robot's hit, then free. Without it the opponent holds its home pose and never touches the puck,
+    and the shots mostly score; with it, its contacts after the hit mark the trial defended, and none scores
+    (the agent's own defence: 0 of 300 smashes and 0 of 100 Repels scored in `strategy-test --in-process
+    --defended`, README "Strategy test")."""
+    from air_hockey_agent.sim.strategy_loop import run_chunk
+    trials = [("smash_straight", 0), ("smash_left", 0), ("repel", 0)]
+    alone = run_chunk(0, 0, trials)
+    defended = run_chunk(0, 0, trials, defended=True)
+    assert not any(r["defended"] for r in alone) and sum(r["goal"] for r in alone) >= 2, alone
+    assert all(r["hit"] and not r["error"] for r in defended), defended
+    assert all(r["defended"] and not r["goal"] for r in defended), defended
+    assert [r["strategy"] for r in defended] == [s for s, _ in trials]
+
+
 @pytest.mark.slow  # in-process: no ROS node
 def test_in_process_tactics_aim_with_the_trackers_physics():
     """As puck/physics in the node graph: each robot's tactics predict their shots with the one tracker's

@@ -230,3 +230,23 @@ def test_strategy_test_small_run_reports_real_hits(ros_env, tmp_path):
     assert guard["reason"] in ("left the goal's zone", "no goal in 4 s", "conceded"), guard
     leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|strategy_test|tactics|puck_tracker|trajectory_generator)"])
     assert leftovers.stdout.strip() == ""
+
+
+@pytest.mark.integration
+def test_strategy_test_with_a_defending_opponent(ros_env, tmp_path):
+    """`strategy-test --defended` in the node graph: iiwa_back's own agent nodes run, held in Ready through its
+    force_tactic until the tested robot's hit and then released; the report says so and gives how often the
+    opponent touched the puck after the hit, and every process is gone afterwards."""
+    lines_file = tmp_path / "trials.jsonl"
+    result = run([str(BIN / "air-hockey"), "strategy-test", "--strategies", "smash", "--trials", "1", "--defended",
+                  "--json", "--results", str(lines_file), "--domain-id", ros_env["ROS_DOMAIN_ID"]],
+                 env=ros_env, timeout=600)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert "iiwa_back runs the agent's defaults and defends" in result.stderr
+    report = json.loads(result.stdout.strip().splitlines()[-1])
+    assert report["defended"] is True and {"defended_rate", "success_rate"} <= set(report["smash_left"])
+    trials = [json.loads(line) for line in lines_file.read_text().splitlines()]
+    assert len(trials) == 3 and not any(t["error"] for t in trials) and all(t["hit"] for t in trials), trials
+    assert sum(t["defended"] for t in trials) >= 2, trials  # the released opponent met the shots
+    leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|strategy_test|tactics|puck_tracker|trajectory_generator)"])
+    assert leftovers.stdout.strip() == ""

@@ -161,6 +161,36 @@ def test_states_from_before_a_reported_contact_ended_are_not_a_rest_after_the_hi
     assert w.done and w.result().goal
 
 
+def test_a_shot_is_defended_when_the_opponent_touches_the_puck_after_the_hit(s):
+    """strategy-test --defended: an opponent's contact counts only after the tested robot's hit has ended
+    (before it, or in a trial without a hit, the shot was not defended); the summary reports the rate only
+    for a defended run, and its table says it."""
+    from air_hockey_agent.core.game.strategy.report import table
+    trial = make_trial("smash_straight", 0, 0, s)
+    x0, y0 = trial.state[:2]
+    early = TrialWatcher(trial, s)
+    early.state(0.0, x0, y0, 0.0, 0.0)
+    early.opponent_contact(0.5)            # before any hit
+    early.contact(0.9, 0.004)
+    early.opponent_contact(0.902)          # during the hit: not after it
+    assert early.hit and not early._result.defended
+    early.opponent_contact(1.4)
+    assert early._result.defended
+    for t, st in straight(1.41, 2.0, x0, y0, -1.0, 0.0):  # sent back: no goal, the trial ends on its own
+        early.state(t, *st)
+        if early.done:
+            break
+    stopped = early.result()
+    assert stopped.defended and not stopped.success and stopped.as_dict()["defended"]
+    scored = play(trial, s, straight(0.91, 2.0, x0, y0, 3.0, 0.0), hits=[0.9]).result()
+    assert scored.success and not scored.defended
+    records = [stopped.as_dict(), scored.as_dict()]
+    assert "defended_rate" not in summarise(records)["smash_straight"]
+    summary = summarise(records, defended=True)
+    assert summary["smash_straight"]["defended_rate"] == 0.5
+    assert "the opponent touched the puck after the hit in 50.0 %" in table(summary, 1.0).splitlines()[1]
+
+
 def test_guard_succeeds_unless_the_puck_enters_the_own_goal(s):
     """A guard trial ends at a goal conceded (failure), when the puck has left the goal's zone, or after guard_time
     (both successes); a puck at rest does not end it (the mallet may still push it in)."""
@@ -255,3 +285,5 @@ def test_strategy_test_runs_the_thesiss_four_unless_guard_is_asked_for():
     parser = build_parser()
     assert sorted(parser.parse_args(["strategy-test"]).strategies) == ["cut", "prepare", "repel", "smash"]
     assert parser.parse_args(["strategy-test", "--strategies", "guard"]).strategies == ["guard"]
+    assert not parser.parse_args(["strategy-test"]).defended  # the thesis's set-up: the opponent holds home
+    assert parser.parse_args(["strategy-test", "--defended"]).defended

@@ -8,7 +8,9 @@ puck through ``/set_puck_state`` and follows ``/sim/puck_true_state`` and ``/sim
 ends (:class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher`). Each result is printed as one line
 ``TRIAL_RESULT {json}``, with the tested robot's tactic and its reason when the trial ended
 (``<robot>/tactic``); at the end ``STRATEGY_DONE`` and the node exits. It publishes a running ``/game_status``
-(latched) so the tactics play; the opponent runs no agent and holds its home pose.
+(latched) so the tactics play; the opponent runs no agent and holds its home pose, or with ``defended`` runs
+its agent, held in Ready through ``/iiwa_back/force_tactic`` until the tested robot's first hit and released
+then; its contacts after the hit mark the trial ``defended``.
 
 The node runs on events, not on a clock: its simulated time is the stamp of the latest true puck state
 (published at every mocap tick, whether the puck moves or not), and a trial moves on when a service
@@ -34,7 +36,7 @@ from air_hockey_agent.nodes.messages import to_seconds
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.strategy_params import PARAM_FILES, STRATEGY_PARAMS, trial_settings
 
-ROBOT = "iiwa_front"
+ROBOT, OPPONENT = "iiwa_front", "iiwa_back"
 WALL_CHECK_PERIOD = 0.05  # [s] wall time between checks for the services at start and for wall_timeout
 
 
@@ -68,6 +70,8 @@ class StrategyTestNode(AirHockeyNode):
         self.reset_client = self.create_client(Trigger, "/reset_robots")
         self.puck_client = self.create_client(SetPuckState, "/set_puck_state")
         self.force_client = self.create_client(ForceTactic, f"/{ROBOT}/force_tactic")
+        self.opponent_client = self.create_client(ForceTactic, f"/{OPPONENT}/force_tactic") if p["defended"] else None
+        self.opponent_waits = False  # the opponent is held in Ready until the tested robot's hit
         self.create_subscription(PuckState, "/sim/puck_true_state", self.on_truth, 100)
         self.create_subscription(MalletContact, "/sim/contacts", self.on_contact, 100)
         self.create_subscription(TacticState, f"/{ROBOT}/tactic", self.on_tactic, latched)
@@ -88,9 +92,13 @@ class StrategyTestNode(AirHockeyNode):
         self.tactic = f"{msg.name}: {msg.reason}"
 
     def on_contact(self, msg: MalletContact) -> None:
-        if self.watcher is not None and self.phase == "run" and msg.robot == ROBOT:
-            self.watcher.contact(to_seconds(msg.header.stamp), msg.duration)
-            self.advance()
+        if self.watcher is None or self.phase != "run":
+            return
+        if msg.robot != ROBOT:
+            self.watcher.opponent_contact(to_seconds(msg.header.stamp))
+            return
+        self.watcher.contact(to_seconds(msg.header.stamp), msg.duration)
+        self.advance()
 
     # --- trial phases --------------------------------------------------------------------------
     def call(self, client, request) -> None:
@@ -106,7 +114,7 @@ class StrategyTestNode(AirHockeyNode):
         self.pending = None
         now = self.sim_time
         if self.phase == "next":
-            clients = (self.reset_client, self.puck_client, self.force_client)
+            clients = [c for c in (self.reset_client, self.puck_client, self.force_client, self.opponent_client) if c]
             if not all(c.service_is_ready() for c in clients):  # a request sent before the server is up is lost
                 if time.monotonic() - self.wall_start > self.params["wall_timeout"]:
                     missing = [c.srv_name for c in clients if not c.service_is_ready()]
@@ -125,8 +133,11 @@ class StrategyTestNode(AirHockeyNode):
             self.phase = "force"
             self.call(self.reset_client, Trigger.Request())
         elif self.phase == "force":  # wait at the ready point, as in a game, then the tested tactic
-            self.phase, self.phase_start = "ready", now
+            self.phase, self.phase_start = "force opponent" if self.opponent_client else "ready", now
             self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS["ready"]))
+        elif self.phase == "force opponent":
+            self.phase, self.opponent_waits = "ready", True
+            self.call(self.opponent_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS["ready"]))
         elif self.phase == "ready" and now - self.phase_start >= self.params["settle"]:
             self.phase = "settle"
             tactic = self.trial.tactic  # "": released to the state machine
@@ -138,7 +149,10 @@ class StrategyTestNode(AirHockeyNode):
             self.phase = "run"
             self.call(self.puck_client, SetPuckState.Request(x=x, y=y, vx=vx, vy=vy, theta=theta, omega=omega))
         elif self.phase == "run":
-            if self.watcher.done:
+            if self.opponent_waits and self.watcher.hit:
+                self.opponent_waits = False  # the shot is played: the opponent defends
+                self.call(self.opponent_client, ForceTactic.Request(force=False))
+            elif self.watcher.done:
                 self.finish_trial(None)
             elif time.monotonic() - self.wall_start > self.params["wall_timeout"]:
                 self.finish_trial(f"no outcome within {self.params['wall_timeout']:g} s of wall time")

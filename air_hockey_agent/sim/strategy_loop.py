@@ -6,7 +6,9 @@ half, the robots homed, ``iiwa_front`` waiting at its ready point for ``settle``
 states and the robot's contacts fed to the core
 :class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher` until it scores the trial. The agent,
 tracker and table are :class:`~air_hockey_agent.sim.game_loop.InProcessGame` with ``iiwa_front``'s agent only
-(the opponent holds its home pose) and no referee (always running).
+(the opponent holds its home pose) and no referee (always running). With ``defended`` the opponent runs its
+agent too (the defaults): it waits at its ready point (Ready forced) until the tested robot's first hit, then
+plays free, and its contacts after the hit mark the trial ``defended``.
 
 Trials run in chunks of ``CHUNK`` consecutive trials of the run's list, each chunk on a fresh table
 whose simulation seed is drawn from the run's seed and the chunk's number, so a trial's outcome does
@@ -22,7 +24,7 @@ from air_hockey_agent.core.game.strategy.scoring import TrialResult, TrialWatche
 from air_hockey_agent.core.game.strategy.trials import PARK, Trial, TrialSettings, make_trial
 from air_hockey_agent.core.game.tactics.base import NAMES, TACTIC_IDS
 
-ROBOT = "iiwa_front"
+ROBOT, OPPONENT = "iiwa_front", "iiwa_back"
 CHUNK = 20       # trials per fresh table
 SIM_GUARD = 5.0  # [s] of simulated time beyond the watcher's own time-outs before a trial is given up
 
@@ -37,15 +39,17 @@ def chunk_seed(seed: int, chunk: int) -> int:
     return int(np.random.SeedSequence([seed, chunk]).generate_state(1)[0] % 2 ** 31)
 
 
-def run_chunk(seed: int, chunk: int, trials: Sequence[tuple[str, int]], params_file: str = "") -> list[dict]:
+def run_chunk(seed: int, chunk: int, trials: Sequence[tuple[str, int]], params_file: str = "",
+              defended: bool = False) -> list[dict]:
     """Play ``trials`` ((strategy, index) pairs) on a fresh table; their ``--results`` records in order.
-    ``params_file``: the agent reads this variant too (``strategy-test --params-file``); the trials' initial
-    states stay those of the defaults, so a variant meets the same pucks."""
+    ``params_file``: the tested agent reads this variant too (``strategy-test --params-file``); the trials'
+    initial states stay those of the defaults, so a variant meets the same pucks. ``defended``: the opponent
+    plays (``strategy-test --defended``)."""
     from air_hockey_agent.sim.game_loop import InProcessGame
     from air_hockey_agent.strategy_params import trial_settings
     settings = trial_settings()
-    game = InProcessGame(chunk_seed(seed, chunk), robots=(ROBOT,), refereed=False,
-                         versus=(ROBOT, params_file) if params_file else None)
+    game = InProcessGame(chunk_seed(seed, chunk), robots=(ROBOT, OPPONENT) if defended else (ROBOT,),
+                         refereed=False, versus=(ROBOT, params_file) if params_file else None)
     try:
         return [play_trial(game, make_trial(name, index, seed, settings), settings) for name, index in trials]
     finally:
@@ -53,11 +57,14 @@ def run_chunk(seed: int, chunk: int, trials: Sequence[tuple[str, int]], params_f
 
 
 def play_trial(game, trial: Trial, settings: TrialSettings) -> dict:
-    """One trial on ``game`` (an InProcessGame with ``iiwa_front``'s agent); its record."""
+    """One trial on ``game`` (an InProcessGame with ``iiwa_front``'s agent, and the opponent's when it
+    defends); its record."""
     selector = game.players[ROBOT].selector
+    opponent = game.players[OPPONENT].selector if OPPONENT in game.players else None
     game.world.move_puck([*PARK, 0.0, 0.0, 0.0, 0.0])
     game.world.reset_robots()
-    selector.force(TACTIC_IDS["ready"])
+    for waiting in filter(None, (selector, opponent)):
+        waiting.force(TACTIC_IDS["ready"])
     _advance(game, settings.settle)
     selector.force(TACTIC_IDS[trial.tactic] if trial.tactic else None, trial.variant)
     watcher = TrialWatcher(trial, settings)
@@ -73,10 +80,15 @@ def play_trial(game, trial: Trial, settings: TrialSettings) -> dict:
         for contact in out.contacts:
             if contact.robot == ROBOT:
                 watcher.contact(contact.time, contact.duration)
+                if opponent is not None and opponent.forced is not None:
+                    opponent.force(None)  # the shot is played: the opponent defends
+            else:
+                watcher.opponent_contact(contact.time)
         if out.true_state is not None:
             watcher.state(out.time, *(float(v) for v in out.true_state[:4]))  # as the message carries them
     tactic = f"{NAMES[selector.current]}: {selector.reason}"
-    selector.force(TACTIC_IDS["ready"])
+    for waiting in filter(None, (selector, opponent)):
+        waiting.force(TACTIC_IDS["ready"])
     if failure is not None:
         return TrialResult(trial.strategy, trial.index, reason=failure).record(True, tactic)
     return watcher.result().record(False, tactic)

@@ -12,7 +12,9 @@ counted as failures with their reason. Prints a table next to the thesis's fig. 
 spread (fig. 5.8) as PNG. ``--in-process`` plays the trials without ROS
 (:mod:`air_hockey_agent.sim.strategy_loop`; workers are processes of this tool): a run repeats exactly,
 whatever the number of workers. ``--params-file FILE`` gives the agent a variant (its tactics' and
-trajectory generator's parameters, as ``air-hockey game --versus``) on the same trials.
+trajectory generator's parameters, as ``air-hockey game --versus``) on the same trials. ``--defended``: the
+opponent runs the agent too (the defaults), waits at its ready point until the tested robot's hit and then
+defends (ours, beyond the thesis: how often a shot beats a defender).
 """
 from __future__ import annotations
 
@@ -36,7 +38,7 @@ from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.ros_env import node_executable, ros_environment
 from air_hockey_agent.tools.argtypes import count, seed
 
-ROBOT = "iiwa_front"
+ROBOT, OPPONENT = "iiwa_front", "iiwa_back"
 GROUPS = {"smash": ("smash_straight", "smash_left", "smash_right"), "cut": ("cut",), "prepare": ("prepare",),
           "repel": ("repel",), "guard": ("guard",)}
 THESIS_GROUPS = ("smash", "cut", "prepare", "repel")  # the default: thesis sec. 4.6 (and issue #12's 15 min)
@@ -66,17 +68,24 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--params-file", type=Path, default=None, metavar="FILE",
                         help="the agent's tactics and trajectory_generator also read this ROS 2 parameter YAML "
                              "(only their parameters; the trials stay the defaults': a variant meets the same pucks)")
+    parser.add_argument("--defended", action="store_true",
+                        help=f"{OPPONENT} runs the agent (the defaults): it waits at its ready point until the tested "
+                             "robot's hit, then defends (default: it holds its home pose, as in the thesis)")
     parser.set_defaults(run=run)
 
 
-def worker_processes(trials: list[tuple[str, int]], seed: int, params_file: str = "") -> list[ProcessSpec]:
+def worker_processes(trials: list[tuple[str, int]], seed: int, params_file: str = "",
+                     defended: bool = False) -> list[ProcessSpec]:
     specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", "-p", "real_time_factor:=0.0",
                                        "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
     specs += [process(n, label=n.executable) for n in agent_nodes(ROBOT, use_sim_time=True, sim_table=True,
                                                                         variant_file=params_file)]
+    if defended:
+        specs += [process(n) for n in agent_nodes(OPPONENT, use_sim_time=True, sim_table=True)]
     trial_list = ",".join(f"{s}:{i}" for s, i in trials)
     specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args",
-                                               "-p", f"seed:={seed}", "-p", f"trials:={trial_list}"]))
+                                               "-p", f"seed:={seed}", "-p", f"trials:={trial_list}",
+                                               "-p", f"defended:={str(defended).lower()}"]))
     return specs
 
 
@@ -84,10 +93,10 @@ class Worker(threading.Thread):
     """One simulation and agent on its own ROS domain, running a list of trials."""
 
     def __init__(self, domain: int, trials: list[tuple[str, int]], seed: int, results: dict, lock: threading.Lock,
-                 on_result, log=None, params_file: str = "") -> None:
+                 on_result, log=None, params_file: str = "", defended: bool = False) -> None:
         super().__init__(daemon=True)
         self.domain, self.trials, self.seed, self.log = domain, trials, seed, log
-        self.params_file = params_file
+        self.params_file, self.defended = params_file, defended
         self.results, self.lock, self.on_result = results, lock, on_result
         self.error = ""
 
@@ -105,7 +114,7 @@ class Worker(threading.Thread):
         with tempfile.TemporaryDirectory(prefix="air_hockey_strategy_") as tmp:
             env = ros_environment(domain_id=self.domain, ros_home=Path(tmp))
             with Launcher(env, echo=None, on_line=self.on_line) as launcher:
-                for spec in worker_processes(self.trials, self.seed, self.params_file):
+                for spec in worker_processes(self.trials, self.seed, self.params_file, self.defended):
                     launcher.start(spec)
                 while True:
                     ended = launcher.wait_any_exit(timeout=1.0)
@@ -122,7 +131,7 @@ def _run_trials(pending: list[tuple[str, int]], args, results: dict, progress, t
     lock = threading.Lock()
     count = lambda: progress(len(results), total)  # noqa: E731
     shares = [pending[k::args.workers] for k in range(args.workers)]
-    workers = [Worker(domain0 + k, share, args.seed, results, lock, count, log, _variant(args))
+    workers = [Worker(domain0 + k, share, args.seed, results, lock, count, log, _variant(args), args.defended)
                for k, share in enumerate(shares) if share]
     for w in workers:
         w.start()
@@ -136,7 +145,7 @@ def _run_in_process(pending: list[tuple[str, int]], args, results: dict, progres
     from air_hockey_agent.sim.strategy_loop import chunks, run_chunk
     from air_hockey_agent.tools.worker_pool import run_in_processes
     errors: list[str] = []
-    jobs = [(args.seed, chunk, share, _variant(args)) for chunk, share in chunks(pending)]
+    jobs = [(args.seed, chunk, share, _variant(args), args.defended) for chunk, share in chunks(pending)]
 
     def store(index: int, records) -> None:
         if isinstance(records, Exception):  # its trials are run once more, then counted as failures
@@ -185,6 +194,8 @@ def run(args: argparse.Namespace) -> int:
     prepare_for_nodes(say)
     if args.params_file is not None:
         say(f"the agent also reads {args.params_file}")
+    if args.defended:
+        say(f"{OPPONENT} runs the agent's defaults and defends after the tested robot's hit")
     keys = [k for group in sorted(args.strategies) for k in GROUPS[group]]
     trials = [(k, i) for i in range(args.trials) for k in keys]
     domain0 = args.domain_id or 50 + os.getpid() % (52 - args.workers)
@@ -207,7 +218,7 @@ def run(args: argparse.Namespace) -> int:
         results[(strategy, index)] = TrialResult(strategy, index, reason="not finished twice (worker failed)").record(
             error=True, tactic="")
     seconds = time.monotonic() - start
-    summary = summarise(results[t] for t in trials)
+    summary = summarise((results[t] for t in trials), args.defended)
     if args.results is not None:
         write_text_atomic(args.results, "".join(json_text(results[t]) + "\n" for t in trials))
         say(f"wrote {args.results}")
@@ -220,6 +231,8 @@ def run(args: argparse.Namespace) -> int:
         report["seconds"] = round(seconds, 1)
         if args.params_file is not None:
             report["params_file"] = str(args.params_file)
+        if args.defended:
+            report["defended"] = True
         print(json_text(report))
     else:
         print(table(summary, seconds))

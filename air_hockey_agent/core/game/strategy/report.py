@@ -22,8 +22,9 @@ def _mean_std(values: Sequence[float]) -> tuple[float | None, float | None]:
     return float(arr.mean()), float(arr.std())
 
 
-def summarise(results: Iterable[dict]) -> dict:
-    """Per strategy: the rates of the issue's JSON report, plus failures by reason."""
+def summarise(results: Iterable[dict], defended: bool = False) -> dict:
+    """Per strategy: the rates of the issue's JSON report, plus failures by reason; with ``defended`` (the
+    opponent played, ``strategy-test --defended``) also how often it touched the puck after the hit."""
     by: dict[str, list[dict]] = {}
     for r in results:
         by.setdefault(r["strategy"], []).append(r)
@@ -45,6 +46,8 @@ def summarise(results: Iterable[dict]) -> dict:
             entry["goal_rate"] = rate("goal")
             speeds = [t["defend_speed"] for t in trials if t["defend_speed"] is not None]
             entry["mean_speed_mps"], entry["speed_std_mps"] = _mean_std(speeds)
+        if defended:
+            entry["defended_rate"] = rate("defended")
         failures: dict[str, int] = {}
         for t in trials:
             if not t["success"]:
@@ -70,6 +73,9 @@ def table(summary: dict, seconds: float) -> str:
         if key == "repel":
             speed = "-" if e["mean_speed_mps"] is None else f"{e['mean_speed_mps']:.2f} m/s"
             other = f"goals {_pct(e['goal_rate'])} (thesis 13 %), speed at the defend line {speed} (thesis 1.57)"
+        if "defended_rate" in e:
+            touched = f"the opponent touched the puck after the hit in {_pct(e['defended_rate']).strip()}"
+            other = f"{other}; {touched}" if other else touched
         lines.append(f"{key:<16}{e['trials']:>7}{_pct(e['success_rate']):>10}{_pct(ref.get('success_rate')):>10}"
                      f"{_pct(e.get('partial_rate')):>10}{_pct(ref.get('partial_rate')):>10}  {other}")
     lines.append(f"{seconds:.0f} s of wall time")

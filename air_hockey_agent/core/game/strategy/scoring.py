@@ -10,6 +10,9 @@ the goal at x = -L/2.
 * Repel: success = hit; also the puck's speed where it crosses the opponent's defend line, and goals.
 * Guard (ours, nothing forced): success = no goal conceded until the puck leaves the goal's zone
   (``guard_exit_depth``) or ``guard_time`` has passed.
+
+With a defending opponent (``strategy-test --defended``) the criteria stay these; a trial also says
+whether the opponent touched the puck after the tested robot's hit (``defended``).
 """
 from __future__ import annotations
 
@@ -37,6 +40,7 @@ class TrialResult:
     rest: tuple | None = None           # [m] where the puck came to rest
     reason: str = ""
     duration: float = 0.0               # [s] simulated time of the trial
+    defended: bool = False              # the opponent touched the puck after the hit (--defended)
 
     def as_dict(self) -> dict:
         return asdict(self)
@@ -68,6 +72,16 @@ class TrialWatcher:
         from before its end may still arrive afterwards: those do not count as "at rest after the hit")."""
         if not self.done and self.t0 is not None and t >= self.t0:
             self._result.hit, self._last_hit = True, t + duration
+
+    @property
+    def hit(self) -> bool:
+        """The tested robot has touched the puck since the trial began."""
+        return self._result.hit
+
+    def opponent_contact(self, t: float) -> None:
+        """The opponent's mallet met the puck at ``t`` [s]: the tested robot's shot was defended if it had hit."""
+        if not self.done and self._result.hit and t >= self._last_hit:
+            self._result.defended = True
 
     def state(self, t: float, x: float, y: float, vx: float, vy: float) -> None:
         if self.done:
