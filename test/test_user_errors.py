@@ -113,6 +113,11 @@ def rest_bag(path):
     (lambda d: ["record", d / "rec", "--duration", "-5"], ["--duration", ">= 0"]),
     (lambda d: ["strategy-test", "--workers", "0"], ["--workers"]),
     (lambda d: ["strategy-test", "--in-process", "--domain-id", "5"], ["--domain-id need the node graph"]),
+    (lambda d: ["strategy-test", "--opponent-params", write(d / "o.yaml", "/**/tactics:\n  ros__parameters:\n"
+                                                                 "    ready_guard_depth: 0.1\n")],
+     ["--opponent-params needs --defended"]),
+    (lambda d: ["strategy-test", "--defended", "--opponent-params", d / "none.yaml"],
+     ["--opponent-params", "none.yaml", "no such file"]),
     (lambda d: ["plot", d, "--out", write(d / "notabag.txt", "x")], ["--out", "is a file"]),
     (lambda d: ["game-check", d, "--plot", write(d / "taken.txt", "x") / "sub"], ["--plot", "cannot create"]),
     (lambda d: ["sysid", rest_bag(d / "bag"), "--out", write(d / "old.yaml", "x")], ["old.yaml", "exists already"]),

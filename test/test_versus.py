@@ -183,3 +183,32 @@ def test_a_strategy_test_variant_meets_the_same_pucks(tmp_path, monkeypatch):
     assert out.returncode == 0, out.stderr[-2000:]
     report = json.loads(out.stdout)
     assert report["params_file"] == str(off) and report["guard"]["trials"] == 1
+
+
+@pytest.mark.slow  # in-process: no ROS node
+def test_a_defending_opponent_reads_its_own_variant(tmp_path, monkeypatch):
+    """`strategy-test --defended --opponent-params FILE`: the opponent's agent reads FILE and the tested robot's
+    does not (and --params-file the other way round); the JSON names the file."""
+    from air_hockey_agent.sim import game_loop
+    from air_hockey_agent.sim.strategy_loop import run_chunk
+    mine = write(tmp_path / "mine.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.1\n")
+    theirs = write(tmp_path / "theirs.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.0\n")
+    made = []
+
+    class Spy(game_loop.InProcessGame):
+        def __init__(self, *args, **kwargs):
+            super().__init__(*args, **kwargs)
+            made.append({r: p.selector.s.ready_guard_depth for r, p in self.players.items()})
+    monkeypatch.setattr(game_loop, "InProcessGame", Spy)
+    run_chunk(0, 0, [("smash_straight", 0)], str(mine), True, str(theirs))
+    run_chunk(0, 0, [("smash_straight", 0)], "", True, str(theirs))
+    default = made[1]["iiwa_front"]
+    assert made == [{"iiwa_front": 0.1, "iiwa_back": 0.0}, {"iiwa_front": default, "iiwa_back": 0.0}]
+    assert default not in (0.0, 0.1)
+    out = subprocess.run([str(BIN / "air-hockey"), "strategy-test", "--in-process", "--strategies", "repel", "--trials",
+                          "1", "--defended", "--opponent-params", str(theirs), "--json"],
+                         capture_output=True, text=True, timeout=300)
+    assert out.returncode == 0, out.stderr[-2000:]
+    report = json.loads(out.stdout)
+    assert report["opponent_params"] == str(theirs) and report["defended"] and report["repel"]["trials"] == 1
+    assert f"iiwa_back runs the agent's defaults and {theirs} and defends" in out.stderr

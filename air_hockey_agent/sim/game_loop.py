@@ -60,9 +60,10 @@ class GameConfig:
     variants: dict = field(default_factory=dict)
 
     @classmethod
-    def load(cls, seed: int, versus: tuple[str, str] | None = None) -> "GameConfig":
-        """The defaults; with ``versus`` (robot, parameter YAML) that robot's agent reads the file's tactics
-        and trajectory_generator parameters too (:func:`~air_hockey_agent.agent_params.load_agent_variant`)."""
+    def load(cls, seed: int, versus: tuple[str, str] | dict[str, str] | None = None) -> "GameConfig":
+        """The defaults; with ``versus`` (robot, parameter YAML), or a dict of such robot -> file, that robot's
+        agent reads the file's tactics and trajectory_generator parameters too
+        (:func:`~air_hockey_agent.agent_params.load_agent_variant`)."""
         from air_hockey_agent.agent_params import load_agent_params, load_agent_variant
         from air_hockey_agent.motion_params import load_motion_params
         from air_hockey_agent.params import load_node_params
@@ -77,8 +78,7 @@ class GameConfig:
                    "seed": seed, "restart_after_fault": True, "sim": True}
         agent = {**load_agent_params(), "puck_params_file": str(physics)}
         variants = {}
-        if versus is not None:
-            robot, path = versus
+        for robot, path in (versus.items() if isinstance(versus, dict) else [versus] if versus else []):
             variant_agent, variant_motion = load_agent_variant(Path(path))
             variants[robot] = ({**variant_agent, "puck_params_file": str(physics)}, variant_motion)
         return cls(sim, load_tracker_params([physics]), agent, load_motion_params(), referee, variants)
@@ -145,12 +145,12 @@ class Player:
 class InProcessGame:
     """One game on the pybullet table; :meth:`run` plays it and returns the scoreboard's result.
     ``robots``: the robots with an agent (the others hold their home pose); ``refereed`` False: no
-    referee, the game always running (the strategy test's setting); ``versus`` (robot, parameter YAML): that
-    robot's agent variant (:meth:`GameConfig.load`)."""
+    referee, the game always running (the strategy test's setting); ``versus`` (robot, parameter YAML), or a
+    dict of them: those robots' agent variants (:meth:`GameConfig.load`)."""
 
     def __init__(self, seed: int, gui: bool = False, log: Callable[[str], None] | None = None,
                  robots: tuple[str, ...] = ROBOTS, refereed: bool = True,
-                 versus: tuple[str, str] | None = None) -> None:
+                 versus: tuple[str, str] | dict[str, str] | None = None) -> None:
         from air_hockey_agent.paths import model_path
         self.config = c = GameConfig.load(seed, versus)
         self.world = TableWorld(SimSettings.from_params(c.sim), gui=gui)

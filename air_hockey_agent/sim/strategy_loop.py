@@ -40,16 +40,17 @@ def chunk_seed(seed: int, chunk: int) -> int:
 
 
 def run_chunk(seed: int, chunk: int, trials: Sequence[tuple[str, int]], params_file: str = "",
-              defended: bool = False) -> list[dict]:
+              defended: bool = False, opponent_file: str = "") -> list[dict]:
     """Play ``trials`` ((strategy, index) pairs) on a fresh table; their ``--results`` records in order.
     ``params_file``: the tested agent reads this variant too (``strategy-test --params-file``); the trials'
     initial states stay those of the defaults, so a variant meets the same pucks. ``defended``: the opponent
-    plays (``strategy-test --defended``)."""
+    plays (``strategy-test --defended``), reading ``opponent_file`` too (``--opponent-params``)."""
     from air_hockey_agent.sim.game_loop import InProcessGame
     from air_hockey_agent.strategy_params import trial_settings
     settings = trial_settings()
+    variants = {robot: path for robot, path in ((ROBOT, params_file), (OPPONENT, opponent_file)) if path}
     game = InProcessGame(chunk_seed(seed, chunk), robots=(ROBOT, OPPONENT) if defended else (ROBOT,),
-                         refereed=False, versus=(ROBOT, params_file) if params_file else None)
+                         refereed=False, versus=variants)
     try:
         return [play_trial(game, make_trial(name, index, seed, settings), settings) for name, index in trials]
     finally:

@@ -13,8 +13,8 @@ spread (fig. 5.8) as PNG. ``--in-process`` plays the trials without ROS
 (:mod:`air_hockey_agent.sim.strategy_loop`; workers are processes of this tool): a run repeats exactly,
 whatever the number of workers. ``--params-file FILE`` gives the agent a variant (its tactics' and
 trajectory generator's parameters, as ``air-hockey game --versus``) on the same trials. ``--defended``: the
-opponent runs the agent too (the defaults), waits at its ready point until the tested robot's hit and then
-defends (ours, beyond the thesis: how often a shot beats a defender).
+opponent runs the agent too (the defaults, or with ``--opponent-params FILE`` a variant), waits at its ready
+point until the tested robot's hit and then defends (ours, beyond the thesis: how often a shot beats a defender).
 """
 from __future__ import annotations
 
@@ -71,17 +71,21 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--defended", action="store_true",
                         help=f"{OPPONENT} runs the agent (the defaults): it waits at its ready point until the tested "
                              "robot's hit, then defends (default: it holds its home pose, as in the thesis)")
+    parser.add_argument("--opponent-params", type=Path, default=None, metavar="FILE",
+                        help="with --defended: the opponent's tactics and trajectory_generator also read this ROS 2 "
+                             "parameter YAML (as --params-file for the tested robot)")
     parser.set_defaults(run=run)
 
 
 def worker_processes(trials: list[tuple[str, int]], seed: int, params_file: str = "",
-                     defended: bool = False) -> list[ProcessSpec]:
+                     defended: bool = False, opponent_file: str = "") -> list[ProcessSpec]:
     specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", "-p", "real_time_factor:=0.0",
                                        "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
     specs += [process(n, label=n.executable) for n in agent_nodes(ROBOT, use_sim_time=True, sim_table=True,
                                                                         variant_file=params_file)]
     if defended:
-        specs += [process(n) for n in agent_nodes(OPPONENT, use_sim_time=True, sim_table=True)]
+        specs += [process(n) for n in agent_nodes(OPPONENT, use_sim_time=True, sim_table=True,
+                                                  variant_file=opponent_file)]
     trial_list = ",".join(f"{s}:{i}" for s, i in trials)
     specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args",
                                                "-p", f"seed:={seed}", "-p", f"trials:={trial_list}",
@@ -93,10 +97,10 @@ class Worker(threading.Thread):
     """One simulation and agent on its own ROS domain, running a list of trials."""
 
     def __init__(self, domain: int, trials: list[tuple[str, int]], seed: int, results: dict, lock: threading.Lock,
-                 on_result, log=None, params_file: str = "", defended: bool = False) -> None:
+                 on_result, log=None, variants: tuple[str, bool, str] = ("", False, "")) -> None:
         super().__init__(daemon=True)
         self.domain, self.trials, self.seed, self.log = domain, trials, seed, log
-        self.params_file, self.defended = params_file, defended
+        self.variants = variants  # (params_file, defended, opponent_file): worker_processes' last three
         self.results, self.lock, self.on_result = results, lock, on_result
         self.error = ""
 
@@ -114,7 +118,7 @@ class Worker(threading.Thread):
         with tempfile.TemporaryDirectory(prefix="air_hockey_strategy_") as tmp:
             env = ros_environment(domain_id=self.domain, ros_home=Path(tmp))
             with Launcher(env, echo=None, on_line=self.on_line) as launcher:
-                for spec in worker_processes(self.trials, self.seed, self.params_file, self.defended):
+                for spec in worker_processes(self.trials, self.seed, *self.variants):
                     launcher.start(spec)
                 while True:
                     ended = launcher.wait_any_exit(timeout=1.0)
@@ -131,7 +135,7 @@ def _run_trials(pending: list[tuple[str, int]], args, results: dict, progress, t
     lock = threading.Lock()
     count = lambda: progress(len(results), total)  # noqa: E731
     shares = [pending[k::args.workers] for k in range(args.workers)]
-    workers = [Worker(domain0 + k, share, args.seed, results, lock, count, log, _variant(args), args.defended)
+    workers = [Worker(domain0 + k, share, args.seed, results, lock, count, log, _variants(args))
                for k, share in enumerate(shares) if share]
     for w in workers:
         w.start()
@@ -145,7 +149,7 @@ def _run_in_process(pending: list[tuple[str, int]], args, results: dict, progres
     from air_hockey_agent.sim.strategy_loop import chunks, run_chunk
     from air_hockey_agent.tools.worker_pool import run_in_processes
     errors: list[str] = []
-    jobs = [(args.seed, chunk, share, _variant(args), args.defended) for chunk, share in chunks(pending)]
+    jobs = [(args.seed, chunk, share, *_variants(args)) for chunk, share in chunks(pending)]
 
     def store(index: int, records) -> None:
         if isinstance(records, Exception):  # its trials are run once more, then counted as failures
@@ -163,9 +167,10 @@ def _run_in_process(pending: list[tuple[str, int]], args, results: dict, progres
     return errors
 
 
-def _variant(args) -> str:
-    """The agent variant's file ('' for the defaults)."""
-    return "" if args.params_file is None else str(args.params_file)
+def _variants(args) -> tuple[str, bool, str]:
+    """The tested agent's variant file ('' for the defaults), whether the opponent defends, and its file."""
+    return ("" if args.params_file is None else str(args.params_file), args.defended,
+            "" if args.opponent_params is None else str(args.opponent_params))
 
 
 def _check(args) -> str:
@@ -179,9 +184,13 @@ def _check(args) -> str:
         return f"--results {args.results}: directory {args.results.parent} does not exist"
     if args.plot is not None and args.plot.exists() and not args.plot.is_dir():
         return f"--plot {args.plot}: exists and is not a directory"
-    if args.params_file is not None:
-        from air_hockey_agent.agent_params import agent_variant_problem
-        return agent_variant_problem(args.params_file, "--params-file")
+    if args.opponent_params is not None and not args.defended:
+        return "--opponent-params needs --defended (without it the opponent runs no agent)"
+    from air_hockey_agent.agent_params import agent_variant_problem
+    for path, option in ((args.params_file, "--params-file"), (args.opponent_params, "--opponent-params")):
+        problem = agent_variant_problem(path, option) if path is not None else ""
+        if problem:
+            return problem
     return ""
 
 
@@ -195,7 +204,8 @@ def run(args: argparse.Namespace) -> int:
     if args.params_file is not None:
         say(f"the agent also reads {args.params_file}")
     if args.defended:
-        say(f"{OPPONENT} runs the agent's defaults and defends after the tested robot's hit")
+        opponent = "defaults" if args.opponent_params is None else f"defaults and {args.opponent_params}"
+        say(f"{OPPONENT} runs the agent's {opponent} and defends after the tested robot's hit")
     keys = [k for group in sorted(args.strategies) for k in GROUPS[group]]
     trials = [(k, i) for i in range(args.trials) for k in keys]
     domain0 = args.domain_id or 50 + os.getpid() % (52 - args.workers)
@@ -233,6 +243,8 @@ def run(args: argparse.Namespace) -> int:
             report["params_file"] = str(args.params_file)
         if args.defended:
             report["defended"] = True
+        if args.opponent_params is not None:
+            report["opponent_params"] = str(args.opponent_params)
         print(json_text(report))
     else:
         print(table(summary, seconds))
