@@ -30,13 +30,12 @@ from std_srvs.srv import Trigger
 from air_hockey_msgs.msg import GameStatus, MalletContact, PuckState, TacticState
 from air_hockey_msgs.srv import ForceTactic, SetPuckState
 from air_hockey_agent.core.game.strategy.scoring import TrialResult, TrialWatcher
-from air_hockey_agent.core.game.strategy.trials import PARK, make_trial
+from air_hockey_agent.core.game.strategy.trials import OPPONENT, PARK, ROBOT, make_trial
 from air_hockey_agent.core.game.tactics.base import TACTIC_IDS
 from air_hockey_agent.nodes.messages import to_seconds
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
 from air_hockey_agent.strategy_params import PARAM_FILES, STRATEGY_PARAMS, trial_settings
 
-ROBOT, OPPONENT = "iiwa_front", "iiwa_back"
 WALL_CHECK_PERIOD = 0.05  # [s] wall time between checks for the services at start and for wall_timeout
 
 

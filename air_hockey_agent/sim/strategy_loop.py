@@ -21,10 +21,9 @@ from typing import Sequence
 import numpy as np
 
 from air_hockey_agent.core.game.strategy.scoring import TrialResult, TrialWatcher
-from air_hockey_agent.core.game.strategy.trials import PARK, Trial, TrialSettings, make_trial
+from air_hockey_agent.core.game.strategy.trials import OPPONENT, PARK, ROBOT, Trial, TrialSettings, make_trial
 from air_hockey_agent.core.game.tactics.base import NAMES, TACTIC_IDS
 
-ROBOT, OPPONENT = "iiwa_front", "iiwa_back"
 CHUNK = 20       # trials per fresh table
 SIM_GUARD = 5.0  # [s] of simulated time beyond the watcher's own time-outs before a trial is given up
 

@@ -29,6 +29,7 @@ from pathlib import Path
 
 from air_hockey_agent.core.game.strategy.report import summarise, table
 from air_hockey_agent.core.game.strategy.scoring import TrialResult
+from air_hockey_agent.core.game.strategy.trials import OPPONENT, ROBOT
 from air_hockey_agent.node_graph import agent_nodes
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.game import prepare_for_nodes, process
@@ -38,7 +39,6 @@ from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.ros_env import node_executable, ros_environment
 from air_hockey_agent.tools.argtypes import count, seed
 
-ROBOT, OPPONENT = "iiwa_front", "iiwa_back"
 GROUPS = {"smash": ("smash_straight", "smash_left", "smash_right"), "cut": ("cut",), "prepare": ("prepare",),
           "repel": ("repel",), "guard": ("guard",)}
 THESIS_GROUPS = ("smash", "cut", "prepare", "repel")  # the default: thesis sec. 4.6 (and issue #12's 15 min)

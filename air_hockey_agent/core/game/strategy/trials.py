@@ -25,6 +25,7 @@ STRATEGIES = ("smash_straight", "smash_left", "smash_right", "cut", "prepare", "
 FORCED = {"smash_straight": ("smash", "straight"), "smash_left": ("smash", "left_bank"),
           "smash_right": ("smash", "right_bank"), "cut": ("cut", ""), "prepare": ("prepare", ""),
           "repel": ("repel", ""), "guard": ("", "")}  # "": nothing forced
+ROBOT, OPPONENT = "iiwa_front", "iiwa_back"  # the tested robot (its goal at x = -L/2), and the other (--defended)
 PARK = (0.6, 0.0)  # [m] where the puck waits between trials: the opponent's half, away from its mallet
 
 
