@@ -7,8 +7,8 @@ states and the robot's contacts fed to the core
 :class:`~air_hockey_agent.core.game.strategy.scoring.TrialWatcher` until it scores the trial. The agent,
 tracker and table are :class:`~air_hockey_agent.sim.game_loop.InProcessGame` with ``iiwa_front``'s agent only
 (the opponent holds its home pose) and no referee (always running). With ``defended`` the opponent runs its
-agent too (the defaults, or its variant file): it waits at its ready point (Ready forced) until the tested robot's first hit, then
-plays free, and its contacts after the hit mark the trial ``defended``.
+agent too (the defaults, or its variant file): it waits at its ready point (Ready forced) until the tested
+robot's first hit, then plays free, and its contacts after the hit mark the trial ``defended``.
 
 Trials run in chunks of ``CHUNK`` consecutive trials of the run's list, each chunk on a fresh table
 whose simulation seed is drawn from the run's seed and the chunk's number, so a trial's outcome does
