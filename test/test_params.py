@@ -117,9 +117,10 @@ def test_the_sim_table_tracker_file_has_the_simulated_tables_physics():
     from air_hockey_agent.tracker_params import SIM_TABLE_FILE, load_tracker_params
     sim, tracker = load_sim_params(), load_tracker_params([config_file(SIM_TABLE_FILE)])
     for tracker_name, sim_name in (("friction_surface", "surface_friction"), ("damping", "surface_damping"),
-                                   ("restitution", "rim_restitution"), ("friction_rim", "rim_friction")):
+                                   ("restitution", "rim_restitution"), ("friction_rim", "rim_friction"),
+                                   ("restitution_slope", "rim_restitution_slope")):
         assert tracker[tracker_name] == sim[sim_name], tracker_name
-    assert tracker["restitution_slope"] == 0.0  # so restitution_min, a real table's, does not act
+    assert tracker["restitution_slope"] == 0.0  # so the knee and restitution_min, a real table's, do not act
     assert load_tracker_params()["damping"] != sim["surface_damping"]
 
 

@@ -6,15 +6,15 @@ import pytest
 
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.table import TableGeometry
-from air_hockey_agent.sim.rim_contact import PuckBody, RimContacts, impact_impulse, rim_segments
+from air_hockey_agent.sim.rim_contact import PuckBody, RimContacts, RimLaw, impact_impulse, rim_segments
 
 TABLE = TableGeometry(length=1.956, width=1.042, goal_width=0.25, puck_radius=0.03165)
 M, R = 0.01, 0.03165
 DISC = PuckBody(R, M, M * R * R / 2)
 
 
-def contacts(body=DISC, e=0.9, mu=0.1):
-    return RimContacts(TABLE, body, e, mu)
+def contacts(body=DISC, e=0.9, mu=0.1, **law):
+    return RimContacts(TABLE, body, RimLaw(e, mu, **law))
 
 
 def random_approach(rng):
@@ -42,6 +42,21 @@ def test_a_disc_on_a_straight_rim_gives_rouths_closed_form(wall):
         assert got == pytest.approx((ref.vb, ref.vn, ref.omega), rel=1e-9, abs=1e-9)
         sliding, sticking = sliding + ref.sliding, sticking + (not ref.sliding)
     assert sliding > 30 and sticking > 30  # both branches exercised
+
+
+def test_a_restitution_falling_with_the_impact_speed_follows_its_law_and_routhes_closed_form():
+    """With rim_restitution_slope (config/sim.yaml) a head-on impact returns e(vn) of its normal speed:
+    e up to the knee, then falling linearly, then the floor (numbers worked by hand for e 0.96, knee
+    0.5 m/s, slope 0.2 s/m, floor 0.7); an oblique spinning one is Routh's with the same law."""
+    law = dict(slope=0.2, floor=0.7, knee=0.5)
+    c = contacts(e=0.96, mu=0.1, **law)
+    x, y = 0.1, TABLE.y_limit + 1e-4  # 0.1 mm into the right rim: n = (0, -1)
+    for speed, e in ((0.4, 0.96), (1.5, 0.76), (3.0, 0.7)):  # 0.96 - 0.2 (1.5 - 0.5) = 0.76; floor at 3 m/s
+        _, _, vx, vy, om = c.resolve(x, y, 0.0, speed, 0.0)
+        assert (vx, vy, om) == pytest.approx((0.0, -e * speed, 0.0), abs=1e-12)
+    ref = rim_impact(0.4, -1.5, 20.0, R, 0.96, 0.1, 0.2, 0.7, 0.0, 0.5)
+    _, _, vx, vy, om = c.resolve(x, y, -0.4, 1.5, 20.0)  # b = (-1, 0), n = (0, -1)
+    assert (-vx, -vy, om) == pytest.approx((ref.vb, ref.vn, ref.omega), rel=1e-9, abs=1e-9)
 
 
 def test_angular_momentum_about_the_contact_point_is_conserved_and_energy_never_grows():

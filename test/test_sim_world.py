@@ -31,6 +31,21 @@ def test_straight_rim_impact_scales_the_normal_velocity_by_the_restitution(world
     assert abs(vx) < 1e-3 and abs(x) < 1e-3 and abs(omega) < 1e-2  # straight in, straight out, no spin
 
 
+def test_the_worlds_rims_take_a_restitution_falling_with_the_impact_speed(params):
+    """config/sim.yaml's rim_restitution_slope / _knee / _min reach the world's rims: a 2 m/s head-on
+    impact returns 0.95 - 0.2 (2 - 0.5) = 0.65 of its normal speed."""
+    w = TableWorld(SimSettings.from_params({**params, "surface_damping": 0.0, "surface_friction": 0.0,
+                                            "rim_restitution": 0.95, "rim_restitution_slope": 0.2,
+                                            "rim_restitution_knee": 0.5, "rim_restitution_min": 0.3}))
+    try:
+        w.set_puck_state([0.0, 0.2, 0.0, 2.0, 0.0, 0.0])
+        w.step(300)  # hits the y = +W/2 rim after ~0.14 s
+        _, _, vx, vy, _, _ = w.puck_state()
+    finally:
+        w.close()
+    assert vy == pytest.approx(-2.0 * 0.65, rel=0.02) and abs(vx) < 1e-3
+
+
 def test_oblique_impact_with_rim_friction_slows_the_tangential_motion_and_spins_the_puck(world):
     world.set_puck_state([0.0, 0.2, 1.0, 1.2, 0.0, 0.0])
     world.step(400)

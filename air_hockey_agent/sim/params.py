@@ -27,6 +27,11 @@ SIM_PARAMS = TABLE_PARAMS + (
     ParamSpec("surface_friction", float, "[m/s^2] air-cushion friction deceleration (eq. 3.1)", 0.0, 10.0),
     ParamSpec("surface_damping", float, "[1/s] air-cushion viscous damping (eq. 3.1)", 0.0, 10.0),
     ParamSpec("rim_restitution", float, "[-] puck-rim restitution e (Poisson, sim/rim_contact.py)", 0.0, 1.0),
+    ParamSpec("rim_restitution_slope", float, "[s/m] the rim restitution falls by this per m/s of normal "
+              "impact speed beyond rim_restitution_knee (0: constant)", 0.0, 10.0),
+    ParamSpec("rim_restitution_knee", float, "[m/s] normal impact speed from which the rim restitution falls",
+              0.0, 10.0),
+    ParamSpec("rim_restitution_min", float, "[-] the falling rim restitution's floor", 0.0, 1.0),
     ParamSpec("rim_friction", float, "[-] puck-rim Coulomb friction (sim/rim_contact.py)", 0.0, 2.0),
     ParamSpec("mallet_restitution", float, "[-] puck-mallet restitution", 0.0, 1.0),
     ParamSpec("mallet_friction", float, "[-] puck-mallet lateral friction", 0.0, 2.0),

@@ -24,6 +24,7 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
+from air_hockey_agent.core.puck.impact import speed_restitution
 from air_hockey_agent.core.table import TableGeometry
 
 _EPS = 1e-12  # [m/s] slip speeds below this are zero (round-off of the exact phase ends)
@@ -99,6 +100,24 @@ def impact_impulse(un: float, ut: float, k: Sequence[Sequence[float]], restituti
 
 
 @dataclass(frozen=True)
+class RimLaw:
+    """The rims' coefficients: Poisson restitution ``restitution`` [-] up to the normal impact speed ``knee``
+    [m/s], falling by ``slope`` [s/m] beyond it, never below ``floor`` [-] (``slope`` 0: the thesis's
+    constant e; :func:`air_hockey_agent.core.puck.impact.speed_restitution`, the tracker's law), and
+    Coulomb friction ``friction`` [-]."""
+
+    restitution: float
+    friction: float
+    slope: float = 0.0
+    floor: float = 0.0
+    knee: float = 0.0
+
+    def restitution_at(self, vn: float) -> float:
+        """The restitution of an impact at normal velocity ``vn`` [m/s]."""
+        return speed_restitution(self.restitution, self.slope, vn, self.floor, self.knee)[0]
+
+
+@dataclass(frozen=True)
 class PuckBody:
     """The puck as a planar rigid body: radius [m], mass [kg], yaw inertia [kg m^2]."""
 
@@ -110,9 +129,9 @@ class PuckBody:
 class RimContacts:
     """Detects puck-rim contacts after a physics step and applies their impacts."""
 
-    def __init__(self, table: TableGeometry, puck: PuckBody, restitution: float, friction: float) -> None:
+    def __init__(self, table: TableGeometry, puck: PuckBody, law: RimLaw) -> None:
         self.segments = rim_segments(table)
-        self.puck, self.restitution, self.friction = puck, restitution, friction
+        self.puck, self.law = puck, law
         # every segment lies on or outside the surface's edge: a centre this far inside touches none
         self.clear_x, self.clear_y = table.x_limit, table.y_limit
 
@@ -150,7 +169,7 @@ class RimContacts:
         inv_m, inv_i = 1.0 / body.mass, 1.0 / body.inertia
         k = ((inv_m + perp_n * perp_n * inv_i, perp_n * perp_t * inv_i),
              (perp_n * perp_t * inv_i, inv_m + perp_t * perp_t * inv_i))
-        imp = impact_impulse(un, ut, k, self.restitution, self.friction)
+        imp = impact_impulse(un, ut, k, self.law.restitution_at(vn_in), self.law.friction)
         px, py = imp.normal * nx + imp.tangential * tx, imp.normal * ny + imp.tangential * ty
         vx, vy = vx + px * inv_m, vy + py * inv_m
         omega += (rx * py - ry * px) * inv_i

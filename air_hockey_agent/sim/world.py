@@ -33,7 +33,7 @@ from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.contacts import ContactLog, MalletContact
 from air_hockey_agent.sim.params import ROBOTS
-from air_hockey_agent.sim.rim_contact import PuckBody, RimContacts
+from air_hockey_agent.sim.rim_contact import PuckBody, RimContacts, RimLaw
 
 ARM_JOINTS = tuple(f"iiwa_joint_{i}" for i in range(1, 8))
 STRIKER_JOINTS = ("striker_joint_1", "striker_joint_2")
@@ -51,8 +51,7 @@ class SimSettings:
     physics_rate: float
     surface_friction: float
     surface_damping: float
-    rim_restitution: float
-    rim_friction: float
+    rim_law: RimLaw              # the rims' restitution (falling with the impact speed or not) and friction
     mallet_restitution: float
     mallet_friction: float
     contact_erp: float
@@ -63,8 +62,10 @@ class SimSettings:
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "SimSettings":
         return cls(TableGeometry.from_params(params), params["puck.height"], params["physics_rate"],
-                   params["surface_friction"], params["surface_damping"], params["rim_restitution"],
-                   params["rim_friction"], params["mallet_restitution"], params["mallet_friction"],
+                   params["surface_friction"], params["surface_damping"],
+                   RimLaw(params["rim_restitution"], params["rim_friction"], params["rim_restitution_slope"],
+                          params["rim_restitution_min"], params["rim_restitution_knee"]),
+                   params["mallet_restitution"], params["mallet_friction"],
                    params["contact_erp"], params["striker_control_rate"],
                    {n: tuple(params[f"robot_base.{n}"]) for n in ROBOTS},
                    tuple(params["home_joint_positions"]))
@@ -167,8 +168,7 @@ class TableWorld:
         for link in range(-1, c.getNumJoints(self.table)):  # the surface (air cushion) and the rims (RimContacts)
             c.setCollisionFilterPair(self.puck, self.table, -1, link, 0)
         mass, _, inertia = c.getDynamicsInfo(self.puck, -1)[:3]
-        self.rims = RimContacts(s.table, PuckBody(s.table.puck_radius, mass, inertia[2]),
-                                s.rim_restitution, s.rim_friction)
+        self.rims = RimContacts(s.table, PuckBody(s.table.puck_radius, mass, inertia[2]), s.rim_law)
         for robot in self.robots.values():
             c.changeDynamics(robot.body, robot.mallet, restitution=s.mallet_restitution,
                              lateralFriction=s.mallet_friction, **no_threshold)
