@@ -45,17 +45,19 @@ def parameter_text(value: Any) -> str:
     return str(value).lower() if isinstance(value, bool) else str(value)
 
 
-def agent_nodes(robot: str, use_sim_time: bool, sim_table: bool, variant_file: str = "") -> list[NodeRun]:
+def agent_nodes(robot: str, use_sim_time: bool, sim_table: bool, variant_file: str = "",
+                table_file: str = "") -> list[NodeRun]:
     """``robot``'s agent: tracker, tactics and trajectory generator in its namespace. ``sim_table``: the
     tracker and the tactics take the simulated table's puck physics (``config/tracker_sim_table.yaml``;
-    the tracker's defaults are a real table's). ``use_sim_time``: on the simulation's /clock.
-    ``variant_file``: a parameter YAML the tactics and the trajectory generator read after their defaults
-    (``air-hockey game --versus``)."""
+    the tracker's defaults are a real table's), or with ``table_file`` (another simulated table,
+    :mod:`air_hockey_agent.sim.table_file`) the tracker's defaults and that file's ``puck_tracker`` section.
+    ``use_sim_time``: on the simulation's /clock. ``variant_file``: a parameter YAML the tactics and the
+    trajectory generator read after their defaults (``air-hockey game --versus``)."""
     from air_hockey_agent.param_registry import node_parameters
     from air_hockey_agent.tracker_params import SIM_TABLE_FILE
     if robot not in ROBOTS:
         raise ValueError(f"robot must be one of {', '.join(ROBOTS)}, got {robot!r}")
-    physics = str(config_file(SIM_TABLE_FILE))
+    physics = table_file or str(config_file(SIM_TABLE_FILE))
     declared = node_parameters()
     nodes = []
     for node in PER_ROBOT_NODES:
@@ -69,17 +71,20 @@ def agent_nodes(robot: str, use_sim_time: bool, sim_table: bool, variant_file: s
 
 
 def game_nodes(gui: bool, real_time_factor: float, seed: int, markers: bool = False,
-               versus: tuple[str, str] | None = None) -> list[NodeRun]:
+               versus: tuple[str, str] | None = None, table_file: str = "") -> list[NodeRun]:
     """The simulated two-robot game: the table, the referee (which restarts play itself after a robot's
     fault: nobody watches), both agents on the simulated table's physics, all on sim time; ``markers``:
-    with the visualizer; ``versus`` (robot, parameter YAML): that robot's agent reads the file too."""
-    nodes = [NodeRun("table_sim", parameters=(("gui", gui), ("real_time_factor", real_time_factor), ("seed", seed))),
+    with the visualizer; ``versus`` (robot, parameter YAML): that robot's agent reads the file too;
+    ``table_file``: on another simulated table (:func:`agent_nodes`)."""
+    nodes = [NodeRun("table_sim", params_files=(table_file,) if table_file else (),
+                     parameters=(("gui", gui), ("real_time_factor", real_time_factor), ("seed", seed))),
              NodeRun("referee", parameters=(("use_sim_time", True), ("seed", seed), ("restart_after_fault", True)))]
     if markers:
         nodes.append(NodeRun(VIEW_NODE, parameters=(("use_sim_time", True),)))
     variant = {versus[0]: versus[1]} if versus is not None else {}
     return nodes + [n for robot in ROBOTS for n in agent_nodes(robot, use_sim_time=True, sim_table=True,
-                                                                variant_file=variant.get(robot, ""))]
+                                                                variant_file=variant.get(robot, ""),
+                                                                table_file=table_file)]
 
 
 # --- ros2 launch (launch/*.launch.py) -----------------------------------------------------------------
@@ -102,6 +107,16 @@ def launch_flag(name: str, text: str) -> bool:
     if text.strip().lower() not in ("true", "false"):
         raise ValueError(f"launch argument {name}: true or false, got {text!r}")
     return text.strip().lower() == "true"
+
+
+def launch_table(text: str) -> str:
+    """The launch argument ``table`` (a table file, or '' for none); ValueError naming what is wrong with it."""
+    from pathlib import Path
+    from air_hockey_agent.sim.table_file import table_problem
+    problem = table_problem(Path(text), "launch argument table") if text else ""
+    if problem:
+        raise ValueError(problem)
+    return text
 
 
 def launch_number(name: str, text: str, kind: type) -> Any:

@@ -284,12 +284,18 @@ def _check_document(document: Mapping[str, Any] | None, path: Path, node: str, o
                                          f"{closest(name, names)}")
 
 
-def check_only_nodes(path: Path, allowed: Sequence[str], what: str) -> None:
+def file_nodes(path: Path) -> set[str | None]:
+    """The nodes a parameter YAML's sections name (None for a '/**' section, which every node reads)."""
+    return {_section_node(str(key)) for key in (_read_document(path) or {})}
+
+
+def check_only_nodes(path: Path, allowed: Sequence[str], what: str,
+                     why: str = "the variant's robot is chosen per game") -> None:
     """Raise :class:`ParameterFileError` naming ``path``, the section and the key when the file sets a
     parameter of a node other than ``allowed`` (a section named for another node, or in a section for
     every node a name none of ``allowed`` declares), or a section for one namespace only (the robot a
-    variant plays changes from game to game); ``what`` says where the file was given, e.g. '--versus'. The
-    names themselves are checked by :func:`check_parameter_file`."""
+    variant plays changes from game to game: ``why``); ``what`` says where the file was given, e.g. '--versus'.
+    The names themselves are checked by :func:`check_parameter_file`."""
     from air_hockey_agent.param_registry import node_parameters
     document = _read_document(path) or {}
     nodes = node_parameters()
@@ -297,16 +303,20 @@ def check_only_nodes(path: Path, allowed: Sequence[str], what: str) -> None:
     for key, block in document.items():
         target = _section_node(str(key))
         if target is not None and target not in allowed:
-            raise ParameterFileError(f"{path}: section '{key}': {what} sets only {' and '.join(allowed)} "
-                                     "parameters")
+            raise ParameterFileError(f"{path}: section '{key}': {what} sets only {_listed(allowed)} parameters")
         if key not in ("/**", f"/**/{target}"):  # rcl matches these in every namespace, as the in-process game does
             raise ParameterFileError(f"{path}: section '{key}': {what} takes sections for any namespace, "
-                                     f"'/**/{target or 'tactics'}' or '/**' (the variant's robot is chosen per game)")
+                                     f"'/**/{target or allowed[0]}' or '/**' ({why})")
         params = block.get("ros__parameters") if isinstance(block, Mapping) else None
         for name in _flatten(params or {}) if target is None else ():
             if name not in names and not _builtin(name):
                 raise ParameterFileError(f"{path}: section '{key}': '{name}' is not a parameter of "
                                          f"{' or '.join(allowed)} ({what} sets only theirs){closest(name, names)}")
+
+
+def _listed(names: Sequence[str]) -> str:
+    """'a', 'a and b', 'a, b and c'."""
+    return " and ".join(names) if len(names) < 3 else f"{', '.join(names[:-1])} and {names[-1]}"
 
 
 def check_command_line(argv: Iterable[str], node: str, own: Iterable[str]) -> None:

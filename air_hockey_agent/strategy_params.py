@@ -41,6 +41,8 @@ STRATEGY_PARAMS = TABLE_PARAMS + (
     ParamSpec("seed", int, "random seed of the trials' initial states", 0, 2**31 - 1),
     ParamSpec("trials", str, "the trials to run: 'strategy:index' separated by commas"),
     ParamSpec("defended", bool, "the opponent's agent waits until the tested robot's hit, then defends"),
+    ParamSpec("table_file", str, "the simulated table's parameter file (strategy-test --table; '' for "
+              "config/sim.yaml's)"),
     ParamSpec("wall_timeout", float, "[s] wall time after which a stuck trial is given up", 1.0, 3600.0),
 )
 
@@ -49,17 +51,21 @@ def load_strategy_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
     return load_node_params(PARAM_FILES, NODE_NAME, STRATEGY_PARAMS, extra_files)
 
 
-def trial_settings(params: Mapping[str, Any] | None = None) -> "TrialSettings":
+def trial_settings(params: Mapping[str, Any] | None = None, table_file: str = "") -> "TrialSettings":
     """The trials' :class:`~air_hockey_agent.core.game.strategy.trials.TrialSettings` from ``params`` (default:
-    the configured ones), with the simulated table's damping (a slow slide's outcome is decided before it
-    stops, ``config/sim.yaml``) and where the tested robot's mallet waits when a trial's puck is set: its
-    ready point (``config/agent.yaml``; iiwa_front's own frame is the table frame)."""
+    the configured ones, then ``table_file``'s ``strategy_test`` section), with the simulated table's damping
+    (a slow slide's outcome is decided before it stops; ``config/sim.yaml``, then the table file: the one
+    ``params`` name, else ``table_file``) and where the tested robot's mallet waits when a trial's puck is set: its ready point
+    (``config/agent.yaml``; iiwa_front's own frame is the table frame)."""
     from air_hockey_agent.agent_params import load_agent_params
     from air_hockey_agent.core.game.strategy.trials import TrialSettings
     from air_hockey_agent.sim.params import load_sim_params
     agent = load_agent_params()
     depth, y = agent["ready_point"]
     waiting = (depth - agent["table.length"] / 2, y)
-    return TrialSettings.from_params(load_strategy_params() if params is None else params,
-                                     damping=load_sim_params()["surface_damping"], waiting=waiting,
+    if params is None:
+        params = load_strategy_params([Path(table_file)] if table_file else [])
+    table = params["table_file"] or table_file
+    sim = load_sim_params([Path(table)] if table else [])
+    return TrialSettings.from_params(params, damping=sim["surface_damping"], waiting=waiting,
                                      contact_distance=agent["puck.radius"] + agent["mallet.radius"])

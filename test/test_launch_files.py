@@ -18,6 +18,7 @@ import yaml
 
 from air_hockey_agent import node_graph
 from air_hockey_agent.param_registry import node_parameters
+from air_hockey_agent.paths import config_file
 from air_hockey_agent.sim.params import ROBOTS
 
 REPO = Path(__file__).resolve().parents[1]
@@ -98,8 +99,23 @@ def test_the_game_launch_file_starts_the_games_nodes(launch_api):
     assert table["parameters"] == [{"gui": False, "real_time_factor": 0.0, "seed": 7}]
 
 
+def test_the_game_launch_file_plays_on_a_table_file(launch_api):
+    """``table:=FILE`` (another simulated table): table_sim reads the file, each robot's tracker reads it
+    instead of config/tracker_sim_table.yaml and its tactics take it as their puck physics."""
+    lab = str(config_file("lab_table.yaml"))
+    _, nodes = run_launch_file("game.launch.py", {"table": lab})
+    assert nodes == [node_graph.launch_node_arguments(n) for n in node_graph.game_nodes(False, 1.0, 0, table_file=lab)]
+    table = next(n for n in nodes if n["executable"] == "table_sim")
+    assert table["parameters"][0] == lab
+    for robot in ROBOTS:
+        tracker, tactics, generator = (n for n in nodes if n.get("namespace") == f"/{robot}")
+        assert tracker["parameters"][:-1] == [lab] and tactics["parameters"][-1]["puck_params_file"] == lab
+        assert lab not in generator["parameters"]
+
+
 @pytest.mark.parametrize("name, overrides, message", [
     ("game.launch.py", {"seed": "-1"}, "launch argument seed: must be >= 0"),
+    ("game.launch.py", {"table": "/no/such.yaml"}, "launch argument table /no/such.yaml: no such file"),
     ("game.launch.py", {"real_time_factor": "fast"}, "launch argument real_time_factor: a number"),
     ("agent.launch.py", {"robot": "iiwa_left"}, "iiwa_left"),
 ])

@@ -11,6 +11,8 @@ from pathlib import Path
 
 import pytest
 
+from air_hockey_agent.paths import config_file
+
 BIN = Path(sys.executable).parent
 
 
@@ -248,5 +250,26 @@ def test_strategy_test_with_a_defending_opponent(ros_env, tmp_path):
     trials = [json.loads(line) for line in lines_file.read_text().splitlines()]
     assert len(trials) == 3 and not any(t["error"] for t in trials) and all(t["hit"] for t in trials), trials
     assert sum(t["defended"] for t in trials) >= 2, trials  # the released opponent met the shots
+    leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|strategy_test|tactics|puck_tracker|trajectory_generator)"])
+    assert leftovers.stdout.strip() == ""
+
+
+def test_strategy_test_on_a_table_file(ros_env, tmp_path):
+    """`strategy-test --table config/lab_table.yaml` in the node graph: table_sim takes the file's table, the
+    tracker and the tactics config/tracker.yaml's real-table physics, the strategy_test node the file's
+    timeout and table; the report names the file, and every process is gone afterwards."""
+    log = tmp_path / "nodes.log"
+    lab = str(config_file("lab_table.yaml"))
+    result = run([str(BIN / "air-hockey"), "strategy-test", "--strategies", "cut", "--trials", "1", "--table", lab,
+                  "--json", "--log", str(log), "--domain-id", ros_env["ROS_DOMAIN_ID"]], env=ros_env, timeout=600)
+    assert result.returncode == 0, result.stderr[-2000:]
+    assert json.loads(result.stdout.strip().splitlines()[-1])["table"] == lab
+    text = log.read_text()
+    sim = next(line for line in text.splitlines() if "table_sim" in line and "other than the defaults" in line)
+    assert "surface_damping=0.125" in sim and "rim_restitution_slope=0.193" in sim
+    tactics = next(line for line in text.splitlines() if "shots aimed with the tracker's puck physics" in line)
+    assert "damping=0.125" in tactics
+    trials = next(line for line in text.splitlines() if "[strategy_test]: parameters other than" in line)
+    assert f"table_file='{lab}'" in trials and "timeout=40.0" in trials
     leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|strategy_test|tactics|puck_tracker|trajectory_generator)"])
     assert leftovers.stdout.strip() == ""

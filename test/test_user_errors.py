@@ -118,6 +118,10 @@ def rest_bag(path):
      ["--opponent-params needs --defended"]),
     (lambda d: ["strategy-test", "--defended", "--opponent-params", d / "none.yaml"],
      ["--opponent-params", "none.yaml", "no such file"]),
+    (lambda d: ["game", "--in-process", "--table", d / "none.yaml"], ["--table", "none.yaml", "no such file"]),
+    (lambda d: ["strategy-test", "--table", write(d / "t.yaml", "/**/puck_tracker:\n  ros__parameters:\n"
+                                                                "    damping: 0.2\n")],
+     ["--table", "t.yaml", "no '/**/table_sim' section"]),
     (lambda d: ["plot", d, "--out", write(d / "notabag.txt", "x")], ["--out", "is a file"]),
     (lambda d: ["game-check", d, "--plot", write(d / "taken.txt", "x") / "sub"], ["--plot", "cannot create"]),
     (lambda d: ["sysid", rest_bag(d / "bag"), "--out", write(d / "old.yaml", "x")], ["old.yaml", "exists already"]),

@@ -60,10 +60,12 @@ class GameConfig:
     variants: dict = field(default_factory=dict)
 
     @classmethod
-    def load(cls, seed: int, versus: tuple[str, str] | dict[str, str] | None = None) -> "GameConfig":
+    def load(cls, seed: int, versus: tuple[str, str] | dict[str, str] | None = None,
+             table: str = "") -> "GameConfig":
         """The defaults; with ``versus`` (robot, parameter YAML), or a dict of such robot -> file, that robot's
         agent reads the file's tactics and trajectory_generator parameters too
-        (:func:`~air_hockey_agent.agent_params.load_agent_variant`)."""
+        (:func:`~air_hockey_agent.agent_params.load_agent_variant`); with ``table`` (a table file,
+        :mod:`air_hockey_agent.sim.table_file`) on that simulated table."""
         from air_hockey_agent.agent_params import load_agent_params, load_agent_variant
         from air_hockey_agent.motion_params import load_motion_params
         from air_hockey_agent.params import load_node_params
@@ -71,8 +73,8 @@ class GameConfig:
         from air_hockey_agent import referee_params
         from air_hockey_agent.sim.params import load_sim_params
         from air_hockey_agent.tracker_params import SIM_TABLE_FILE, load_tracker_params
-        physics = config_file(SIM_TABLE_FILE)
-        sim = {**load_sim_params(), "seed": seed, "gui": False}
+        physics = Path(table) if table else config_file(SIM_TABLE_FILE)
+        sim = {**load_sim_params([Path(table)] if table else []), "seed": seed, "gui": False}
         referee = {**load_node_params(referee_params.PARAM_FILES, referee_params.NODE_NAME,
                                       referee_params.REFEREE_PARAMS),
                    "seed": seed, "restart_after_fault": True, "sim": True}
@@ -146,13 +148,13 @@ class InProcessGame:
     """One game on the pybullet table; :meth:`run` plays it and returns the scoreboard's result.
     ``robots``: the robots with an agent (the others hold their home pose); ``refereed`` False: no
     referee, the game always running (the strategy test's setting); ``versus`` (robot, parameter YAML), or a
-    dict of them: those robots' agent variants (:meth:`GameConfig.load`)."""
+    dict of them: those robots' agent variants; ``table``: another simulated table (:meth:`GameConfig.load`)."""
 
     def __init__(self, seed: int, gui: bool = False, log: Callable[[str], None] | None = None,
                  robots: tuple[str, ...] = ROBOTS, refereed: bool = True,
-                 versus: tuple[str, str] | dict[str, str] | None = None) -> None:
+                 versus: tuple[str, str] | dict[str, str] | None = None, table: str = "") -> None:
         from air_hockey_agent.paths import model_path
-        self.config = c = GameConfig.load(seed, versus)
+        self.config = c = GameConfig.load(seed, versus, table)
         self.world = TableWorld(SimSettings.from_params(c.sim), gui=gui)
         self.runner = SimRunner(self.world, c.sim["mocap_rate"], MocapImperfections.from_params(c.sim),
                                 np.random.default_rng(seed), c.sim["clock_rate"], c.sim["joint_state_rate"],
@@ -296,12 +298,13 @@ class InProcessGame:
 
 def play_game(seed: int, duration: float, goals: int = 0, gui: bool = False, real_time_factor: float = 0.0,
               progress_period: float = 10.0, progress: Callable[[str], None] | None = None,
-              record: Path | None = None, versus: tuple[str, str] | None = None) -> dict:
+              record: Path | None = None, versus: tuple[str, str] | None = None, table: str = "") -> dict:
     """One game of ``duration`` [s] (or ``goals`` goals) with ``seed``; the scoreboard's result. With
     ``record``, the game is also written to that MCAP bag directory (:mod:`air_hockey_agent.sim.game_record`;
     the result's ``"recording"``); with ``versus`` (robot, parameter YAML), that robot plays the file's agent
-    variant. A module-level function, so worker processes can run it."""
-    game = InProcessGame(seed, gui=gui, versus=versus)
+    variant; with ``table`` (a table file), on that simulated table. A module-level function, so worker
+    processes can run it."""
+    game = InProcessGame(seed, gui=gui, versus=versus, table=table)
     try:
         if record is None:
             return game.run(duration, goals, progress, progress_period, real_time_factor)

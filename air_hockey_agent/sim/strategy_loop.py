@@ -39,17 +39,18 @@ def chunk_seed(seed: int, chunk: int) -> int:
 
 
 def run_chunk(seed: int, chunk: int, trials: Sequence[tuple[str, int]], params_file: str = "",
-              defended: bool = False, opponent_file: str = "") -> list[dict]:
+              defended: bool = False, opponent_file: str = "", table_file: str = "") -> list[dict]:
     """Play ``trials`` ((strategy, index) pairs) on a fresh table; their ``--results`` records in order.
     ``params_file``: the tested agent reads this variant too (``strategy-test --params-file``); the trials'
     initial states stay those of the defaults, so a variant meets the same pucks. ``defended``: the opponent
-    plays (``strategy-test --defended``), reading ``opponent_file`` too (``--opponent-params``)."""
+    plays (``strategy-test --defended``), reading ``opponent_file`` too (``--opponent-params``).
+    ``table_file``: on that simulated table (``--table``)."""
     from air_hockey_agent.sim.game_loop import InProcessGame
     from air_hockey_agent.strategy_params import trial_settings
-    settings = trial_settings()
+    settings = trial_settings(table_file=table_file)
     variants = {robot: path for robot, path in ((ROBOT, params_file), (OPPONENT, opponent_file)) if path}
     game = InProcessGame(chunk_seed(seed, chunk), robots=(ROBOT, OPPONENT) if defended else (ROBOT,),
-                         refereed=False, versus=variants)
+                         refereed=False, versus=variants, table=table_file)
     try:
         return [play_trial(game, make_trial(name, index, seed, settings), settings) for name, index in trials]
     finally:

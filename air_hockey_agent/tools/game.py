@@ -18,6 +18,9 @@ game exactly, and faster; nothing is published, and ``--record`` writes the same
 parameter YAML), the other robot plays the defaults; with ``--in-process --games N`` each seed is played
 twice, the variant once on each side, and the summary adds the goals, hits and games won of each agent and
 a sign test of the goals (:mod:`air_hockey_agent.core.game.versus`).
+
+``--table FILE`` plays on another simulated table (:mod:`air_hockey_agent.sim.table_file`;
+``config/lab_table.yaml`` is the lab's), both agents deployed as on a real table.
 """
 from __future__ import annotations
 
@@ -65,9 +68,9 @@ def process(node: NodeRun, label: str | None = None) -> ProcessSpec:
 
 
 def game_processes(gui: bool, real_time_factor: float, seed: int, markers: bool = False,
-                   versus: tuple[str, str] | None = None) -> list[ProcessSpec]:
+                   versus: tuple[str, str] | None = None, table: str = "") -> list[ProcessSpec]:
     """The node processes of one game (:func:`air_hockey_agent.node_graph.game_nodes`)."""
-    return [process(node) for node in game_nodes(gui, real_time_factor, seed, markers, versus)]
+    return [process(node) for node in game_nodes(gui, real_time_factor, seed, markers, versus, table)]
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -106,6 +109,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              f"plays {ROBOTS[0]}; with --games (even) each seed is played twice, the variant once "
                              "on each side; the summary adds each agent's goals, hits and games won and a sign test "
                              "of the goals")
+    parser.add_argument("--table", type=Path, default=None, metavar="FILE",
+                        help="play on another simulated table: FILE's table_sim parameters over config/sim.yaml; "
+                             "both agents' trackers and tactics read config/tracker.yaml (a real table's defaults, "
+                             "learning on) and FILE's puck_tracker section instead of config/tracker_sim_table.yaml "
+                             "(e.g. config/lab_table.yaml, the lab's table)")
     parser.set_defaults(run=run)
 
 
@@ -140,6 +148,11 @@ def _check_args(args: argparse.Namespace) -> None:
     if args.versus is not None:
         from air_hockey_agent.agent_params import agent_variant_problem
         problem = agent_variant_problem(args.versus, "--versus")
+        if problem:
+            raise GameError(problem, 2)
+    if args.table is not None:
+        from air_hockey_agent.sim.table_file import table_problem
+        problem = table_problem(args.table)
         if problem:
             raise GameError(problem, 2)
     if args.record is not None:
@@ -190,7 +203,7 @@ def run(args: argparse.Namespace) -> int:
         print("\n[game] interrupted", file=sys.stderr)
         return interrupt.exit_code(exc)
     if args.json:
-        print(json_text(result))
+        print(json_text({**result, "table": str(args.table)} if args.table is not None else result))
     return 0
 
 
@@ -208,9 +221,9 @@ def _play(args, settings, env: dict, rtf: float, say) -> dict:
 
     markers = args.markers or args.record is not None
     versus = (variant_robot(ROBOTS, 0), str(args.versus)) if args.versus is not None else None
-    specs = game_processes(args.gui, rtf, args.seed, markers, versus)
+    specs = game_processes(args.gui, rtf, args.seed, markers, versus, _table(args))
     say(f"starting {len(specs)} nodes (real-time factor {rtf:g}, seed {args.seed})"
-        + (f"; {versus[0]} plays {versus[1]}" if versus else ""))
+        + (f"; {versus[0]} plays {versus[1]}" if versus else "") + _table_note(args))
     with Launcher(env, echo=None, on_line=on_line) as launcher:
         for spec in specs:
             launcher.start(spec)
@@ -253,7 +266,7 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
     say(f"in process, without ROS (real-time factor {rtf:g}, seed{'s' if len(seeds) > 1 else ''} "
         f"{seeds[0]}{f'-{seeds[-1]}' if len(seeds) > 1 else ''}"
         + (f", {args.workers} workers" if args.workers > 1 else "") + f"): {args.duration:g} s of simulated time"
-        + (f" or {args.goals} goals" if args.goals else "") + " per game")
+        + (f" or {args.goals} goals" if args.goals else "") + " per game" + _table_note(args))
     if args.versus is not None:
         say(f"versus: {ROBOTS[0]} plays {args.versus}" + (f", then {ROBOTS[1]} on the same seed, and so on for each "
                                                          "seed" if args.games > 1 else ""))
@@ -261,7 +274,7 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
     names = [f"seed_{seed}" + (f"_{v[0]}" if v else "") for seed, v in zip(seeds, variants)]
     bags = _game_bags(args.record, names)
     if args.workers == 1:
-        results = [play_game(seed, *run_args, progress=say, record=bag, versus=variant)
+        results = [play_game(seed, *run_args, progress=say, record=bag, versus=variant, table=_table(args))
                    for seed, bag, variant in zip(seeds, bags, variants)]
     else:
         from air_hockey_agent.tools.worker_pool import run_in_processes
@@ -271,7 +284,7 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
                 raise GameError(f"game {names[index]} failed: {type(result).__name__}: {result}")
             variant = f" ({variants[index][0]} the variant)" if variants[index] else ""
             say(f"seed {seeds[index]}{variant}: {Scoreboard.total(ROBOTS, [result]).progress()}")
-        jobs = [(seed, *run_args, None, bag, variant) for seed, bag, variant in zip(seeds, bags, variants)]
+        jobs = [(seed, *run_args, None, bag, variant, _table(args)) for seed, bag, variant in zip(seeds, bags, variants)]
         results = run_in_processes(play_game, jobs, args.workers, done)
     if not args.json:
         for r in results:
@@ -285,6 +298,15 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
     games = [{"seed": seed, **r, **({"versus_robot": v[0]} if v else {})}
              for seed, r, v in zip(seeds, results, variants)]
     return {"games": games, "total": _with_versus(args, results, total.result(None), [v[0] for v in variants if v])}
+
+
+def _table(args) -> str:
+    """The ``--table`` file ('' for config/sim.yaml's table)."""
+    return "" if args.table is None else str(args.table)
+
+
+def _table_note(args) -> str:
+    return f"; on the simulated table of {args.table}" if args.table is not None else ""
 
 
 def _with_versus(args, results: list[dict], summary: dict, variant_robots: list[str]) -> dict:

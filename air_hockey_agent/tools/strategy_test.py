@@ -15,6 +15,8 @@ whatever the number of workers. ``--params-file FILE`` gives the agent a variant
 trajectory generator's parameters, as ``air-hockey game --versus``) on the same trials. ``--defended``: the
 opponent runs the agent too (the defaults, or with ``--opponent-params FILE`` a variant), waits at its ready
 point until the tested robot's hit and then defends (ours, beyond the thesis: how often a shot beats a defender).
+``--table FILE``: on another simulated table (:mod:`air_hockey_agent.sim.table_file`; ``config/lab_table.yaml``
+is the lab's), the agent deployed as on a real table.
 """
 from __future__ import annotations
 
@@ -74,22 +76,29 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--opponent-params", type=Path, default=None, metavar="FILE",
                         help="with --defended: the opponent's tactics and trajectory_generator also read this ROS 2 "
                              "parameter YAML (as --params-file for the tested robot)")
+    parser.add_argument("--table", type=Path, default=None, metavar="FILE",
+                        help="play on another simulated table: FILE's table_sim parameters over config/sim.yaml; the "
+                             "agent's tracker and tactics read config/tracker.yaml (a real table's defaults, learning "
+                             "on) and FILE's puck_tracker section instead of config/tracker_sim_table.yaml; FILE's "
+                             "strategy_test section too (e.g. config/lab_table.yaml, the lab's table)")
     parser.set_defaults(run=run)
 
 
 def worker_processes(trials: list[tuple[str, int]], seed: int, params_file: str = "",
-                     defended: bool = False, opponent_file: str = "") -> list[ProcessSpec]:
-    specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", "-p", "real_time_factor:=0.0",
-                                       "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
+                     defended: bool = False, opponent_file: str = "", table_file: str = "") -> list[ProcessSpec]:
+    table = ["--params-file", table_file] if table_file else []
+    specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", *table,
+                                       "-p", "real_time_factor:=0.0", "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
     specs += [process(n, label=n.executable) for n in agent_nodes(ROBOT, use_sim_time=True, sim_table=True,
-                                                                        variant_file=params_file)]
+                                                                        variant_file=params_file, table_file=table_file)]
     if defended:
         specs += [process(n) for n in agent_nodes(OPPONENT, use_sim_time=True, sim_table=True,
-                                                  variant_file=opponent_file)]
+                                                  variant_file=opponent_file, table_file=table_file)]
     trial_list = ",".join(f"{s}:{i}" for s, i in trials)
-    specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args",
+    specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args", *table,
                                                "-p", f"seed:={seed}", "-p", f"trials:={trial_list}",
-                                               "-p", f"defended:={str(defended).lower()}"]))
+                                               "-p", f"defended:={str(defended).lower()}",
+                                               "-p", f"table_file:={table_file}"]))
     return specs
 
 
@@ -97,10 +106,10 @@ class Worker(threading.Thread):
     """One simulation and agent on its own ROS domain, running a list of trials."""
 
     def __init__(self, domain: int, trials: list[tuple[str, int]], seed: int, results: dict, lock: threading.Lock,
-                 on_result, log=None, variants: tuple[str, bool, str] = ("", False, "")) -> None:
+                 on_result, log=None, variants: tuple[str, bool, str, str] = ("", False, "", "")) -> None:
         super().__init__(daemon=True)
         self.domain, self.trials, self.seed, self.log = domain, trials, seed, log
-        self.variants = variants  # (params_file, defended, opponent_file): worker_processes' last three
+        self.variants = variants  # (params_file, defended, opponent_file, table_file): worker_processes' last four
         self.results, self.lock, self.on_result = results, lock, on_result
         self.error = ""
 
@@ -167,10 +176,11 @@ def _run_in_process(pending: list[tuple[str, int]], args, results: dict, progres
     return errors
 
 
-def _variants(args) -> tuple[str, bool, str]:
-    """The tested agent's variant file ('' for the defaults), whether the opponent defends, and its file."""
-    return ("" if args.params_file is None else str(args.params_file), args.defended,
-            "" if args.opponent_params is None else str(args.opponent_params))
+def _variants(args) -> tuple[str, bool, str, str]:
+    """The tested agent's variant file ('' for the defaults), whether the opponent defends, its file, and the
+    table file ('' for config/sim.yaml's table)."""
+    text = lambda path: "" if path is None else str(path)  # noqa: E731
+    return text(args.params_file), args.defended, text(args.opponent_params), text(args.table)
 
 
 def _check(args) -> str:
@@ -187,11 +197,12 @@ def _check(args) -> str:
     if args.opponent_params is not None and not args.defended:
         return "--opponent-params needs --defended (without it the opponent runs no agent)"
     from air_hockey_agent.agent_params import agent_variant_problem
+    from air_hockey_agent.sim.table_file import table_problem
     for path, option in ((args.params_file, "--params-file"), (args.opponent_params, "--opponent-params")):
         problem = agent_variant_problem(path, option) if path is not None else ""
         if problem:
             return problem
-    return ""
+    return table_problem(args.table) if args.table is not None else ""
 
 
 def run(args: argparse.Namespace) -> int:
@@ -203,6 +214,9 @@ def run(args: argparse.Namespace) -> int:
     prepare_for_nodes(say)
     if args.params_file is not None:
         say(f"the agent also reads {args.params_file}")
+    if args.table is not None:
+        say(f"on the simulated table of {args.table} (the agent as on a real table: config/tracker.yaml and its "
+            "puck_tracker section)")
     if args.defended:
         opponent = "defaults" if args.opponent_params is None else f"defaults and {args.opponent_params}"
         say(f"{OPPONENT} runs the agent's {opponent} and defends after the tested robot's hit")
@@ -245,7 +259,9 @@ def run(args: argparse.Namespace) -> int:
             report["defended"] = True
         if args.opponent_params is not None:
             report["opponent_params"] = str(args.opponent_params)
+        if args.table is not None:
+            report["table"] = str(args.table)
         print(json_text(report))
     else:
-        print(table(summary, seconds))
+        print(table(summary, seconds) + (f"\n  on the simulated table of {args.table}" if args.table is not None else ""))
     return 0

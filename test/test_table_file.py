@@ -1,0 +1,68 @@
+"""Table files (air-hockey game / strategy-test --table, sim/table_file.py): what they may set, the one-line
+errors, and where their values go in process (the node graph's side: test_launch_files.py, test_node_cli.py)."""
+from pathlib import Path
+
+import pytest
+
+from air_hockey_agent.paths import config_file
+from air_hockey_agent.sim.table_file import table_problem
+
+LAB = config_file("lab_table.yaml")
+
+
+def write(tmp_path: Path, text: str) -> Path:
+    path = tmp_path / "table.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_the_lab_table_file_loads_and_says_what_the_recordings_say():
+    """config/lab_table.yaml: the tracker's real-table damping and restitution law (config/tracker.yaml)."""
+    from air_hockey_agent.sim.params import load_sim_params
+    from air_hockey_agent.tracker_params import load_tracker_params
+    assert table_problem(LAB) == ""
+    sim, tracker = load_sim_params([LAB]), load_tracker_params()
+    for sim_name, tracker_name in (("surface_damping", "damping"), ("surface_friction", "friction_surface"),
+                                   ("rim_restitution", "restitution"), ("rim_restitution_knee", "restitution_knee"),
+                                   ("rim_restitution_slope", "restitution_slope"),
+                                   ("rim_restitution_min", "restitution_min"), ("rim_friction", "friction_rim")):
+        assert sim[sim_name] == tracker[tracker_name], sim_name
+
+
+@pytest.mark.parametrize("text, message", [
+    ("/**/puck_tracker:\n  ros__parameters:\n    damping: 0.2\n", "no '/**/table_sim' section"),
+    ("/**/table_sim:\n  ros__parameters:\n    surface_dampng: 0.2\n", "did you mean 'surface_damping'"),
+    ("/**/table_sim:\n  ros__parameters:\n    surface_damping: -1.0\n", "'surface_damping' = -1.0 is outside"),
+    ("/iiwa_front/puck_tracker:\n  ros__parameters:\n    damping: 0.2\n", "takes sections for any namespace"),
+    ("/**/tactics:\n  ros__parameters:\n    aim_noise: 0.1\n",
+     "sets only table_sim, puck_tracker and strategy_test parameters"),
+    ("/**/table_sim:\n  ros__parameters:\n    surface_damping: 0.2\n/**/puck_tracker:\n  ros__parameters:\n"
+     "    dampin: 0.2\n", "did you mean 'damping'"),
+    ("/**/table_sim: [\n", "not valid YAML"),
+])
+def test_a_bad_table_file_is_one_line_naming_the_file_and_what_is_wrong(tmp_path, text, message):
+    path = write(tmp_path, text)
+    problem = table_problem(path)
+    assert message in problem and str(path) in problem and problem.startswith("--table") and "\n" not in problem
+    assert table_problem(tmp_path / "none.yaml") == f"--table {tmp_path / 'none.yaml'}: no such file"
+
+
+def test_in_process_the_table_file_sets_the_simulated_table_and_what_the_agent_is_told(tmp_path):
+    """The simulation reads the file's table_sim section; the tracker and the tactics config/tracker.yaml (a
+    real table's defaults, its learning on) and the file's puck_tracker section, not tracker_sim_table.yaml;
+    the strategy test its strategy_test section and the simulated table's damping."""
+    from air_hockey_agent.sim.game_loop import GameConfig
+    from air_hockey_agent.strategy_params import trial_settings
+    from air_hockey_agent.tracker_params import load_tracker_params
+    path = write(tmp_path, "/**/table_sim:\n  ros__parameters:\n    surface_damping: 0.3\n"
+                           "    rim_restitution_slope: 0.1\n/**/puck_tracker:\n  ros__parameters:\n    damping: 0.31\n"
+                           "/**/strategy_test:\n  ros__parameters:\n    timeout: 25.0\n")
+    known, table = GameConfig.load(0), GameConfig.load(0, table=str(path))
+    assert (table.sim["surface_damping"], table.sim["rim_restitution_slope"]) == (0.3, 0.1)
+    assert table.sim["rim_restitution"] == known.sim["rim_restitution"]
+    assert table.tracker == {**load_tracker_params(), "damping": 0.31}
+    assert table.tracker["rim_adaptation.enabled"] and not known.tracker["rim_adaptation.enabled"]
+    assert table.agent["puck_params_file"] == str(path) != known.agent["puck_params_file"]
+    settings, default = trial_settings(table_file=str(path)), trial_settings()
+    assert (settings.timeout, settings.damping) == (25.0, 0.3)
+    assert (default.timeout, default.damping) == (10.0, known.sim["surface_damping"])
