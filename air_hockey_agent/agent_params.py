@@ -123,14 +123,8 @@ def load_agent_variant(path: Path, flag: str = "--versus") -> tuple[dict[str, An
 def agent_variant_problem(path: Path, flag: str) -> str:
     """What is wrong with the agent variant file ``path`` given as ``flag`` (``--versus``, ``--params-file``), as
     one line naming the file and the parameter; '' when it loads (:func:`load_agent_variant`)."""
-    from air_hockey_agent.params import ParameterFileError
-    if not path.is_file():
-        return f"{flag} {path}: no such file"
-    try:
-        load_agent_variant(path, flag)
-    except (ParameterFileError, ParameterValueError) as exc:
-        return f"{flag}: {exc}" if str(path) in str(exc) else f"{flag} {path}: {exc}"
-    return ""
+    from air_hockey_agent.params import file_problem
+    return file_problem(path, flag, load_agent_variant)
 
 
 def puck_model_for_tactics(puck_params_file: str = ""):

@@ -12,7 +12,7 @@ import math
 import re
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any, Callable, Iterable, Mapping, Sequence
 
 import yaml
 
@@ -312,6 +312,19 @@ def check_only_nodes(path: Path, allowed: Sequence[str], what: str,
             if name not in names and not _builtin(name):
                 raise ParameterFileError(f"{path}: section '{key}': '{name}' is not a parameter of "
                                          f"{' or '.join(allowed)} ({what} sets only theirs){closest(name, names)}")
+
+
+def file_problem(path: Path, flag: str, check: Callable[[Path, str], Any]) -> str:
+    """What is wrong with the parameter file ``path`` given as ``flag`` as one line naming the file (no such
+    file, or what ``check(path, flag)`` raised: :class:`ParameterFileError`, :class:`ParameterValueError`);
+    '' when it passes."""
+    if not path.is_file():
+        return f"{flag} {path}: no such file"
+    try:
+        check(path, flag)
+    except (ParameterFileError, ParameterValueError) as exc:
+        return f"{flag}: {exc}" if str(path) in str(exc) else f"{flag} {path}: {exc}"
+    return ""
 
 
 def _listed(names: Sequence[str]) -> str:

@@ -40,11 +40,5 @@ def check_table_file(path: Path, flag: str = "--table") -> None:
 
 def table_problem(path: Path, flag: str = "--table") -> str:
     """What is wrong with the table file ``path`` as one line naming the file; '' when it loads."""
-    from air_hockey_agent.params import ParameterFileError, ParameterValueError
-    if not path.is_file():
-        return f"{flag} {path}: no such file"
-    try:
-        check_table_file(path, flag)
-    except (ParameterFileError, ParameterValueError) as exc:
-        return f"{flag}: {exc}" if str(path) in str(exc) else f"{flag} {path}: {exc}"
-    return ""
+    from air_hockey_agent.params import file_problem
+    return file_problem(path, flag, check_table_file)
