@@ -152,20 +152,27 @@ def load_defaults(paths: Iterable[Path], fq_name: str, specs: Iterable[ParamSpec
     """Merge parameter files (later files win) and check every declared parameter has a valid default."""
     paths = list(paths)
     values: dict[str, Any] = {}
+    sources: dict[str, Path] = {}
     for path in paths:
-        values.update(load_parameter_file(path, fq_name))
-    return _with_defaults(values, paths, fq_name, specs)
+        read = load_parameter_file(path, fq_name)
+        values.update(read)
+        sources.update(dict.fromkeys(read, path))
+    return _with_defaults(values, paths, fq_name, specs, sources)
 
 
 def _with_defaults(values: Mapping[str, Any], paths: Sequence[Path], fq_name: str,
-                   specs: Iterable[ParamSpec]) -> dict[str, Any]:
-    """Every declared parameter's value from the merged ``values`` of ``paths``, checked against its spec."""
+                   specs: Iterable[ParamSpec], sources: Mapping[str, Path]) -> dict[str, Any]:
+    """Every declared parameter's value from the merged ``values`` of ``paths``, checked against its spec; a
+    bad value's error names the file it came from (``sources``: name -> file)."""
     result = {}
     for spec in specs:
         if spec.name not in values:
             raise ParameterFileError(
                 f"no default for parameter '{spec.name}' of {fq_name} in {', '.join(str(p) for p in paths)}")
-        result[spec.name] = spec.check(values[spec.name])
+        try:
+            result[spec.name] = spec.check(values[spec.name])
+        except ParameterValueError as exc:
+            raise ParameterValueError(f"{sources[spec.name]}: {fq_name}: {exc}") from None
     return result
 
 
@@ -179,11 +186,14 @@ def load_node_params(default_files: Iterable[str], fq_name: str, specs: Iterable
     files = [config_file(name) for name in default_files] + [Path(f) for f in extra_files]
     node, own, nodes = fq_name.rsplit("/", 1)[-1], [spec.name for spec in specs], node_parameters()
     values: dict[str, Any] = {}
+    sources: dict[str, Path] = {}
     for path in files:  # each read once; a misspelled section or key is an error, not a silently ignored
         document = _read_document(path)  # line: in an edited config/ (or AIR_HOCKEY_CONFIG_DIR's) as in a
         _check_document(document, path, node, own, nodes)  # --params-file
-        values.update(_document_values(document, path, fq_name))
-    return _with_defaults(values, files, fq_name, specs)
+        read = _document_values(document, path, fq_name)
+        values.update(read)
+        sources.update(dict.fromkeys(read, path))
+    return _with_defaults(values, files, fq_name, specs, sources)
 
 
 def yaml_float(value: float) -> str:

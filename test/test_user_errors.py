@@ -145,6 +145,23 @@ def test_a_bad_tool_argument_is_a_one_line_error(ros_env, tmp_path, make_args, w
     assert_one_line_error(result, *words)
 
 
+@pytest.mark.parametrize("command", [["strategy-test", "--in-process", "--trials", "1"],
+                                     ["game", "--in-process", "--duration", "1"]])
+def test_a_value_out_of_bounds_in_an_edited_config_directory_is_one_line_naming_the_file(ros_env, tmp_path, command):
+    """An edited config/ (AIR_HOCKEY_CONFIG_DIR's copy) with a value outside its bounds: the tools say which file,
+    node and parameter in one line (it was a traceback that named no file)."""
+    import shutil
+    from air_hockey_agent.paths import config_dir
+    copy = tmp_path / "config"
+    shutil.copytree(config_dir(), copy)
+    text = (copy / "agent.yaml").read_text()
+    assert "    prepare_horizon: 8.0 " in text
+    (copy / "agent.yaml").write_text(text.replace("    prepare_horizon: 8.0 ", "    prepare_horizon: 40.0 "))
+    result = run([BIN / "air-hockey", *command], env={**ros_env, "AIR_HOCKEY_CONFIG_DIR": str(copy)}, timeout=120)
+    assert_one_line_error(result, f"air-hockey {command[0]}: error: {copy / 'agent.yaml'}: /tactics: parameter "
+                                  "'prepare_horizon' = 40.0 is outside [0.1, 30.0]")
+
+
 def test_version_and_help_texts_are_plain():
     version = run([BIN / "air-hockey", "--version"])
     assert version.returncode == 0 and version.stdout.startswith("air-hockey ")

@@ -6,6 +6,7 @@ import importlib
 import sys
 from importlib import metadata
 
+from air_hockey_agent.params import ParameterFileError, ParameterValueError
 from air_hockey_agent.tools import interrupt
 from air_hockey_agent.tools.argtypes import OneLineParser
 
@@ -72,6 +73,9 @@ def main(argv: list[str] | None = None) -> int:
         return int(args.run(args) or 0)
     except KeyboardInterrupt as exc:
         return interrupt.exit_code(exc)
+    except (ParameterFileError, ParameterValueError) as exc:  # e.g. an edited config/ with a value out of bounds
+        print(f"{chosen_parser(parser, argv).prog}: error: {exc}", file=sys.stderr)
+        return 2
 
 
 if __name__ == "__main__":
