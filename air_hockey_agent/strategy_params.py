@@ -55,8 +55,8 @@ def trial_settings(params: Mapping[str, Any] | None = None, table_file: str = ""
     """The trials' :class:`~air_hockey_agent.core.game.strategy.trials.TrialSettings` from ``params`` (default:
     the configured ones, then ``table_file``'s ``strategy_test`` section), with the simulated table's damping
     (a slow slide's outcome is decided before it stops; ``config/sim.yaml``, then the table file: the one
-    ``params`` name, else ``table_file``) and where the tested robot's mallet waits when a trial's puck is set: its ready point
-    (``config/agent.yaml``; iiwa_front's own frame is the table frame)."""
+    ``params`` name, else ``table_file``) and where the tested robot's mallet waits when a trial's puck is
+    set: its ready point (``config/agent.yaml``; iiwa_front's own frame is the table frame)."""
     from air_hockey_agent.agent_params import load_agent_params
     from air_hockey_agent.core.game.strategy.trials import TrialSettings
     from air_hockey_agent.sim.params import load_sim_params

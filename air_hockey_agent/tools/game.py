@@ -284,7 +284,8 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
                 raise GameError(f"game {names[index]} failed: {type(result).__name__}: {result}")
             variant = f" ({variants[index][0]} the variant)" if variants[index] else ""
             say(f"seed {seeds[index]}{variant}: {Scoreboard.total(ROBOTS, [result]).progress()}")
-        jobs = [(seed, *run_args, None, bag, variant, _table(args)) for seed, bag, variant in zip(seeds, bags, variants)]
+        jobs = [(seed, *run_args, None, bag, variant, _table(args))
+                for seed, bag, variant in zip(seeds, bags, variants)]
         results = run_in_processes(play_game, jobs, args.workers, done)
     if not args.json:
         for r in results:

@@ -87,10 +87,11 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 def worker_processes(trials: list[tuple[str, int]], seed: int, params_file: str = "",
                      defended: bool = False, opponent_file: str = "", table_file: str = "") -> list[ProcessSpec]:
     table = ["--params-file", table_file] if table_file else []
-    specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", *table,
-                                       "-p", "real_time_factor:=0.0", "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
+    specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", *table, "-p",
+                                       "real_time_factor:=0.0", "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
     specs += [process(n, label=n.executable) for n in agent_nodes(ROBOT, use_sim_time=True, sim_table=True,
-                                                                        variant_file=params_file, table_file=table_file)]
+                                                                        variant_file=params_file,
+                                                                        table_file=table_file)]
     if defended:
         specs += [process(n) for n in agent_nodes(OPPONENT, use_sim_time=True, sim_table=True,
                                                   variant_file=opponent_file, table_file=table_file)]
@@ -263,5 +264,6 @@ def run(args: argparse.Namespace) -> int:
             report["table"] = str(args.table)
         print(json_text(report))
     else:
-        print(table(summary, seconds) + (f"\n  on the simulated table of {args.table}" if args.table is not None else ""))
+        on_table = f"\n  on the simulated table of {args.table}" if args.table is not None else ""
+        print(table(summary, seconds) + on_table)
     return 0
