@@ -66,3 +66,16 @@ def test_in_process_the_table_file_sets_the_simulated_table_and_what_the_agent_i
     settings, default = trial_settings(table_file=str(path)), trial_settings()
     assert (settings.timeout, settings.damping) == (25.0, 0.3)
     assert (default.timeout, default.damping) == (10.0, known.sim["surface_damping"])
+
+
+def test_the_strategy_tests_node_graph_reads_a_table_file_only_when_given():
+    """worker_processes: with a table file table_sim and strategy_test read it and strategy_test is told its
+    path; without one no such argument (rcl refuses an empty '-p table_file:=': every trial's node failed)."""
+    from air_hockey_agent.tools.strategy_test import worker_processes
+    plain = {spec.label: list(spec.command) for spec in worker_processes([("cut", 0)], 0)}
+    assert not any("table_file" in arg or arg == "--params-file" for arg in plain["strategy_test"] + plain["table_sim"])
+    table = {spec.label: list(spec.command) for spec in worker_processes([("cut", 0)], 0, table_file=str(LAB))}
+    for label in ("table_sim", "strategy_test"):
+        assert table[label][table[label].index("--params-file") + 1] == str(LAB)
+    assert f"table_file:={LAB}" in table["strategy_test"]
+    assert f"puck_params_file:={LAB}" in table["tactics"]

@@ -86,7 +86,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def worker_processes(trials: list[tuple[str, int]], seed: int, params_file: str = "",
                      defended: bool = False, opponent_file: str = "", table_file: str = "") -> list[ProcessSpec]:
-    table = ["--params-file", table_file] if table_file else []
+    table = ["--params-file", table_file] if table_file else []  # rcl refuses an empty '-p table_file:='
     specs = [ProcessSpec("table_sim", [*node_executable("table_sim"), "--ros-args", *table, "-p",
                                        "real_time_factor:=0.0", "-p", "clock_rate:=100.0", "-p", f"seed:={seed}"])]
     specs += [process(n, label=n.executable) for n in agent_nodes(ROBOT, use_sim_time=True, sim_table=True,
@@ -99,7 +99,7 @@ def worker_processes(trials: list[tuple[str, int]], seed: int, params_file: str 
     specs.append(ProcessSpec("strategy_test", [*node_executable("strategy_test"), "--ros-args", *table,
                                                "-p", f"seed:={seed}", "-p", f"trials:={trial_list}",
                                                "-p", f"defended:={str(defended).lower()}",
-                                               "-p", f"table_file:={table_file}"]))
+                                               *(["-p", f"table_file:={table_file}"] if table_file else [])]))
     return specs
 
 
