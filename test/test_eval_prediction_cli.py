@@ -243,7 +243,8 @@ def test_the_reference_filter_on_the_same_bags_gives_its_figures_and_the_ratio(b
     bad.write_text("/**/reference_filter:\n  ros__parameters:\n    damping: [0.1]\n")
     out = cli("eval-prediction", bags / "a", "--reference", "--params-file", bad)
     assert out.returncode == 2 and out.stderr.strip().splitlines() == [
-        "air-hockey eval-prediction: error: reference filter: parameter 'damping' needs 2 values, got 1"]
+        f"air-hockey eval-prediction: error: reference filter: {bad}: /reference_filter: parameter 'damping' needs 2 "
+        "values, got 1"]  # the file and node that set it (3cd6392)
 
 
 def test_per_bag_rows_add_up_to_the_session(bags, tmp_path):
