@@ -79,3 +79,25 @@ def test_the_strategy_tests_node_graph_reads_a_table_file_only_when_given():
         assert table[label][table[label].index("--params-file") + 1] == str(LAB)
     assert f"table_file:={LAB}" in table["strategy_test"]
     assert f"puck_params_file:={LAB}" in table["tactics"]
+
+
+def test_the_strategy_plots_say_the_table_and_the_defence(tmp_path, monkeypatch):
+    """strategy-test --plot with --table (and --defended): each figure's title names the set-up; the thesis's
+    set-up has no title."""
+    from air_hockey_agent.tools import strategy_plots
+    titles = []
+    save = strategy_plots.save_figure
+
+    def keep_title(fig, path, **kwargs):
+        titles.append(fig.axes[0].get_title())
+        return save(fig, path, **kwargs)
+    monkeypatch.setattr(strategy_plots, "save_figure", keep_title)
+    summary = {"cut": {"success_rate": 0.4, "partial_rate": 0.9, "trials": 1}}
+    results = [{"strategy": "cut", "offset": None}]
+    strategy_plots.write_plots(summary, results, tmp_path / "plain")
+    strategy_plots.write_plots(summary, results, tmp_path / "lab", table="config/lab_table.yaml")
+    strategy_plots.write_plots(summary, results, tmp_path / "both", defended=True, table="config/lab_table.yaml")
+    assert titles[:2] == ["", ""]
+    assert all(t == "on the simulated table of config/lab_table.yaml (--table)" for t in titles[2:4])
+    assert all("--defended" in t and t.endswith("config/lab_table.yaml (--table)") for t in titles[4:])
+    assert (tmp_path / "lab" / "strategy_success.png").is_file() and (tmp_path / "lab" / "smash_spread.png").is_file()

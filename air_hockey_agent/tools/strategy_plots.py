@@ -10,9 +10,10 @@ from air_hockey_agent.core.game.strategy.report import THESIS
 from air_hockey_agent.tools.files import save_figure
 
 
-def write_plots(summary: dict, results: list[dict], out: Path, defended: bool = False) -> list[Path]:
+def write_plots(summary: dict, results: list[dict], out: Path, defended: bool = False, table: str = "") -> list[Path]:
     """The two PNGs in ``out``; ``defended``: the trials were played against the opponent's agent
-    (``--defended``), which the titles say (the thesis's opponent held its home pose)."""
+    (``--defended``), ``table``: on that table file's simulated table (``--table``), which the titles say (the
+    thesis's opponent held its home pose, on its own table)."""
     import matplotlib
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
@@ -31,9 +32,8 @@ def write_plots(summary: dict, results: list[dict], out: Path, defended: bool = 
     ax.set_xticks(x, keys, rotation=20)
     ax.set_ylim(0, 1)
     ax.set_ylabel("rate")
-    if defended:
-        ax.set_title("ours against iiwa_back's own agent (--defended); the thesis's opponent held its home pose",
-                     fontsize=9)
+    _title(ax, "ours against iiwa_back's own agent (--defended); the thesis's opponent held its home pose"
+           if defended else "", table)
     # below the axes: inside, it covered the Prepare and Repel bars
     ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.22), ncol=2, frameon=False)
     fig.tight_layout()
@@ -46,9 +46,17 @@ def write_plots(summary: dict, results: list[dict], out: Path, defended: bool = 
     ax.axvspan(-9.3, 9.3, color="tab:green", alpha=0.1, label="goal mouth (puck centre)")
     ax.set_xlabel("y where the puck reaches the goal line [cm]")
     ax.set_ylabel("shots")
-    if defended:
-        ax.set_title("against iiwa_back's own agent (--defended): shots that reached the goal line", fontsize=9)
+    _title(ax, "against iiwa_back's own agent (--defended): shots that reached the goal line" if defended else "",
+           table)
     ax.legend()
     fig.tight_layout()
     spread = save_figure(fig, out / "smash_spread.png", dpi=120)
     return [bars, spread]
+
+
+def _title(ax, setting: str, table: str) -> None:
+    """The set-up beyond the thesis's, when there is one, as the axes' title: ``setting`` (or ''), and the
+    table file."""
+    lines = [text for text in (setting, table and f"on the simulated table of {table} (--table)") if text]
+    if lines:
+        ax.set_title("\n".join(lines), fontsize=9)

@@ -249,7 +249,7 @@ def run(args: argparse.Namespace) -> int:
         say(f"wrote {args.results}")
     if args.plot is not None:
         from air_hockey_agent.tools.strategy_plots import write_plots
-        for path in write_plots(summary, [results[t] for t in trials], args.plot, args.defended):
+        for path in write_plots(summary, [results[t] for t in trials], args.plot, args.defended, _variants(args)[3]):
             say(f"wrote {path}")
     if args.json:
         report = {k: {f: v for f, v in e.items() if f != "failures"} for k, e in summary.items()}
