@@ -16,6 +16,7 @@ file is a ROS 2 parameter YAML with sections for any namespace of up to three no
 """
 from __future__ import annotations
 
+import argparse
 from pathlib import Path
 
 TABLE_NODES = ("table_sim", "puck_tracker", "strategy_test")
@@ -36,6 +37,16 @@ def check_table_file(path: Path, flag: str = "--table") -> None:
     load_sim_params([path])
     load_tracker_params([path])
     load_strategy_params([path])
+
+
+def add_table_option(parser: argparse.ArgumentParser, agents: str, also: str = "") -> None:
+    """The ``--table FILE`` option of a tool that plays on the simulated table: ``agents`` names whose trackers
+    and tactics it deploys as on a real table, ``also`` what else reads the file."""
+    parser.add_argument("--table", type=Path, default=None, metavar="FILE",
+                        help=f"play on another simulated table: FILE's table_sim parameters over config/sim.yaml; "
+                             f"{agents} read config/tracker.yaml (a real table's defaults, learning on) and FILE's "
+                             f"puck_tracker section instead of config/tracker_sim_table.yaml{also} (e.g. "
+                             "config/lab_table.yaml, the lab's table)")
 
 
 def table_problem(path: Path, flag: str = "--table") -> str:

@@ -43,6 +43,7 @@ from air_hockey_agent.tools.ros_env import display_available, node_executable, r
 from air_hockey_agent.tools.argtypes import SEED_MAX, count
 from air_hockey_agent.sim.game_topics import MARKER_TOPICS, RECORDED_TOPICS
 from air_hockey_agent.sim.params import ROBOTS
+from air_hockey_agent.sim.table_file import add_table_option, table_problem
 
 KERNEL_COMPILE_NOTICE = 3.0  # [s] a kernel warm-up longer than this was a compilation: say so (a load takes ~1 s)
 
@@ -109,11 +110,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              f"plays {ROBOTS[0]}; with --games (even) each seed is played twice, the variant once "
                              "on each side; the summary adds each agent's goals, hits and games won and a sign test "
                              "of the goals")
-    parser.add_argument("--table", type=Path, default=None, metavar="FILE",
-                        help="play on another simulated table: FILE's table_sim parameters over config/sim.yaml; "
-                             "both agents' trackers and tactics read config/tracker.yaml (a real table's defaults, "
-                             "learning on) and FILE's puck_tracker section instead of config/tracker_sim_table.yaml "
-                             "(e.g. config/lab_table.yaml, the lab's table)")
+    add_table_option(parser, "both agents' trackers and tactics")
     parser.set_defaults(run=run)
 
 
@@ -151,7 +148,6 @@ def _check_args(args: argparse.Namespace) -> None:
         if problem:
             raise GameError(problem, 2)
     if args.table is not None:
-        from air_hockey_agent.sim.table_file import table_problem
         problem = table_problem(args.table)
         if problem:
             raise GameError(problem, 2)

@@ -33,6 +33,7 @@ from air_hockey_agent.core.game.strategy.report import summarise, table
 from air_hockey_agent.core.game.strategy.scoring import TrialResult
 from air_hockey_agent.core.game.strategy.trials import OPPONENT, ROBOT
 from air_hockey_agent.node_graph import agent_nodes
+from air_hockey_agent.sim.table_file import add_table_option, table_problem
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.game import prepare_for_nodes, process
 from air_hockey_agent.tools.json_output import json_text
@@ -76,11 +77,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
     parser.add_argument("--opponent-params", type=Path, default=None, metavar="FILE",
                         help="with --defended: the opponent's tactics and trajectory_generator also read this ROS 2 "
                              "parameter YAML (as --params-file for the tested robot)")
-    parser.add_argument("--table", type=Path, default=None, metavar="FILE",
-                        help="play on another simulated table: FILE's table_sim parameters over config/sim.yaml; the "
-                             "agent's tracker and tactics read config/tracker.yaml (a real table's defaults, learning "
-                             "on) and FILE's puck_tracker section instead of config/tracker_sim_table.yaml; FILE's "
-                             "strategy_test section too (e.g. config/lab_table.yaml, the lab's table)")
+    add_table_option(parser, "the agent's tracker and tactics", "; the strategy test FILE's strategy_test section")
     parser.set_defaults(run=run)
 
 
@@ -198,7 +195,6 @@ def _check(args) -> str:
     if args.opponent_params is not None and not args.defended:
         return "--opponent-params needs --defended (without it the opponent runs no agent)"
     from air_hockey_agent.agent_params import agent_variant_problem
-    from air_hockey_agent.sim.table_file import table_problem
     for path, option in ((args.params_file, "--params-file"), (args.opponent_params, "--opponent-params")):
         problem = agent_variant_problem(path, option) if path is not None else ""
         if problem:
