@@ -256,7 +256,7 @@ def test_strategy_test_with_a_defending_opponent(ros_env, tmp_path):
 
 def test_strategy_test_on_a_table_file(ros_env, tmp_path):
     """`strategy-test --table config/lab_table.yaml` in the node graph: table_sim takes the file's table, the
-    tracker and the tactics config/tracker.yaml's real-table physics, the strategy_test node the file's
+    tracker and the tactics config/tracker.yaml's real-table physics (not the file's), the strategy_test node the file's
     timeout and table; the report names the file, and every process is gone afterwards."""
     log = tmp_path / "nodes.log"
     lab = str(config_file("lab_table.yaml"))
@@ -266,10 +266,10 @@ def test_strategy_test_on_a_table_file(ros_env, tmp_path):
     assert json.loads(result.stdout.strip().splitlines()[-1])["table"] == lab
     text = log.read_text()
     sim = next(line for line in text.splitlines() if "table_sim" in line and "other than the defaults" in line)
-    assert "surface_damping=0.125" in sim and "rim_restitution_slope=0.193" in sim
+    assert "surface_damping=0.085" in sim and "surface_tilt=0.002" in sim and "rim_restitution_slope=0.193" in sim
     tactics = next(line for line in text.splitlines() if "shots aimed with the tracker's puck physics" in line)
     assert "damping=0.125" in tactics
     trials = next(line for line in text.splitlines() if "[strategy_test]: parameters other than" in line)
-    assert f"table_file='{lab}'" in trials and "timeout=40.0" in trials
+    assert f"table_file='{lab}'" in trials and "timeout=25.0" in trials
     leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|strategy_test|tactics|puck_tracker|trajectory_generator)"])
     assert leftovers.stdout.strip() == ""

@@ -3,6 +3,7 @@ import math
 
 import numpy as np
 import pytest
+from scipy.integrate import solve_ivp
 
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory
@@ -78,6 +79,60 @@ def test_free_puck_decelerates_as_configured(world, params):
     assert math.hypot(vx, vy) == pytest.approx(speed, rel=1e-6)
     assert abs(y) < 1e-9 and omega == pytest.approx(3.0, rel=1e-6)  # spin is not damped (eq. 3.1)
     assert theta == pytest.approx(0.5 + 3.0 - 2 * math.pi, abs=1e-6)  # wrapped to (-pi, pi]
+
+
+def _surface_world(params, **values) -> TableWorld:
+    """A world with no eq. 3.1 terms but the given surface parameters (config/sim.yaml names)."""
+    return TableWorld(SimSettings.from_params({**params, "surface_damping": 0.0, "surface_friction": 0.0,
+                                               **values}).puck_only())
+
+
+def test_a_tilted_surface_accelerates_a_resting_puck_downhill_by_g_sin_tilt(params):
+    """Closed form: from rest on a surface tilted by 0.002 rad toward +y, after 1 s the puck moves at
+    g sin(tilt) t = 0.0196 m/s and has slid g sin(tilt) t^2 / 2 = 9.8 mm toward +y."""
+    w = _surface_world(params, surface_tilt=0.002, surface_tilt_heading=math.pi / 2)
+    try:
+        w.set_puck_state([0.1, -0.2, 0.0, 0.0, 0.0, 0.0])
+        w.step(1000)
+        x, y, vx, vy, _, _ = w.puck_state()
+    finally:
+        w.close()
+    a = 9.81 * math.sin(0.002)
+    assert vy == pytest.approx(a, rel=1e-3) and abs(vx) < 1e-9
+    assert y + 0.2 == pytest.approx(a / 2, rel=1e-2) and x == pytest.approx(0.1, abs=1e-9)
+
+
+def test_surface_friction_holds_a_resting_puck_against_a_weaker_tilt(params):
+    w = _surface_world(params, surface_tilt=0.002, surface_friction=0.03)
+    try:
+        w.set_puck_state([0.1, -0.2, 0.0, 0.0, 0.0, 0.0])
+        w.step(500)
+        state = w.puck_state()
+    finally:
+        w.close()
+    assert state[:4] == pytest.approx([0.1, -0.2, 0.0, 0.0], abs=1e-9)
+
+
+def test_an_uneven_air_film_pushes_a_sliding_puck_as_its_field_says(params):
+    """Against scipy's ODE solution of x'' = A sin(k y + p1), y'' = A sin(k x + p2) (the field written out
+    here, not taken from core/puck/surface_field.py) for a puck sliding through it for 1 s."""
+    amplitude, wavelength, phase = 0.05, 0.5, (0.3, -1.0)
+    w = _surface_world(params, air_film_amplitude=amplitude, air_film_wavelength=wavelength, air_film_phase=phase)
+    start = [-0.4, 0.1, 0.8, 0.0]
+    try:
+        w.set_puck_state(start + [0.0, 0.0])
+        w.step(1000)
+        state = w.puck_state()
+    finally:
+        w.close()
+    k = 2 * math.pi / wavelength
+
+    def motion(_, s):
+        return [s[2], s[3], amplitude * math.sin(k * s[1] + phase[0]), amplitude * math.sin(k * s[0] + phase[1])]
+    truth = solve_ivp(motion, (0.0, 1.0), start, rtol=1e-10, atol=1e-12).y[:, -1]
+    assert state[:2] == pytest.approx(truth[:2], abs=1e-4)  # 1 ms steps: O(dt) = 0.05 mm here
+    assert state[2:4] == pytest.approx(truth[2:4], abs=1e-4)
+    assert abs(truth[2] - 0.8) > 0.04 and abs(truth[3]) > 0.005  # the field did push
 
 
 def test_puck_in_a_goal_stops_there(world, params):

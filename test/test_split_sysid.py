@@ -19,7 +19,8 @@ from air_hockey_agent.core.identification.split import SPLIT_IDENTIFIABLE, ident
 from air_hockey_agent.core.puck.impact import rim_impact
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams
 from air_hockey_agent.core.puck import real_table
-from air_hockey_agent.core.puck.real_table import GRAVITY, TableEffects
+from air_hockey_agent.core.puck.real_table import TableEffects
+from air_hockey_agent.core.puck.surface_field import tilt_acceleration as surface_tilt
 from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.params import load_node_params
 from air_hockey_agent.sysid_params import bounds, load_sysid_params
@@ -66,8 +67,7 @@ def identify_all(trajectories):
 
 
 def tilt_acceleration(effects: TableEffects) -> np.ndarray:
-    slope = GRAVITY * math.sin(effects.tilt)
-    return slope * np.array([math.cos(effects.tilt_heading), math.sin(effects.tilt_heading)])
+    return np.array(surface_tilt(effects.tilt, effects.tilt_heading))
 
 
 def test_local_fits_are_exact_on_noiseless_motion():

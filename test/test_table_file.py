@@ -2,6 +2,7 @@
 errors, and where their values go in process (the node graph's side: test_launch_files.py, test_node_cli.py)."""
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from air_hockey_agent.paths import config_file
@@ -17,16 +18,36 @@ def write(tmp_path: Path, text: str) -> Path:
 
 
 def test_the_lab_table_file_loads_and_says_what_the_recordings_say():
-    """config/lab_table.yaml: the tracker's real-table damping and restitution law (config/tracker.yaml)."""
+    """config/lab_table.yaml (issue #13): free flight at 0.6-1 m/s decelerates by about 0.10 m/s^2, about
+    0.03 m/s^2 pushes a puck across its track, a resting puck rests anywhere (the friction beats the push
+    everywhere), and the rims take the tracker's restitution law (config/tracker.yaml)."""
+    from air_hockey_agent.core.puck.surface_field import SurfaceField
     from air_hockey_agent.sim.params import load_sim_params
     from air_hockey_agent.tracker_params import load_tracker_params
     assert table_problem(LAB) == ""
     sim, tracker = load_sim_params([LAB]), load_tracker_params()
-    for sim_name, tracker_name in (("surface_damping", "damping"), ("surface_friction", "friction_surface"),
-                                   ("rim_restitution", "restitution"), ("rim_restitution_knee", "restitution_knee"),
+    for speed in (0.6, 0.8, 1.0):
+        deceleration = sim["surface_damping"] * speed + sim["surface_friction"]
+        assert deceleration == pytest.approx(0.10, abs=0.02), speed
+    field = SurfaceField.from_params(sim)
+    pushes = [float(np.hypot(*field.at(x, y))) for x in np.linspace(-1, 1, 41) for y in np.linspace(-0.5, 0.5, 21)]
+    assert 0.02 < np.median(pushes) and max(pushes) == pytest.approx(0.03, abs=0.005)
+    assert max(pushes) <= field.max_push <= sim["surface_friction"]
+    for sim_name, tracker_name in (("rim_restitution", "restitution"), ("rim_restitution_knee", "restitution_knee"),
                                    ("rim_restitution_slope", "restitution_slope"),
                                    ("rim_restitution_min", "restitution_min"), ("rim_friction", "friction_rim")):
         assert sim[sim_name] == tracker[tracker_name], sim_name
+
+
+def test_a_slide_is_decided_early_only_where_the_friction_holds_the_puck_against_the_surfaces_push(tmp_path):
+    """TrialSettings.damping bounds a slide by speed / damping: true where the surface friction beats
+    the tilt and air film everywhere (the lab's table), not where the puck can be pushed on for ever."""
+    from air_hockey_agent.strategy_params import trial_settings
+    from air_hockey_agent.sim.params import load_sim_params
+    assert trial_settings(table_file=str(LAB)).damping == load_sim_params([LAB])["surface_damping"]
+    path = write(tmp_path, "/**/table_sim:\n  ros__parameters:\n    surface_damping: 0.3\n"
+                           "    surface_friction: 0.01\n    surface_tilt: 0.002\n")
+    assert trial_settings(table_file=str(path)).damping == 0.0
 
 
 @pytest.mark.parametrize("text, message", [

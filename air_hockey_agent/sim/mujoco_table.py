@@ -34,7 +34,8 @@ import mujoco
 import numpy as np
 
 from air_hockey_agent.core.puck.model import wrap_angle
-from air_hockey_agent.core.puck.real_table import GRAVITY, held_then_hit
+from air_hockey_agent.core.puck.real_table import held_then_hit
+from air_hockey_agent.core.puck.surface_field import GRAVITY, tilt_acceleration
 from air_hockey_agent.core.table import TableGeometry
 
 RIM_HALF_THICKNESS = 0.05  # [m] the puck meets the rims' inner faces, and beside a goal mouth their ends (posts)
@@ -72,8 +73,7 @@ class MujocoTable:
     @property
     def tilt_acceleration(self) -> np.ndarray:
         """Acceleration [m/s^2] of the tilted surface in the table's plane (table frame)."""
-        slope = GRAVITY * math.sin(self.tilt)
-        return slope * np.array([math.cos(self.tilt_heading), math.sin(self.tilt_heading)])
+        return np.array(tilt_acceleration(self.tilt, self.tilt_heading))
 
 
 def scene_xml(table: TableGeometry, physics: MujocoTable) -> str:

@@ -26,6 +26,12 @@ SIM_PARAMS = TABLE_PARAMS + (
     ParamSpec("home_joint_positions", list, "[rad] home configuration of the 7 arm joints", -3.1, 3.1, 7),
     ParamSpec("surface_friction", float, "[m/s^2] air-cushion friction deceleration (eq. 3.1)", 0.0, 10.0),
     ParamSpec("surface_damping", float, "[1/s] air-cushion viscous damping (eq. 3.1)", 0.0, 10.0),
+    ParamSpec("surface_tilt", float, "[rad] slope of the surface (core/puck/surface_field.py; 0: level)", 0.0, 0.1),
+    ParamSpec("surface_tilt_heading", float, "[rad] direction (table frame) the surface falls toward", -7.0, 7.0),
+    ParamSpec("air_film_amplitude", float, "[m/s^2] peak acceleration of an uneven air film's field (0: even)",
+              0.0, 10.0),
+    ParamSpec("air_film_wavelength", float, "[m] wavelength of the air film's field", 0.01, 100.0),
+    ParamSpec("air_film_phase", list, "[rad] phases p1 p2 of the air film's field along y and x", -7.0, 7.0, 2),
     ParamSpec("rim_restitution", float, "[-] puck-rim restitution e (Poisson, sim/rim_contact.py)", 0.0, 1.0),
     ParamSpec("rim_restitution_slope", float, "[s/m] the rim restitution falls by this per m/s of normal "
               "impact speed beyond rim_restitution_knee (0: constant)", 0.0, 10.0),

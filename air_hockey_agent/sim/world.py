@@ -5,9 +5,11 @@ Frames: the world frame is the table frame (README "Frames and units"); the surf
 * Puck: pybullet handles its contacts with the mallets (restitution and lateral friction from
   ``config/sim.yaml``); its rim impacts are rigid-body impacts computed by
   :mod:`air_hockey_agent.sim.rim_contact` after every step (pybullet's rim contact depends on the step
-  phase for a spinning puck; see there). The puck-surface contact is disabled: the air film acts as thesis eq. 3.1's
-  surface friction and damping, applied to the puck's velocity after every physics step, and the puck
-  is held on the surface (height, roll and pitch reset every step: a planar body, as on the real table).
+  phase for a spinning puck; see there). The puck-surface contact is disabled: the air film acts as
+  thesis eq. 3.1's surface friction and damping, applied to the puck's velocity after every physics
+  step, plus the surface's own push where a table has one (a tilt, an uneven air film:
+  :mod:`air_hockey_agent.core.puck.surface_field`; none on the thesis's table), and the puck is held
+  on the surface (height, roll and pitch reset every step: a planar body, as on the real table).
   A puck that has fully crossed a goal line stops there (it is in the goal).
 * Robots: KUKA iiwa 14 with the striker (``models/iiwa14_striker.urdf``), position/velocity control
   of the seven arm joints following :class:`~air_hockey_agent.core.motion.joint_trajectory.JointTrajectory`;
@@ -29,6 +31,7 @@ from pybullet_utils.bullet_client import BulletClient
 
 from air_hockey_agent.core.frames import quaternion_from_yaw, yaw_from_quaternion
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory, TrajectoryError, received_at
+from air_hockey_agent.core.puck.surface_field import SurfaceField
 from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.contacts import ContactLog, MalletContact
@@ -52,6 +55,7 @@ class SimSettings:
     surface_friction: float
     surface_damping: float
     rim_law: RimLaw              # the rims' restitution (falling with the impact speed or not) and friction
+    surface: SurfaceField        # the surface's own push (tilt, air film; zero on the thesis's table)
     mallet_restitution: float
     mallet_friction: float
     contact_erp: float
@@ -65,6 +69,7 @@ class SimSettings:
                    params["surface_friction"], params["surface_damping"],
                    RimLaw(params["rim_restitution"], params["rim_friction"], params["rim_restitution_slope"],
                           params["rim_restitution_min"], params["rim_restitution_knee"]),
+                   SurfaceField.from_params(params),
                    params["mallet_restitution"], params["mallet_friction"],
                    params["contact_erp"], params["striker_control_rate"],
                    {n: tuple(params[f"robot_base.{n}"]) for n in ROBOTS},
@@ -216,9 +221,26 @@ class TableWorld:
         speed = math.hypot(vx, vy)
         new_speed = max((1.0 - dt * s.surface_damping) * speed - dt * s.surface_friction, 0.0)
         scale = new_speed / speed if speed > 0.0 else 0.0
+        vx, vy = vx * scale, vy * scale
         if abs(x) > s.table.length / 2 + s.table.puck_radius:  # fully over a goal line: in the goal
-            scale, omega = 0.0, 0.0
-        self.set_puck_state((x, y, vx * scale, vy * scale, theta, omega))
+            vx, vy, omega = 0.0, 0.0, 0.0
+        elif not s.surface.is_zero:
+            vx, vy = self._pushed_by_surface(x, y, vx, vy, speed)
+        self.set_puck_state((x, y, vx, vy, theta, omega))
+
+    def _pushed_by_surface(self, x: float, y: float, vx: float, vy: float, speed: float) -> tuple[float, float]:
+        """Velocity [m/s] after the surface's own acceleration (tilt and air film, ``SimSettings.surface``)
+        over a step, from the velocity after eq. 3.1's terms; ``speed`` [m/s] is the speed before them. A
+        puck at rest stays there unless the push beats the surface friction (a constant deceleration that
+        holds it like a static friction), as in the test bed (core/puck/real_table.py)."""
+        ax, ay = self.settings.surface.at(x, y)
+        if speed > 0.0:
+            return vx + self.dt * ax, vy + self.dt * ay
+        push = math.hypot(ax, ay)
+        if push <= self.settings.surface_friction:
+            return 0.0, 0.0
+        share = self.dt * (push - self.settings.surface_friction) / push
+        return share * ax, share * ay
 
     # --- robots -------------------------------------------------------------------------------
     def joint_state(self, name: str) -> tuple[np.ndarray, np.ndarray]:

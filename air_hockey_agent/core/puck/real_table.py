@@ -10,7 +10,7 @@ Integrated with a fixed fine step (semi-implicit Euler), the puck accelerates by
                                           test bed's own d, mu_s
       + g sin(tilt) (cos h, sin h)        a surface that falls toward heading h
       + A (sin(2 pi y / L + p1), sin(2 pi x / L + p2))   an uneven air film: a smooth field of amplitude A
-                                          [m/s^2] and wavelength L [m]
+                                          [m/s^2] and wavelength L [m] (both :mod:`.surface_field`)
       + w(t)                              random accelerations: a Gaussian value of std sigma held for a
                                           correlation time, then drawn again
 
@@ -38,9 +38,8 @@ from typing import Any, Mapping
 import numpy as np
 
 from air_hockey_agent.core.puck.model import wrap_angle
+from air_hockey_agent.core.puck.surface_field import GRAVITY, SurfaceField
 from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
-
-GRAVITY = 9.81  # [m/s^2]
 
 
 @dataclass(frozen=True)
@@ -163,10 +162,9 @@ class RealTablePuck:
 
     def __init__(self, table: TableGeometry, effects: TableEffects, rng: np.random.Generator) -> None:
         self.table, self.effects, self.rng = table, effects, rng
-        self.phases = rng.uniform(0.0, 2.0 * math.pi, 2)
-        slope = GRAVITY * math.sin(effects.tilt)
-        self.tilt_acceleration = np.array([slope * math.cos(effects.tilt_heading),
-                                           slope * math.sin(effects.tilt_heading)])
+        phases = rng.uniform(0.0, 2.0 * math.pi, 2)
+        self.surface = SurfaceField(effects.tilt, effects.tilt_heading, effects.air_film_amplitude,
+                                    effects.air_film_wavelength, (float(phases[0]), float(phases[1])))
         self._random = np.zeros(2)
         self._random_until = -math.inf
 
@@ -183,10 +181,8 @@ class RealTablePuck:
         return a
 
     def field(self, x: float, y: float) -> np.ndarray:
-        """Acceleration of the surface [m/s^2] at (x, y): tilt plus the air film."""
-        amplitude, k = self.effects.air_film_amplitude, 2.0 * math.pi / self.effects.air_film_wavelength
-        film = amplitude * np.array([math.sin(k * y + self.phases[0]), math.sin(k * x + self.phases[1])])
-        return self.tilt_acceleration + film
+        """Acceleration of the surface [m/s^2] at (x, y): tilt plus the air film (:mod:`.surface_field`)."""
+        return np.array(self.surface.at(x, y))
 
     def step(self, state: np.ndarray, t: float, dt: float) -> np.ndarray:
         """State after ``dt`` [s] from ``state`` at ``t`` [s]: flight, then any rim contact. Surface friction
