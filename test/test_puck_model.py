@@ -84,7 +84,8 @@ def test_table_acceleration_follows_its_closed_form_and_friction_holds_a_resting
 
 def test_table_acceleration_matches_the_test_beds_tilted_surface():
     # an independent integrator (core/puck/real_table.py, semi-implicit Euler at 1 kHz) on a tilted table
-    from air_hockey_agent.core.puck.real_table import GRAVITY, RealTablePuck, TableEffects
+    from air_hockey_agent.core.puck.real_table import RealTablePuck, TableEffects
+    from air_hockey_agent.core.puck.surface_field import GRAVITY
     tilt, heading = 0.003, 2.0
     effects = TableEffects(damping=0.1, tilt=tilt, tilt_heading=heading)
     start = np.array([-0.4, -0.2, 0.6, 0.1, 0.0, 0.0])

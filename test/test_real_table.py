@@ -8,7 +8,8 @@ import pytest
 from air_hockey_agent.core.estimation.synthetic import (MocapImperfections, MocapSampler, ShotRanges, stepped_state_at,
                                                        synthetic_session)
 from air_hockey_agent.core.puck.impact import rim_impact
-from air_hockey_agent.core.puck.real_table import GRAVITY, RealTablePuck, TableEffects, real_rim_impact
+from air_hockey_agent.core.puck.real_table import RealTablePuck, TableEffects, real_rim_impact
+from air_hockey_agent.core.puck.surface_field import GRAVITY
 from air_hockey_agent.core.table import TableGeometry
 
 TABLE = TableGeometry(1.956, 1.042, 0.25, 0.03165)  # config/table.yaml

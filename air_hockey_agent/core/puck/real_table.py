@@ -38,7 +38,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from air_hockey_agent.core.puck.model import wrap_angle
-from air_hockey_agent.core.puck.surface_field import GRAVITY, SurfaceField
+from air_hockey_agent.core.puck.surface_field import SurfaceField
 from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
 
 
