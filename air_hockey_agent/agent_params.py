@@ -39,6 +39,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("smash_rim_margin", float, "[m] smash area distance from the long rims beyond the puck radius", 0.0, 0.5),
     ParamSpec("static_speed", float, "[m/s] puck at rest below this speed", 0.0, 1.0),
     ParamSpec("drift_speed", float, "[m/s] puck hit where it lies below this speed", 0.0, 1.0),
+    ParamSpec("drift_significance", float, "a puck whose estimated speed is within this many of its standard "
+              "deviations is hit where it lies (0: drift_speed alone)", 0.0, 10.0),
     ParamSpec("smash_puck_speed", float, "[m/s] smash a puck slower than this", 0.0, 5.0),
     ParamSpec("beyond_smash_speed", float,
               "[m/s] smash a puck beyond the smash area's far edge when it is this slow at the hit time", 0.0, 5.0),

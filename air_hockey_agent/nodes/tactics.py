@@ -85,7 +85,8 @@ class TacticsNode(AirHockeyNode):
             samples = np.array([_state(s) for s in msg.states]).reshape(-1, 6)
             times = t0 + msg.sample_period * np.arange(1, len(samples) + 1)
             impacts = [(t0 + i.time_from_start, i.x, i.y) for i in msg.impacts]
-            self.situation = build_situation(self.robot, t0, _state(msg.initial), times, samples, impacts)
+            self.situation = build_situation(self.robot, t0, _state(msg.initial), times, samples, impacts,
+                                             msg.initial.covariance)
             self.last_estimate = t0
         except (ValueError, TypeError) as exc:
             self.get_logger().error(f"puck/prediction: message ignored ({exc})", throttle_duration_sec=1.0)

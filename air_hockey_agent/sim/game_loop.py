@@ -285,7 +285,7 @@ class InProcessGame:
         if self.recorder is not None:
             self.recorder.on_estimate(self.ekf, flags, prediction)
         for robot, player in self.players.items():
-            player.situation = situation_from_prediction(robot, self.ekf.x, prediction)
+            player.situation = situation_from_prediction(robot, self.ekf.x, prediction, self.ekf.P)
 
     def _act(self, decision: Decision) -> None:
         """What table_sim does for the referee: robots home, the puck put down at rest."""

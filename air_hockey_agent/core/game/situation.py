@@ -54,10 +54,31 @@ class Situation:
     times: np.ndarray                # (n,) prediction sample times, after t
     states: np.ndarray               # (n, 6)
     impact_times: np.ndarray = field(default_factory=lambda: np.empty(0))  # absolute [s], predicted rim impacts
+    # (2, 2) [m^2/s^2] the estimate's velocity covariance (own frame); zero when the tracker gave none
+    velocity_covariance: np.ndarray = field(default_factory=lambda: np.zeros((2, 2)))
 
     @property
     def speed(self) -> float:
         return math.hypot(self.puck[2], self.puck[3])
+
+    @property
+    def speed_std(self) -> float:
+        """Standard deviation [m/s] of the estimate's velocity along its direction (for a puck estimated
+        at rest, along the most uncertain direction): how much of :attr:`speed` may be noise."""
+        cov = self.velocity_covariance
+        speed = self.speed
+        if speed > 0.0:
+            u = self.puck[2:4] / speed
+            return math.sqrt(max(float(u @ cov @ u), 0.0))
+        return math.sqrt(max(float(np.linalg.eigvalsh(cov)[-1]), 0.0))
+
+    def resting(self, rest_speed: float, significance: float = 0.0) -> bool:
+        """The puck is taken as at rest where it lies: its estimated speed is at most ``rest_speed`` [m/s]
+        or at most ``significance`` standard deviations of itself (:attr:`speed_std`), i.e. not told apart
+        from rest. Right after the tracker restarts, or while it follows a hand (its hand regime), the
+        velocity's std is about 0.02 m/s instead of about 0.001."""
+        speed = self.speed
+        return speed <= rest_speed or speed <= significance * self.speed_std
 
     def approaching(self, threshold: float) -> bool:
         return self.puck[2] < -threshold
@@ -84,12 +105,13 @@ class Situation:
         w = (t - t0) / (self.times[i] - t0)
         return (1.0 - w) * s0 + w * self.states[i]
 
-    def expected(self, t: float, rest_speed: float) -> np.ndarray:
-        """The state to plan a hit at ``t`` [s] for: a puck slower than ``rest_speed`` [m/s] is at rest where
-        it is (extrapolating its estimate's velocity noise would move it by centimetres), else :meth:`at`,
-        and beyond the horizon the last sample carried on at its velocity (a slow puck still drifts there:
-        holding it at the last sample would move the hit point with every new prediction)."""
-        if self.speed <= rest_speed:
+    def expected(self, t: float, rest_speed: float, significance: float = 0.0) -> np.ndarray:
+        """The state to plan a hit at ``t`` [s] for: a puck :meth:`resting` (``rest_speed`` [m/s],
+        ``significance``) is at rest where it is (extrapolating its estimate's velocity noise would move it
+        by centimetres), else :meth:`at`, and beyond the horizon the last sample carried on at its velocity
+        (a slow puck still drifts there: holding it at the last sample would move the hit point with every
+        new prediction)."""
+        if self.resting(rest_speed, significance):
             state = self.puck.copy()
             state[2:4] = 0.0
             return state
@@ -116,12 +138,15 @@ class Situation:
 
 
 def build_situation(robot: str, t: float, estimate: Sequence[float], sample_times: Sequence[float],
-                    samples: np.ndarray, impacts: Sequence[tuple[float, float, float]] = ()) -> Situation:
+                    samples: np.ndarray, impacts: Sequence[tuple[float, float, float]] = (),
+                    covariance: Sequence[float] | np.ndarray | None = None) -> Situation:
     """A :class:`Situation` from table-frame tracker output (thesis sec. 4.2).
 
     ``sample_times``: absolute [s]; ``samples`` (n, 6): predicted states; ``impacts``: predicted rim
     impacts as (absolute time [s], x, y). The impact points are merged into the samples (with the
     velocity of the next sample), so that interpolating between samples follows the bounce.
+    ``covariance``: the estimate's 6 x 6 covariance (or its 36 values row by row), SI units, table
+    frame; its velocity block is kept (a rotation by pi leaves it as it is).
 
     Raises ValueError naming the part that is not finite, not increasing or of the wrong size: a
     malformed prediction is refused here rather than deep inside a tactic.
@@ -129,6 +154,7 @@ def build_situation(robot: str, t: float, estimate: Sequence[float], sample_time
     times, samples, estimate = np.asarray(sample_times, float), np.asarray(samples, float), np.asarray(estimate, float)
     impacts = np.asarray(impacts, float).reshape(-1, 3)
     _check_prediction(t, estimate, times, samples, impacts)
+    velocity_covariance = _velocity_block(covariance)
     states = to_own_frame(samples.reshape(-1, 6), robot)
     impact_times = impacts[:, 0].copy()
     if len(impacts) and len(times):
@@ -143,7 +169,19 @@ def build_situation(robot: str, t: float, estimate: Sequence[float], sample_time
             times = np.concatenate([times, extra_t])
             order = np.argsort(times, kind="stable")
             times, states = times[order], np.vstack([states, extra])[order]
-    return Situation(t, to_own_frame(estimate, robot), times, states, impact_times)
+    return Situation(t, to_own_frame(estimate, robot), times, states, impact_times, velocity_covariance)
+
+
+def _velocity_block(covariance: Sequence[float] | np.ndarray | None) -> np.ndarray:
+    """The (2, 2) velocity block of a 6 x 6 covariance (or its 36 values), symmetrised; zeros for None.
+    ValueError unless it is 36 finite values."""
+    if covariance is None:
+        return np.zeros((2, 2))
+    cov = np.asarray(covariance, float)
+    if cov.size != 36 or not np.all(np.isfinite(cov)):
+        raise ValueError(f"the covariance must be 36 finite values (6 x 6), got {cov.size}")
+    block = cov.reshape(6, 6)[2:4, 2:4]
+    return 0.5 * (block + block.T)
 
 
 def _check_prediction(t: float, estimate: np.ndarray, times: np.ndarray, samples: np.ndarray,
@@ -162,12 +200,14 @@ def _check_prediction(t: float, estimate: np.ndarray, times: np.ndarray, samples
         raise ValueError("the sample times do not increase from the stamp")
 
 
-def situation_from_prediction(robot: str, estimate: Sequence[float], prediction) -> Situation:
+def situation_from_prediction(robot: str, estimate: Sequence[float], prediction,
+                              covariance: np.ndarray | None = None) -> Situation:
     """:func:`build_situation` from a tracker's
     :class:`~air_hockey_agent.core.estimation.agent_prediction.AgentPrediction` (what ``puck/prediction``
-    carries) and the ``estimate`` it starts from; table frame in, ``robot``'s own frame out."""
+    carries) and the ``estimate`` it starts from, with its ``covariance``; table frame in, ``robot``'s
+    own frame out."""
     t0, pred = prediction.stamp, prediction.prediction
     times = [t0 + t for t, _, _ in pred.samples]
     samples = np.array([s for _, s, _ in pred.samples], float).reshape(-1, 6)
     impacts = [(t0 + t, x, y) for t, _, x, y, _ in pred.impacts]
-    return build_situation(robot, t0, estimate, times, samples, impacts)
+    return build_situation(robot, t0, estimate, times, samples, impacts, covariance)

@@ -45,7 +45,8 @@ class Prepare(Tactic):
         if situation is None or situation.speed > st.static_speed:
             return None
         t = self_timed_hit_time(PREPARE, ctx)
-        puck = situation.expected(t, st.drift_speed)  # where a creeping puck will be; pushed as from rest
+        # where a creeping puck will be; pushed as from rest
+        puck = situation.expected(t, st.drift_speed, st.drift_significance)
         puck[2:4] = 0.0
         p = puck[:2]
         if p[0] >= 0.0 or st.in_smash_area(p[0], p[1]):

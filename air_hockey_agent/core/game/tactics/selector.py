@@ -205,7 +205,8 @@ class TacticsSelector:
         if now > p.time or p.puck is None or situation is None:
             return True
         if p.is_hit:
-            expected, tolerance = situation.expected(p.time, self.s.drift_speed), self.s.hit_replan_distance
+            expected = situation.expected(p.time, self.s.drift_speed, self.s.drift_significance)
+            tolerance = self.s.hit_replan_distance
         else:
             expected, tolerance = situation.at(p.time), self.s.resend_distance
         return float(np.linalg.norm(expected[:2] - p.puck)) <= tolerance

@@ -29,6 +29,7 @@ class TacticsSettings:
     smash_rim_margin: float
     static_speed: float
     drift_speed: float
+    drift_significance: float
     smash_puck_speed: float
     beyond_smash_speed: float
     smash_chase_speed: float

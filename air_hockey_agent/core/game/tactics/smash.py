@@ -59,7 +59,7 @@ class Smash(Tactic):
     def _shot_at(self, t_hit: float, situation: Situation, chase: bool, ctx: Context) -> Proposal | None:
         """The best shot at the puck where the prediction puts it at ``t_hit`` [s], if it may be smashed there."""
         st = ctx.settings
-        puck = situation.expected(t_hit, st.drift_speed)
+        puck = situation.expected(t_hit, st.drift_speed, st.drift_significance)
         if not st.smashable(puck, chase):
             return None
         shot = ctx.shots.pick([s for s in self._shots(puck, ctx) if self._clear(s, puck, t_hit, situation, ctx)])
