@@ -31,7 +31,7 @@ from pybullet_utils.bullet_client import BulletClient
 
 from air_hockey_agent.core.frames import quaternion_from_yaw, yaw_from_quaternion
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory, TrajectoryError, received_at
-from air_hockey_agent.core.puck.surface_field import SurfaceField
+from air_hockey_agent.core.puck.surface_field import SurfaceField, slide_from_rest
 from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.contacts import ContactLog, MalletContact
@@ -236,11 +236,7 @@ class TableWorld:
         ax, ay = self.settings.surface.at(x, y)
         if speed > 0.0:
             return vx + self.dt * ax, vy + self.dt * ay
-        push = math.hypot(ax, ay)
-        if push <= self.settings.surface_friction:
-            return 0.0, 0.0
-        share = self.dt * (push - self.settings.surface_friction) / push
-        return share * ax, share * ay
+        return slide_from_rest(ax, ay, self.settings.surface_friction, self.dt)
 
     # --- robots -------------------------------------------------------------------------------
     def joint_state(self, name: str) -> tuple[np.ndarray, np.ndarray]:

@@ -38,7 +38,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from air_hockey_agent.core.puck.model import wrap_angle
-from air_hockey_agent.core.puck.surface_field import SurfaceField
+from air_hockey_agent.core.puck.surface_field import SurfaceField, slide_from_rest
 from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
 
 
@@ -193,9 +193,7 @@ class RealTablePuck:
         external = self.external(s[0], s[1], t)
         speed = math.hypot(v[0], v[1])
         if speed == 0.0:
-            push = math.hypot(external[0], external[1])
-            new_v = np.zeros(2) if push <= fx.friction_surface else \
-                dt * (push - fx.friction_surface) / push * external
+            new_v = np.array(slide_from_rest(external[0], external[1], fx.friction_surface, dt))
         else:
             new_v = v + dt * (external - fx.damping * v - fx.friction_surface * v / speed)
             if float(new_v @ v) <= 0.0:

@@ -17,6 +17,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any, Mapping
 
 GRAVITY = 9.81  # [m/s^2]
@@ -52,9 +53,10 @@ class SurfaceField:
         """True when the field pushes nowhere (no tilt, no air film)."""
         return self.tilt == 0.0 and self.air_film_amplitude == 0.0
 
-    @property
+    @cached_property
     def tilt_acceleration(self) -> tuple[float, float]:
-        """The tilt's part [m/s^2] (x, y): the same everywhere on the table."""
+        """The tilt's part [m/s^2] (x, y): the same everywhere on the table (computed once: :meth:`at` runs
+        at every physics step)."""
         return tilt_acceleration(self.tilt, self.tilt_heading)
 
     @property
@@ -73,3 +75,14 @@ class SurfaceField:
             return gx, gy
         k, (p1, p2) = 2.0 * math.pi / self.air_film_wavelength, self.air_film_phase
         return gx + self.air_film_amplitude * math.sin(k * y + p1), gy + self.air_film_amplitude * math.sin(k * x + p2)
+
+
+def slide_from_rest(ax: float, ay: float, friction: float, dt: float) -> tuple[float, float]:
+    """Velocity [m/s] after ``dt`` [s] of a puck at rest that the surface pushes by (``ax``, ``ay``) [m/s^2]
+    against a surface friction ``friction`` [m/s^2] (a constant deceleration, which holds a resting puck
+    like a static friction): none while the push is at most the friction, else the excess along the push."""
+    push = math.hypot(ax, ay)
+    if push <= friction:
+        return 0.0, 0.0
+    share = dt * (push - friction) / push
+    return share * ax, share * ay
