@@ -56,7 +56,7 @@ def trial_settings(params: Mapping[str, Any] | None = None, table_file: str = ""
     the configured ones, then ``table_file``'s ``strategy_test`` section), with the simulated table's damping
     (a slow slide's outcome is decided before it stops; ``config/sim.yaml``, then the table file: the one
     ``params`` name, else ``table_file``; 0, no such decision, where the surface's own push may beat its
-    friction) and where the tested robot's mallet waits when a trial's puck is set: its ready point
+    friction or pushes at random) and where the tested robot's mallet waits when a trial's puck is set: its ready point
     (``config/agent.yaml``; iiwa_front's own frame is the table frame)."""
     from air_hockey_agent.agent_params import load_agent_params
     from air_hockey_agent.core.game.strategy.trials import TrialSettings
@@ -69,7 +69,8 @@ def trial_settings(params: Mapping[str, Any] | None = None, table_file: str = ""
         params = load_strategy_params([Path(table_file)] if table_file else [])
     table = params["table_file"] or table_file
     sim = load_sim_params([Path(table)] if table else [])
-    # a surface that may push a puck harder than the friction holds it bounds no slide by the damping
-    held = SurfaceField.from_params(sim).max_push <= sim["surface_friction"]
+    # a surface that may push a puck harder than the friction holds it (its field, or random pushes, which
+    # have no bound) bounds no slide by the damping
+    held = SurfaceField.from_params(sim).max_push <= sim["surface_friction"] and sim["random_acceleration"] == 0.0
     return TrialSettings.from_params(params, damping=sim["surface_damping"] if held else 0.0, waiting=waiting,
                                      contact_distance=agent["puck.radius"] + agent["mallet.radius"])

@@ -59,6 +59,23 @@ def test_a_restitution_falling_with_the_impact_speed_follows_its_law_and_routhes
     assert (-vx, -vy, om) == pytest.approx((ref.vb, ref.vn, ref.omega), rel=1e-9, abs=1e-9)
 
 
+def test_a_softer_tangential_impulse_is_the_test_beds_impact():
+    """RimLaw.tangential_scale (config/sim.yaml rim_tangential_scale) against the synthetic test bed's
+    impact (core/puck/real_table.py real_rim_impact: Routh's closed form with its tangential impulse
+    scaled, written apart from this solver), with the test bed's restitution falling from 0.96 at
+    0.5 m/s to 0.67 at 2 m/s (= knee 0.5, slope 0.29 / 1.5, floor 0.67)."""
+    from air_hockey_agent.core.puck.real_table import TableEffects, real_rim_impact
+    effects = TableEffects(restitution_slow=0.96, restitution_fast=0.67, restitution_speed_low=0.5,
+                           restitution_speed_high=2.0, friction_rim=0.1, tangential_scale=0.3)
+    c = contacts(e=0.96, mu=0.1, slope=0.29 / 1.5, floor=0.67, knee=0.5, tangential_scale=0.3)
+    x, y = 0.1, TABLE.y_limit + 1e-4  # 0.1 mm into the right rim: b = (-1, 0), n = (0, -1)
+    rng = np.random.default_rng(7)
+    for _ in range(200):
+        vb, vn, om = rng.uniform(-2, 2), -rng.uniform(0.05, 3), rng.uniform(-60, 60)
+        _, _, vx, vy, om2 = c.resolve(x, y, -vb, -vn, om)
+        assert (-vx, -vy, om2) == pytest.approx(real_rim_impact(vb, vn, om, R, effects), rel=1e-9, abs=1e-9)
+
+
 def test_angular_momentum_about_the_contact_point_is_conserved_and_energy_never_grows():
     """The impulse acts at the contact point, so L_c = m (G - c) x v + I omega is conserved; friction
     and restitution e <= 1 can only remove kinetic energy. A ring (I = m r^2) as well as a disc."""

@@ -30,3 +30,20 @@ def test_max_push_is_the_largest_push_anywhere(tilt, heading, amplitude):
     pushes = [math.hypot(*field.at(x, y)) for x in grid[::4] for y in grid]
     assert max(pushes) == pytest.approx(field.max_push, rel=1e-3)
     assert max(pushes) <= field.max_push + 1e-15
+
+
+def test_a_random_push_holds_each_draw_for_its_time_and_has_its_std():
+    """RandomPush: constant over ``hold``, a new draw at the first time at or after its end, zero-mean with the
+    configured std per axis (2000 draws: the sample std within 5 %); std 0 never draws."""
+    from air_hockey_agent.core.puck.surface_field import RandomPush
+    push = RandomPush(0.02, 0.09, np.random.default_rng(3))
+    times = np.arange(8000) * 0.025  # a draw at every fourth sample (the first at or after its hold's end)
+    values = np.array([push.at(t).copy() for t in times])
+    assert np.all(values[1::4] == values[0::4]) and np.all(values[3::4] == values[0::4])
+    draws = values[0::4]
+    assert np.all(np.any(draws[1:] != draws[:-1], axis=1))  # a new value every hold
+    assert draws.std(axis=0) == pytest.approx([0.02, 0.02], rel=0.05)
+    assert np.all(np.abs(draws.mean(axis=0)) < 4 * 0.02 / math.sqrt(len(draws)))
+    rng = np.random.default_rng(3)
+    state = rng.bit_generator.state
+    assert not RandomPush(0.0, 0.1, rng).at(5.0).any() and rng.bit_generator.state == state

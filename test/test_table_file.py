@@ -41,13 +41,16 @@ def test_the_lab_table_file_loads_and_says_what_the_recordings_say():
 
 def test_a_slide_is_decided_early_only_where_the_friction_holds_the_puck_against_the_surfaces_push(tmp_path):
     """TrialSettings.damping bounds a slide by speed / damping: true where the surface friction beats
-    the tilt and air film everywhere (the lab's table), not where the puck can be pushed on for ever."""
+    the tilt and air film everywhere and nothing pushes at random, not where the puck can be pushed on
+    (a weaker friction, or random pushes: the lab's table)."""
     from air_hockey_agent.strategy_params import trial_settings
-    from air_hockey_agent.sim.params import load_sim_params
-    assert trial_settings(table_file=str(LAB)).damping == load_sim_params([LAB])["surface_damping"]
-    path = write(tmp_path, "/**/table_sim:\n  ros__parameters:\n    surface_damping: 0.3\n"
-                           "    surface_friction: 0.01\n    surface_tilt: 0.002\n")
-    assert trial_settings(table_file=str(path)).damping == 0.0
+    def damping(friction: float, extra: str = "") -> float:
+        path = write(tmp_path, "/**/table_sim:\n  ros__parameters:\n    surface_damping: 0.3\n"
+                               f"    surface_friction: {friction}\n    surface_tilt: 0.002\n{extra}")
+        return trial_settings(table_file=str(path)).damping
+    assert damping(0.03) == 0.3  # g sin(0.002) = 0.0196 m/s^2
+    assert damping(0.01) == 0.0 and damping(0.03, "    random_acceleration: 0.001\n") == 0.0
+    assert trial_settings(table_file=str(LAB)).damping == 0.0
 
 
 @pytest.mark.parametrize("text, message", [

@@ -32,6 +32,9 @@ SIM_PARAMS = TABLE_PARAMS + (
               0.0, 10.0),
     ParamSpec("air_film_wavelength", float, "[m] wavelength of the air film's field", 0.01, 100.0),
     ParamSpec("air_film_phase", list, "[rad] phases p1 p2 of the air film's field along y and x", -7.0, 7.0, 2),
+    ParamSpec("random_acceleration", float, "[m/s^2] std per axis of the surface's random accelerations "
+              "(core/puck/surface_field.py RandomPush; 0: none)", 0.0, 10.0),
+    ParamSpec("random_acceleration_time", float, "[s] how long one random acceleration holds", 0.001, 100.0),
     ParamSpec("rim_restitution", float, "[-] puck-rim restitution e (Poisson, sim/rim_contact.py)", 0.0, 1.0),
     ParamSpec("rim_restitution_slope", float, "[s/m] the rim restitution falls by this per m/s of normal "
               "impact speed beyond rim_restitution_knee (0: constant)", 0.0, 10.0),
@@ -39,6 +42,8 @@ SIM_PARAMS = TABLE_PARAMS + (
               0.0, 10.0),
     ParamSpec("rim_restitution_min", float, "[-] the falling rim restitution's floor", 0.0, 1.0),
     ParamSpec("rim_friction", float, "[-] puck-rim Coulomb friction (sim/rim_contact.py)", 0.0, 2.0),
+    ParamSpec("rim_tangential_scale", float, "[-] the rim's tangential impulse as a share of the rigid-body "
+              "(Coulomb) one (1: the thesis's Routh impact; below 1: softer)", 0.0, 1.0),
     ParamSpec("mallet_restitution", float, "[-] puck-mallet restitution", 0.0, 1.0),
     ParamSpec("mallet_friction", float, "[-] puck-mallet lateral friction", 0.0, 2.0),
     ParamSpec("contact_erp", float, "[-] contact error reduction parameter", 0.0, 1.0),
@@ -49,7 +54,7 @@ SIM_PARAMS = TABLE_PARAMS + (
     ParamSpec("callback_period", float, "[s] simulated time between two rounds of ROS callbacks", 1e-4, 1.0),
     ParamSpec("status_period", float, "[s] wall time between two progress lines in the log", 0.1, 3600.0),
     ParamSpec("max_lag", float, "[s] lag behind real_time_factor after which pacing re-anchors", 0.01, 60.0),
-    ParamSpec("seed", int, "random seed of the mocap imperfections", 0, 2**31 - 1),
+    ParamSpec("seed", int, "random seed of the mocap imperfections and the random accelerations", 0, 2**31 - 1),
     ParamSpec("lockstep_lead", float, "[s] as fast as possible: stay at most this far ahead of the agents' "
               "<robot>/sim_sync clocks (0: off)", 0.0, 10.0),
     ParamSpec("lockstep_timeout", float, "[s] wall time after which a silent agent is no longer waited for",

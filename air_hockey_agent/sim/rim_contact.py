@@ -104,13 +104,16 @@ class RimLaw:
     """The rims' coefficients: Poisson restitution ``restitution`` [-] up to the normal impact speed ``knee``
     [m/s], falling by ``slope`` [s/m] beyond it, never below ``floor`` [-] (``slope`` 0: the thesis's
     constant e; :func:`air_hockey_agent.core.puck.impact.speed_restitution`, the tracker's law), and
-    Coulomb friction ``friction`` [-]."""
+    Coulomb friction ``friction`` [-], whose tangential impulse is scaled by ``tangential_scale`` [-] (1:
+    the rigid-body impact; below 1 softer, as another engine's rims, issue #13; the test bed's
+    :func:`air_hockey_agent.core.puck.real_table.real_rim_impact` scales Routh's the same way)."""
 
     restitution: float
     friction: float
     slope: float = 0.0
     floor: float = 0.0
     knee: float = 0.0
+    tangential_scale: float = 1.0
 
     def restitution_at(self, vn: float) -> float:
         """The restitution of an impact at normal velocity ``vn`` [m/s]."""
@@ -170,7 +173,8 @@ class RimContacts:
         k = ((inv_m + perp_n * perp_n * inv_i, perp_n * perp_t * inv_i),
              (perp_n * perp_t * inv_i, inv_m + perp_t * perp_t * inv_i))
         imp = impact_impulse(un, ut, k, self.law.restitution_at(vn_in), self.law.friction)
-        px, py = imp.normal * nx + imp.tangential * tx, imp.normal * ny + imp.tangential * ty
+        tangential = imp.tangential * self.law.tangential_scale
+        px, py = imp.normal * nx + tangential * tx, imp.normal * ny + tangential * ty
         vx, vy = vx + px * inv_m, vy + py * inv_m
         omega += (rx * py - ry * px) * inv_i
         return vx, vy, omega, -(vx * nx + vy * ny) / vn_in

@@ -7,8 +7,8 @@ Frames: the world frame is the table frame (README "Frames and units"); the surf
   :mod:`air_hockey_agent.sim.rim_contact` after every step (pybullet's rim contact depends on the step
   phase for a spinning puck; see there). The puck-surface contact is disabled: the air film acts as
   thesis eq. 3.1's surface friction and damping, applied to the puck's velocity after every physics
-  step, plus the surface's own push where a table has one (a tilt, an uneven air film:
-  :mod:`air_hockey_agent.core.puck.surface_field`; none on the thesis's table), and the puck is held
+  step, plus the surface's own push where a table has one (a tilt, an uneven air film, random
+  accelerations: :mod:`air_hockey_agent.core.puck.surface_field`; none on the thesis's table), and the puck is held
   on the surface (height, roll and pitch reset every step: a planar body, as on the real table).
   A puck that has fully crossed a goal line stops there (it is in the goal).
 * Robots: KUKA iiwa 14 with the striker (``models/iiwa14_striker.urdf``), position/velocity control
@@ -31,7 +31,7 @@ from pybullet_utils.bullet_client import BulletClient
 
 from air_hockey_agent.core.frames import quaternion_from_yaw, yaw_from_quaternion
 from air_hockey_agent.core.motion.joint_trajectory import JointTrajectory, TrajectoryError, received_at
-from air_hockey_agent.core.puck.surface_field import SurfaceField, slide_from_rest
+from air_hockey_agent.core.puck.surface_field import RandomPush, SurfaceField, slide_from_rest
 from air_hockey_agent.core.table import TableGeometry
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.contacts import ContactLog, MalletContact
@@ -43,6 +43,9 @@ STRIKER_JOINTS = ("striker_joint_1", "striker_joint_2")
 FLANGE_LINK, MALLET_LINK, TIP_LINK = "iiwa_flange", "striker_mallet", "striker_tip"
 # URDF loading: inertia as written, cylinders as exact implicit shapes (see TableWorld.__init__)
 SHAPE_FLAGS = pybullet.URDF_USE_INERTIA_FROM_FILE | pybullet.URDF_USE_IMPLICIT_CYLINDER
+# the random push draws from its own stream of the simulation's seed (the mocap stand-in draws from the seed
+# itself, nodes/table_sim.py), so switching it on leaves the mocap's noise as it was
+RANDOM_PUSH_STREAM = 1
 
 
 @dataclass(frozen=True)
@@ -62,18 +65,23 @@ class SimSettings:
     striker_control_rate: float  # [Hz]
     robot_bases: dict            # name -> (x, y, z, yaw) in the table frame
     home: tuple                  # home joint positions [rad]
+    random_acceleration: float = 0.0       # [m/s^2] std per axis of the surface's random push (0: none)
+    random_acceleration_time: float = 0.1  # [s] how long one random push holds
+    seed: int = 0                          # the random push's seed (a stream of its own)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "SimSettings":
         return cls(TableGeometry.from_params(params), params["puck.height"], params["physics_rate"],
                    params["surface_friction"], params["surface_damping"],
                    RimLaw(params["rim_restitution"], params["rim_friction"], params["rim_restitution_slope"],
-                          params["rim_restitution_min"], params["rim_restitution_knee"]),
+                          params["rim_restitution_min"], params["rim_restitution_knee"],
+                          params["rim_tangential_scale"]),
                    SurfaceField.from_params(params),
                    params["mallet_restitution"], params["mallet_friction"],
                    params["contact_erp"], params["striker_control_rate"],
                    {n: tuple(params[f"robot_base.{n}"]) for n in ROBOTS},
-                   tuple(params["home_joint_positions"]))
+                   tuple(params["home_joint_positions"]),
+                   params["random_acceleration"], params["random_acceleration_time"], params["seed"])
 
     def puck_only(self) -> "SimSettings":
         """The same table without robots (benchmarks, synthetic sessions)."""
@@ -129,6 +137,8 @@ class TableWorld:
         self.contact_log = ContactLog()
         self.contacts: list[MalletContact] = []  # ended contacts not yet taken by the caller
         self._striker_every = max(1, round(settings.physics_rate / settings.striker_control_rate))
+        self.random_push = RandomPush(settings.random_acceleration, settings.random_acceleration_time,
+                                      np.random.default_rng((settings.seed, RANDOM_PUSH_STREAM)))
         with _c_stdout_silenced():
             self.client = BulletClient(connection_mode=pybullet.GUI if gui else pybullet.DIRECT)
             self._load(gui)
@@ -224,16 +234,20 @@ class TableWorld:
         vx, vy = vx * scale, vy * scale
         if abs(x) > s.table.length / 2 + s.table.puck_radius:  # fully over a goal line: in the goal
             vx, vy, omega = 0.0, 0.0, 0.0
-        elif not s.surface.is_zero:
+        elif not s.surface.is_zero or s.random_acceleration > 0.0:
             vx, vy = self._pushed_by_surface(x, y, vx, vy, speed)
         self.set_puck_state((x, y, vx, vy, theta, omega))
 
     def _pushed_by_surface(self, x: float, y: float, vx: float, vy: float, speed: float) -> tuple[float, float]:
-        """Velocity [m/s] after the surface's own acceleration (tilt and air film, ``SimSettings.surface``)
-        over a step, from the velocity after eq. 3.1's terms; ``speed`` [m/s] is the speed before them. A
-        puck at rest stays there unless the push beats the surface friction (a constant deceleration that
-        holds it like a static friction), as in the test bed (core/puck/real_table.py)."""
+        """Velocity [m/s] after the surface's own acceleration (tilt and air film, ``SimSettings.surface``,
+        plus the random push held now) over a step, from the velocity after eq. 3.1's terms; ``speed`` [m/s]
+        is the speed before them. A puck at rest stays there unless the push beats the surface friction (a
+        constant deceleration that holds it like a static friction), as in the test bed
+        (core/puck/real_table.py)."""
         ax, ay = self.settings.surface.at(x, y)
+        if self.settings.random_acceleration > 0.0:
+            rx, ry = self.random_push.at(self.time)
+            ax, ay = ax + rx, ay + ry
         if speed > 0.0:
             return vx + self.dt * ax, vy + self.dt * ay
         return slide_from_rest(ax, ay, self.settings.surface_friction, self.dt)

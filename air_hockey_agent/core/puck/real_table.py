@@ -38,7 +38,7 @@ from typing import Any, Mapping
 import numpy as np
 
 from air_hockey_agent.core.puck.model import wrap_angle
-from air_hockey_agent.core.puck.surface_field import SurfaceField, slide_from_rest
+from air_hockey_agent.core.puck.surface_field import RandomPush, SurfaceField, slide_from_rest
 from air_hockey_agent.core.table import SHORT_WALLS, WALL_NORMALS, TableGeometry
 
 
@@ -165,19 +165,14 @@ class RealTablePuck:
         phases = rng.uniform(0.0, 2.0 * math.pi, 2)
         self.surface = SurfaceField(effects.tilt, effects.tilt_heading, effects.air_film_amplitude,
                                     effects.air_film_wavelength, (float(phases[0]), float(phases[1])))
-        self._random = np.zeros(2)
-        self._random_until = -math.inf
+        self.random = RandomPush(effects.random_acceleration, effects.random_acceleration_time, rng)
 
     def external(self, x: float, y: float, t: float) -> np.ndarray:
         """Acceleration [m/s^2] at (x, y) and time ``t`` [s] that does not depend on the velocity: the
         surface's field plus the random acceleration held at ``t``."""
         a = self.field(x, y)
-        fx = self.effects
-        if fx.random_acceleration > 0.0:
-            if t >= self._random_until:
-                self._random = self.rng.normal(0.0, fx.random_acceleration, 2)
-                self._random_until = t + fx.random_acceleration_time
-            a = a + self._random
+        if self.effects.random_acceleration > 0.0:
+            a = a + self.random.at(t)
         return a
 
     def field(self, x: float, y: float) -> np.ndarray:

@@ -10,6 +10,11 @@ field across the table). In the table frame [m, m/s^2, rad]:
 
 The air film's field pushes along x with a wave across y and along y with a wave along x, so a puck
 sliding straight along a long rim feels a steady sideways push that changes from lane to lane.
+
+On top of the field, small random accelerations (:class:`RandomPush`: the film's turbulence; the test
+bed's size, issue #13 does not measure them apart): a Gaussian value of std sigma [m/s^2] per axis, held
+for a correlation time [s], then drawn again.
+
 Used by the synthetic test bed (:mod:`.real_table`), the pybullet table (:mod:`air_hockey_agent.sim.world`)
 and, for the tilt, the MuJoCo table (:mod:`air_hockey_agent.sim.mujoco_table`).
 """
@@ -19,6 +24,8 @@ import math
 from dataclasses import dataclass
 from functools import cached_property
 from typing import Any, Mapping
+
+import numpy as np
 
 GRAVITY = 9.81  # [m/s^2]
 
@@ -75,6 +82,24 @@ class SurfaceField:
             return gx, gy
         k, (p1, p2) = 2.0 * math.pi / self.air_film_wavelength, self.air_film_phase
         return gx + self.air_film_amplitude * math.sin(k * y + p1), gy + self.air_film_amplitude * math.sin(k * x + p2)
+
+
+class RandomPush:
+    """Random accelerations [m/s^2] (x, y) of std ``std`` per axis, each held for ``hold`` [s] (module
+    docstring), drawn from ``rng``; ``std`` 0 draws nothing."""
+
+    def __init__(self, std: float, hold: float, rng: np.random.Generator) -> None:
+        self.std, self.hold, self.rng = std, hold, rng
+        self._value = np.zeros(2)
+        self._until = -math.inf
+
+    def at(self, t: float) -> np.ndarray:
+        """The acceleration [m/s^2] held at time ``t`` [s] (times asked in order: a time at or past the
+        current value's end draws the next one, which holds for ``hold`` from ``t``)."""
+        if self.std > 0.0 and t >= self._until:
+            self._value = self.rng.normal(0.0, self.std, 2)
+            self._until = t + self.hold
+        return self._value
 
 
 def slide_from_rest(ax: float, ay: float, friction: float, dt: float) -> tuple[float, float]:
