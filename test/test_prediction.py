@@ -266,3 +266,39 @@ def test_a_horizon_of_zero_or_less_predicts_the_state_itself():
             b = predict_fast(m, state, cov, horizon, DT, Q, lines=LINES, sample_every=6)
             assert_agree(a, b)
             assert np.array_equal(b.state, state) and not b.samples and not b.impacts
+
+
+@pytest.mark.parametrize("vy", [0.0, 0.4])
+def test_a_line_just_before_a_rim_is_crossed_in_the_step_whose_impact_sends_the_puck_back(vy):
+    """Closed form: a puck at 3.4 m/s crosses x = x_limit - 0.01 m (the shots' line before the far rim) 1.5 ms
+    after its start and meets the rim 2.9 ms later, inside one 8.3 ms step; the crossing is at (line - x0) / vx
+    after the start, at y0 + vy t, with the incoming velocity, where the step's end lies back before the line
+    (it was missed when only the step's two ends were compared: a bank shot near a post had no goal-line
+    crossing, and the strategy test's Smash found no shot, issue #13's lab table). Started 4 mm from the rim,
+    beyond the line, the puck crosses it on the way back within the step: at the impact's time plus the way
+    back over the outgoing speed, with the outgoing velocity (no damping: the step's end velocity)."""
+    m = model(friction_surface=0.0, damping=0.0, table_acceleration=(0.0, 0.0))
+    limit = m.table.x_limit
+    line = limit - 0.01
+    way_in = np.array([limit - 0.015, -0.2, 3.4, vy, 0.0, 0.0])  # beside the goal mouth
+    way_back = np.array([limit - 0.004, -0.2, 3.4, vy, 0.0, 0.0])
+    for predict in (lambda s: predict_stepwise(m, s, P0, 0.1, DT, Q, lines=[line], sample_every=1),
+                    lambda s: predict_fast(m, s, P0, 0.1, DT, Q, lines=[line], sample_every=1),
+                    lambda s: predict_fast(m, s, None, 0.1, DT, Q, lines=[line], sample_every=1)):
+        pred = predict(way_in)
+        t = (line - way_in[0]) / 3.4
+        assert pred.impacts[0][0] < DT and pred.impacts[0][1] == WALL_FAR  # the impact is in the first step
+        assert pred.samples[0][1][0] < line  # and the step ends back before the line
+        crossing = pred.crossings[line]
+        assert (crossing.time, crossing.y, crossing.vx, crossing.vy) == pytest.approx((t, -0.2 + vy * t, 3.4, vy),
+                                                                                    abs=1e-12)
+        pred = predict(way_back)
+        t_impact, _, x_impact, y_impact, _ = pred.impacts[0]
+        out = pred.samples[0][1]
+        t = t_impact + (x_impact - line) / -out[2]
+        crossing = pred.crossings[line]
+        assert t < DT and out[2] < 0.0
+        assert (crossing.time, crossing.y, crossing.vx, crossing.vy) == pytest.approx(
+            (t, y_impact + out[3] * (t - t_impact), out[2], out[3]), abs=1e-9)
+    assert_agree(predict_stepwise(m, way_in, P0, 0.5, DT, Q, lines=[line]),
+                 predict_fast(m, way_in, P0, 0.5, DT, Q, lines=[line]))

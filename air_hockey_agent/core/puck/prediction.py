@@ -10,7 +10,9 @@ Two predictors with one result type:
   with :func:`predict_stepwise` up to rounding (``test_prediction.py``).
 
 Line crossings (e.g. the robots' defend lines) are interpolated linearly inside the step that
-crosses, identically in both predictors.
+crosses, along the step's path (to each rim impact's centre in turn, then to the step's end: a line
+crossed just before a rim is crossed even when the impact in the same step sends the puck back),
+identically in both predictors.
 """
 from __future__ import annotations
 
@@ -76,14 +78,27 @@ class _Recorder:
         self.result = Prediction(np.zeros(6), np.zeros((6, 6)))
 
     def step(self, t0: float, dt: float, before: np.ndarray, after: np.ndarray, impacts) -> None:
+        """A step of ``dt`` [s] from ``t0`` [s]: its impacts, and the lines its path crosses (straight from
+        ``before`` to each impact's centre in turn, then to ``after``; the velocity recorded is ``before``'s,
+        after an impact the piece's secant: the model moves at one velocity between them)."""
         for imp in impacts:
             self.result.impacts.append((t0 + imp.time, imp.wall, imp.x, imp.y, imp.sliding))
+        ta, xa, ya, vxa, vya = t0, before[0], before[1], before[2], before[3]
+        ends = [(t0 + imp.time, imp.x, imp.y) for imp in impacts] + [(t0 + dt, after[0], after[1])]
+        for k, (tb, xb, yb) in enumerate(ends):
+            if k > 0 and tb > ta:
+                vxa, vya = (xb - xa) / (tb - ta), (yb - ya) / (tb - ta)
+            self._cross_piece(ta, tb - ta, xa, ya, vxa, vya, xb, yb)
+            ta, xa, ya = tb, xb, yb
+
+    def _cross_piece(self, t0: float, dt: float, x0: float, y0: float, vx: float, vy: float, x1: float,
+                     y1: float) -> None:
+        """The pending lines crossed on a straight piece of ``dt`` [s] from (x0, y0) at ``t0`` to (x1, y1)."""
         for line in list(self.pending):
-            x0, x1 = before[0] - line, after[0] - line
-            if x0 == 0.0 or x0 * x1 < 0.0 or (x1 == 0.0 and x0 != 0.0):
-                frac = 0.0 if x0 == 0.0 else x0 / (x0 - x1)
-                y = before[1] + frac * (after[1] - before[1])
-                self.cross(line, t0 + frac * dt, y, before[2], before[3])
+            d0, d1 = x0 - line, x1 - line
+            if d0 == 0.0 or d0 * d1 < 0.0 or (d1 == 0.0 and d0 != 0.0):
+                frac = 0.0 if d0 == 0.0 else d0 / (d0 - d1)
+                self.cross(line, t0 + frac * dt, y0 + frac * (y1 - y0), vx, vy)
 
     def cross(self, line: float, time: float, y: float, vx: float, vy: float) -> None:
         self.result.crossings[line] = Crossing(line, time, y, vx, vy)

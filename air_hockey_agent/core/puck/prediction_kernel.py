@@ -309,10 +309,29 @@ def _room(p: np.ndarray, x: float, y: float, vx: float, vy: float) -> tuple[floa
 
 
 @njit(cache=True)
+def _cross_step(crossings: np.ndarray, lines: np.ndarray, t0: float, dt: float, x0: float, y0: float, vx0: float,
+                vy0: float, x1: float, y1: float, impacts: np.ndarray, first: int, last: int) -> None:
+    """First crossings of the lines x = ``lines`` inside one step of ``dt`` [s] from (x0, y0) at ``t0`` [s]
+    with velocity (vx0, vy0) to (x1, y1), along the step's path: straight to the centre at each of its
+    impacts (``impacts`` rows ``first`` to ``last`` - 1) in turn, then to the end; the model moves at one
+    velocity between them, whose secant is recorded after an impact (:meth:`.prediction._Recorder.step`)."""
+    ta, xa, ya, vxa, vya = t0, x0, y0, vx0, vy0
+    for k in range(first, last + 1):
+        if k < last:
+            tb, xb, yb = impacts[k, 0], impacts[k, 2], impacts[k, 3]
+        else:
+            tb, xb, yb = t0 + dt, x1, y1
+        if k > first and tb > ta:
+            vxa, vya = (xb - xa) / (tb - ta), (yb - ya) / (tb - ta)
+        _cross(crossings, lines, ta, tb - ta, xa, ya, vxa, vya, xb, yb)
+        ta, xa, ya = tb, xb, yb
+
+
+@njit(cache=True)
 def _cross(crossings: np.ndarray, lines: np.ndarray, t0: float, dt: float, x0: float, y0: float, vx0: float,
            vy0: float, x1: float, y1: float) -> None:
-    """First crossings of the lines x = ``lines`` inside one step from (x0, y0) with velocity (vx0, vy0) to
-    (x1, y1), interpolated linearly (:meth:`.prediction._Recorder.step`)."""
+    """First crossings of the lines x = ``lines`` on a straight piece of ``dt`` [s] from (x0, y0) at ``t0``
+    with velocity (vx0, vy0) to (x1, y1), interpolated linearly."""
     for i in range(lines.shape[0]):
         if crossings[i, 0] != 0.0:
             continue
@@ -471,7 +490,7 @@ def predict(p: np.ndarray, state: np.ndarray, cov: np.ndarray, q: np.ndarray, im
                 p_now[2, 2] += spread * speed2
                 p_now[3, 3] += spread * speed2
                 p_now[5, 5] += spread * om * om
-        _cross(crossings, lines, i * dt, h, x0, y0, vx0, vy0, x, y)
+        _cross_step(crossings, lines, i * dt, h, x0, y0, vx0, vy0, x, y, impacts, before, count)
         if sample_every > 0 and i < steps and (i + 1) % sample_every == 0:
             samples[taken, 0] = (i + 1) * dt
             samples[taken, 1], samples[taken, 2], samples[taken, 3] = x, y, vx
