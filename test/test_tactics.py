@@ -183,6 +183,23 @@ def test_shots_use_the_physics_they_are_given(settings, model):
     assert np.allclose(before["straight"].direction, after["straight"].direction)  # no rim on its way
 
 
+def test_smash_aims_again_when_the_shots_physics_change(settings, model):
+    """Smash keeps its aimed shots per puck cell; new physics (the tracker learned more of the table) make
+    them stale: the same resting puck is aimed with the new physics at once."""
+    from air_hockey_agent.core.game.tactics.base import Context
+    from air_hockey_agent.core.game.tactics.smash import Smash
+    reach = flat_reach(settings)
+    shots = ShotPredictor(model, settings, DT, reach.max_speed)
+    sit, smash = situation(model, [-0.5, 0.1, 0.0, 0.0, 0.0, 0.0]), Smash()
+    ctx = Context(0.0, settings, reach, shots, mallet=np.array([-0.8, 0.0]), variant="left_bank")
+    before = smash.propose(sit, ctx)
+    shots.use_physics(model.params.with_values(restitution=0.5, restitution_min=0.5))
+    after = smash.propose(sit, ctx)
+    fresh = shots.aim(sit.puck, "left_bank")
+    assert before is not None and after is not None
+    assert not np.allclose(before.velocity, after.velocity) and np.allclose(after.point, fresh.hit_point)
+
+
 def test_line_crossing_matches_straight_flight(model):
     sit = situation(model, [0.3, 0.1, -2.0, -0.2, 0.0, 0.0])
     c = sit.crossing(-0.5)

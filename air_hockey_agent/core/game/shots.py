@@ -109,6 +109,7 @@ class ShotPredictor:
     def __init__(self, model: PuckModel, settings: TacticsSettings, dt: float,
                  speed_at: Callable[[np.ndarray, np.ndarray], float]) -> None:
         self.model, self.s, self.dt, self.speed_at = model, settings, dt, speed_at
+        self.physics_version = 0  # counts use_physics calls: shots aimed with older physics are stale
         table = model.table
         self.line = table.length / 2 - table.puck_radius - LINE_INSET
         self.mouth = table.goal_mouth
@@ -121,6 +122,7 @@ class ShotPredictor:
         """Predict shots with these puck physics from now on (the robot's own frame), e.g. what the
         robot's tracker has learned online of the table."""
         self.model = self.model.with_params(params)
+        self.physics_version += 1
 
     # --- one candidate ---------------------------------------------------------------------------
     def _evaluate(self, puck: np.ndarray, angle: float, speed: float | None) -> tuple | None:

@@ -81,9 +81,11 @@ class Smash(Tactic):
         return not moving or strike_way_clear(situation, shot.hit_point, velocity, t_hit, ctx)
 
     def _shots(self, puck: np.ndarray, ctx: Context) -> list:
+        """The aimed shots at ``puck`` (own-frame state), kept for pucks in the same cell of ``KEY_POSITION``
+        and ``KEY_VELOCITY`` while the shots' physics stay (a resting puck is aimed at once, not every tick)."""
         cap = None if math.isinf(ctx.speed_cap) else ctx.speed_cap
         key = (round(puck[0] / KEY_POSITION), round(puck[1] / KEY_POSITION), round(puck[2] / KEY_VELOCITY),
-               round(puck[3] / KEY_VELOCITY), cap, ctx.variant)
+               round(puck[3] / KEY_VELOCITY), cap, ctx.variant, ctx.shots.physics_version)
         if key not in self._cache:
             if len(self._cache) >= CACHE_SIZE:
                 self._cache.clear()
