@@ -79,6 +79,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("guarded_factor", float, "[-] goal likelihood factor of a shot at the opponent's mallet", 0.0, 1.0),
     ParamSpec("shot_horizon", float, "[s] a shot that needs longer to reach the goal line misses", 0.1, 10.0),
     ParamSpec("goal_aim_margin", float, "[m] aim at least this far inside the goal mouth's edge", 0.0, 0.2),
+    ParamSpec("aim_search_steps", int, "steps of 0.02 rad to either side of the reflection law's angle searched "
+              "for a first shot that reaches the goal line (0: that angle only)", 0, 50),
     ParamSpec("resend_distance", float, "[m] command change that is sent again", 0.0, 1.0),
     ParamSpec("resend_time", float, "[s] hit time change that is sent again", 0.0, 1.0),
     ParamSpec("hit_replan_distance", float, "[m] puck displacement that re-plans an accepted hit", 0.0, 1.0),

@@ -206,16 +206,31 @@ class ShotPredictor:
             left = left or gap > self.s.approach_clearance or t > bounced
         return False
 
+    def _first_shot(self, puck: np.ndarray, guess: float, speed: float | None) -> tuple[float, tuple | None]:
+        """The angle nearest ``guess`` [rad] whose shot reaches the goal line (:meth:`_evaluate`), searched
+        ``FIRST_STEP`` by step to either side, at most ``aim_search_steps`` steps each way; (guess, None)
+        when none does. Beside the posts and near the arm's reach the reflection law's angle can miss the
+        line (or have no hit) where a shot a step away scores: the secant would not have started."""
+        for k in range(2 * self.s.aim_search_steps + 1):
+            angle = guess + FIRST_STEP * ((k + 1) // 2) * (1.0 if k % 2 else -1.0)
+            result = self._evaluate(puck, angle, speed)
+            if result is not None:
+                return angle, result
+        return guess, None
+
     def aim(self, puck: np.ndarray, variant: str, speed: float | None = None) -> Shot | None:
         """The hit that sends ``puck`` (own-frame state, 6) into the goal centre by ``variant``: secant
-        iterations on the direction, starting from the reflection-law guess."""
+        iterations on the direction, starting from the reflection-law guess (or the shot nearest it that
+        reaches the line, :meth:`_first_shot`; its second point on the side where a shot reaches it)."""
         x, y = float(puck[0]), float(puck[1])
         ylim = self.model.table.y_limit
         mirror = {"straight": 0.0, "left_bank": 2.0 * ylim, "right_bank": -2.0 * ylim}[variant]
-        a = math.atan2(mirror - y, self.line - x)
-        r = self._evaluate(puck, a, speed)
+        a, r = self._first_shot(puck, math.atan2(mirror - y, self.line - x), speed)
         b = a + FIRST_STEP
-        rb = self._evaluate(puck, b, speed)
+        rb = None if r is None else self._evaluate(puck, b, speed)
+        if rb is None and r is not None and self.s.aim_search_steps > 0:  # the other side
+            b = a - FIRST_STEP
+            rb = self._evaluate(puck, b, speed)
         slope = None
         for _ in range(SECANT_ITERATIONS):
             if r is None or rb is None or rb[0] == r[0]:

@@ -62,6 +62,7 @@ class TacticsSettings:
     guarded_factor: float
     shot_horizon: float
     goal_aim_margin: float
+    aim_search_steps: int
     resend_distance: float
     resend_time: float
     resend_speed: float
