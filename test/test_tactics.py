@@ -200,6 +200,26 @@ def test_smash_aims_again_when_the_shots_physics_change(settings, model):
     assert not np.allclose(before.velocity, after.velocity) and np.allclose(after.point, fresh.hit_point)
 
 
+@pytest.mark.parametrize("variant, xy", [("straight", (-0.576, -0.417)), ("left_bank", (-0.691, -0.362))])
+def test_aim_finds_a_shot_where_the_reflection_laws_angle_or_its_neighbour_misses_the_line(settings, model,
+                                                                                           variant, xy):
+    """Beside a rim the reflection law's angle (straight from (-0.576, -0.417): its hit point lies beyond the
+    arm's region) or the secant's second point one step on (the left bank from (-0.691, -0.362)) has no
+    shot that reaches the goal line; aim_search_steps finds the nearest that does and the secant centres
+    it, as a fine scan over the angles does. Without the search: no shot."""
+    from dataclasses import replace
+    reach = flat_reach(settings)
+    puck = np.array([*xy, 0.0, 0.0, 0.0, 0.0])
+    searching = ShotPredictor(model, settings, DT, reach.max_speed)
+    shot = searching.aim(puck, variant)
+    assert shot is not None and abs(shot.goal_y) < 0.02 and shot.success > 0.2  # steep: 2 deg spreads it wide
+    ylim = model.table.y_limit
+    guess = math.atan2({"straight": 0.0, "left_bank": 2 * ylim}[variant] - xy[1], searching.line - xy[0])
+    scanned = [r for a in guess + np.linspace(-0.16, 0.16, 161) if (r := searching._evaluate(puck, a, None))]
+    assert abs(shot.goal_y) <= min(abs(r[0]) for r in scanned) + 0.001  # as centred as the scan's best
+    assert ShotPredictor(model, replace(settings, aim_search_steps=0), DT, reach.max_speed).aim(puck, variant) is None
+
+
 def test_line_crossing_matches_straight_flight(model):
     sit = situation(model, [0.3, 0.1, -2.0, -0.2, 0.0, 0.0])
     c = sit.crossing(-0.5)
