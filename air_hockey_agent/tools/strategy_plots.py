@@ -2,6 +2,7 @@
 (fig. 5.7), and where the smash shots reached the opponent's goal line (fig. 5.8)."""
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -39,10 +40,13 @@ def write_plots(summary: dict, results: list[dict], out: Path, defended: bool = 
     fig.tight_layout()
     bars = save_figure(fig, out / "strategy_success.png", dpi=120)
     fig, ax = plt.subplots(figsize=(6, 4))
-    for k in [k for k in keys if k.startswith("smash")]:
-        offsets = [r["offset"] for r in results if r["strategy"] == k and r["offset"] is not None]
+    smashes = {k: [100.0 * r["offset"] for r in results if r["strategy"] == k and r["offset"] is not None]
+               for k in keys if k.startswith("smash")}
+    # [cm] +-30 cm in 3 cm bins, wider (whole bins) where a shot missed by more: none is left out
+    edge = 3.0 * math.ceil(max([10.0] + [abs(v) / 3.0 for offsets in smashes.values() for v in offsets]))
+    for k, offsets in smashes.items():
         if offsets:
-            ax.hist(np.array(offsets) * 100, bins=20, range=(-30, 30), alpha=0.5, label=k)
+            ax.hist(offsets, bins=int(round(2 * edge / 3.0)), range=(-edge, edge), alpha=0.5, label=k)
     ax.axvspan(-9.3, 9.3, color="tab:green", alpha=0.1, label="goal mouth (puck centre)")
     ax.set_xlabel("y where the puck reaches the goal line [cm]")
     ax.set_ylabel("shots")
