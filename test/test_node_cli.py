@@ -267,6 +267,7 @@ def test_strategy_test_on_a_table_file(ros_env, tmp_path):
     text = log.read_text()
     sim = next(line for line in text.splitlines() if "table_sim" in line and "other than the defaults" in line)
     assert "surface_damping=0.085" in sim and "surface_tilt=0.002" in sim and "rim_restitution_slope=0.193" in sim
+    assert "random_acceleration=0.01" in sim and "rim_tangential_scale=0.3" in sim
     tactics = next(line for line in text.splitlines() if "shots aimed with the tracker's puck physics" in line)
     assert "damping=0.125" in tactics
     trials = next(line for line in text.splitlines() if "[strategy_test]: parameters other than" in line)
