@@ -324,6 +324,28 @@ def check_only_nodes(path: Path, allowed: Sequence[str], what: str,
                                          f"{' or '.join(allowed)} ({what} sets only theirs){closest(name, names)}")
 
 
+def check_files_read(paths: Iterable[Path], readers: Sequence[str], flag: str = "--params-file") -> None:
+    """Raise :class:`ParameterFileError` naming the first of ``paths`` that sets no parameter of any of
+    ``readers`` (the node sections a command reads): a file meant for another node or command, which would
+    otherwise change nothing without a word. A section for every node ('/**') counts with the keys one of
+    ``readers`` declares. Names are checked by :func:`check_parameter_file`."""
+    from air_hockey_agent.param_registry import node_parameters
+    nodes = node_parameters()
+    names = set().union(*(nodes[n] for n in readers))
+    for path in paths:
+        document = _read_document(path) or {}
+        read = False
+        for key, block in document.items():
+            params = block.get("ros__parameters") if isinstance(block, Mapping) else None
+            keys = set(_flatten(params or {}))
+            target = _section_node(str(key))
+            read = read or bool(keys & names if target is None else keys and target in readers)
+        if not read:
+            sections = _listed([f"'{key}'" for key in document]) if document else "none"
+            raise ParameterFileError(f"{path}: {flag} sets no parameter of {_listed(readers)}, which this command "
+                                     f"reads (its sections: {sections})")
+
+
 def file_problem(path: Path, flag: str, check: Callable[[Path, str], Any]) -> str:
     """What is wrong with the parameter file ``path`` given as ``flag`` as one line naming the file (no such
     file, or what ``check(path, flag)`` raised: :class:`ParameterFileError`, :class:`ParameterValueError`);

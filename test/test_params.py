@@ -138,3 +138,25 @@ def test_a_misspelled_key_in_the_config_directory_is_an_error_naming_the_file(tm
     with pytest.raises(ParameterFileError, match=r"config/tracker\.yaml: section '/\*\*/puck_tracker': "
                                                  r"'hand\.stop_fracton' is not a parameter of node 'puck_tracker'"):
         load_tracker_params()
+
+
+@pytest.mark.parametrize("text, readers, read", [
+    ("/**/puck_tracker:\n  ros__parameters:\n    damping: 0.2\n", ("puck_tracker",), True),
+    ("/**:\n  ros__parameters:\n    damping: 0.2\n", ("puck_tracker",), True),     # a key the reader declares
+    ("/**:\n  ros__parameters:\n    robot: iiwa_back\n", ("puck_tracker",), False),  # only others' keys
+    ("/**/puck_tracker:\n  ros__parameters: {}\n", ("puck_tracker",), False),       # a section that sets nothing
+    ("/**/table_sim:\n  ros__parameters:\n    surface_damping: 0.2\n", ("puck_tracker", "sysid"), False),
+    ("/**/table_sim:\n  ros__parameters:\n    surface_damping: 0.2\n", ("puck_tracker", "table_sim"), True),
+    ("", ("puck_tracker",), False),
+])
+def test_a_file_that_sets_nothing_a_command_reads_is_refused_naming_it(tmp_path, text, readers, read):
+    from air_hockey_agent.params import check_files_read
+    good, path = tmp_path / "good.yaml", tmp_path / "p.yaml"
+    good.write_text("/**/puck_tracker:\n  ros__parameters:\n    damping: 0.2\n/**/table_sim:\n  ros__parameters:\n"
+                    "    surface_damping: 0.2\n")
+    path.write_text(text)
+    if read:
+        check_files_read([good, path], readers)
+        return
+    with pytest.raises(ParameterFileError, match=r"p\.yaml: --params-file sets no parameter of"):
+        check_files_read([good, path], readers)

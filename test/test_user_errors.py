@@ -123,6 +123,19 @@ def rest_bag(path):
                                                                 "    damping: 0.2\n")],
      ["--table", "t.yaml", "no '/**/table_sim' section"]),
     (lambda d: ["plot", d, "--out", write(d / "notabag.txt", "x")], ["--out", "is a file"]),
+    # a parameter file the command reads nothing of (another node's) is an error, not silently without effect
+    (lambda d: ["eval-prediction", d, "--params-file", write(d / "agent.yaml", "/**/tactics:\n  ros__parameters:\n"
+                                                                               "    rate: 50.0\n")],
+     ["agent.yaml", "--params-file sets no parameter of puck_tracker and sysid", "'/**/tactics'"]),
+    (lambda d: ["synth-bag", d / "out", "--params-file", write(d / "sim.yaml", "/**/table_sim:\n  ros__parameters:\n"
+                                                                                "    surface_damping: 0.2\n")],
+     ["sim.yaml", "sets no parameter of puck_tracker and synth_bag"]),
+    (lambda d: ["bench", "tracker", "--params-file", write(d / "ref.yaml", "/**/reference_filter:\n"
+                                                                          "  ros__parameters:\n    damping: 0.2\n")],
+     ["ref.yaml", "sets no parameter of puck_tracker,"]),
+    (lambda d: ["plot", d, "--compare", write(d / "sim.yaml", "/**/table_sim:\n  ros__parameters:\n"
+                                                              "    surface_damping: 0.2\n")],
+     ["sim.yaml", "--compare sets no parameter of puck_tracker"]),
     (lambda d: ["game-check", d, "--plot", write(d / "taken.txt", "x") / "sub"], ["--plot", "cannot create"]),
     (lambda d: ["sysid", rest_bag(d / "bag"), "--out", write(d / "old.yaml", "x")], ["old.yaml", "exists already"]),
     (lambda d: ["noise-estimate", rest_bag(d / "bag")], ["found 0", "at rest throughout", "nothing moved it"]),

@@ -18,7 +18,7 @@ import numpy as np
 
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.puck.prediction import predict_fast, predict_stepwise, prepare_prediction
-from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.params import ParameterFileError, ParameterValueError, check_files_read
 from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tracker_params import FILTER_KINDS, load_tracker_params
 from air_hockey_agent.tools.argtypes import count, seed
@@ -39,6 +39,7 @@ def _timed(fn, *args) -> float:
 
 def run_benchmark(n: int, seed: int, params_files: Sequence[Path] = ()) -> dict:
     params = load_tracker_params(params_files)
+    check_files_read(params_files, ("puck_tracker",))
     ekf = PuckEKF.from_params(params)
     model, settings, table = ekf.model, ekf.settings, ekf.model.table
     prepare_prediction()  # the compiled prediction is loaded before the timing, as the node does

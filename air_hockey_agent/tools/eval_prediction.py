@@ -57,7 +57,7 @@ from air_hockey_agent.core.estimation.reference_filter import ReferenceFilter
 from air_hockey_agent.core.estimation.table_learning import rims_off_text
 from air_hockey_agent.bags.trajectories import bag_measurements, find_bags
 from air_hockey_agent.core.identification.preprocess import preprocess, push_limits
-from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.params import ParameterFileError, ParameterValueError, check_files_read
 from air_hockey_agent.reference_params import load_reference_params
 from air_hockey_agent.sysid_params import load_sysid_params
 from air_hockey_agent.tools.json_output import json_text
@@ -187,6 +187,8 @@ def _load_parameters(args: argparse.Namespace) -> tuple | None:
     try:
         params = load_tracker_params(args.params_file)
         preprocessing = load_sysid_params(args.params_file)
+        reference_section = ("reference_filter",) if args.reference else ()
+        check_files_read(args.params_file, ("puck_tracker", "sysid", *reference_section))
     except (ParameterFileError, ParameterValueError) as exc:
         print(f"{PROG}: error: {exc}", file=sys.stderr)
         return None

@@ -22,7 +22,7 @@ import numpy as np
 from air_hockey_agent.core.estimation.ekf import PuckEKF
 from air_hockey_agent.core.estimation.evaluation import prediction_series
 from air_hockey_agent.core.identification.sysid import position_loss_reports
-from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.params import ParameterFileError, ParameterValueError, check_files_read
 from air_hockey_agent.tools.recordings import ToolError, add_recording_arguments, load_recordings, report_error
 from air_hockey_agent.tracker_params import load_tracker_params, trajectory_loss_params
 from air_hockey_agent.tools.argtypes import count, number
@@ -49,8 +49,9 @@ def run(args: argparse.Namespace) -> int:
               file=sys.stderr)
         return 2
     try:
-        recordings = load_recordings(PROG, args)
         other = load_tracker_params([*args.params_file, args.compare]) if args.compare else None
+        check_files_read([args.compare] if args.compare else [], ("puck_tracker",), "--compare")
+        recordings = load_recordings(PROG, args)  # after the files: before the (possibly long) read of the bags
     except (ToolError, ParameterFileError, ParameterValueError) as exc:
         return report_error(PROG, exc)
     tracker, loaded = recordings.tracker, recordings.loaded

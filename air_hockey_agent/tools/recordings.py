@@ -9,7 +9,7 @@ from typing import Sequence
 
 from air_hockey_agent.bags.reader import PUCK_FRAME
 from air_hockey_agent.bags.trajectories import LoadedTrajectories, load_trajectories
-from air_hockey_agent.params import ParameterFileError, ParameterValueError
+from air_hockey_agent.params import ParameterFileError, ParameterValueError, check_files_read
 from air_hockey_agent.sysid_params import load_sysid_params
 from air_hockey_agent.tracker_params import load_tracker_params
 
@@ -57,6 +57,7 @@ def load_recordings(prog: str, args: argparse.Namespace, minimum: int = 1) -> Re
     try:
         tracker = load_tracker_params(args.params_file)
         settings = load_sysid_params(args.params_file)
+        check_files_read(args.params_file, ("puck_tracker", "sysid"))
     except (ParameterFileError, ParameterValueError) as exc:
         raise ToolError(str(exc)) from None
     loaded = read_trajectories(prog, args, args.bags, tracker, settings)

@@ -39,7 +39,8 @@ from air_hockey_agent.core.frames import table_to_mocap
 from air_hockey_agent.core.puck.real_table import HandCarry, TableEffects, testbed_shots, with_hand_carries
 from air_hockey_agent.core.estimation.synthetic import (MOCAP_BOUNDS, MOCAP_FIELDS, MocapImperfections, ShotRanges,
                                                         synthetic_session)
-from air_hockey_agent.params import ParameterFileError, ParameterValueError, ParamSpec, load_node_params
+from air_hockey_agent.params import (ParameterFileError, ParameterValueError, ParamSpec, check_files_read,
+                                     load_node_params)
 from air_hockey_agent.tracker_params import load_tracker_params
 from air_hockey_agent.tools.argtypes import count, seed
 from air_hockey_agent.core.estimation.evaluation import count_lost_frames
@@ -113,6 +114,8 @@ def run(args: argparse.Namespace) -> int:
     try:
         tracker = load_tracker_params(args.params_file)
         session = load_node_params(["synthetic.yaml"], "/synth_bag", SESSION_PARAMS, args.params_file)
+        sim = ("table_sim",) if args.source == "sim" else ()  # only the pybullet table reads table_sim
+        check_files_read(args.params_file, ("puck_tracker", "synth_bag", *sim))
     except (ParameterFileError, ParameterValueError) as exc:
         print(f"air-hockey synth-bag: error: {exc}", file=sys.stderr)
         return 2
