@@ -213,3 +213,31 @@ def test_in_process_tactics_aim_with_the_trackers_physics():
         assert game.players["iiwa_back"].selector.shots.model.params == learned.with_values(table_acceleration=(-0.01, 0.02))
     finally:
         game.close()
+
+
+@pytest.mark.slow  # in-process: no ROS node
+def test_a_goal_names_the_mallet_that_last_touched_the_puck_and_its_tactic_then():
+    """The game's goal log against the simulation's own contacts and the agent's tactic at each step:
+    seed 21's first goal (iiwa_back's smash, about 10 s in) is attributed to the last contact before it."""
+    from air_hockey_agent.core.game.tactics.base import NAMES
+    from air_hockey_agent.sim.game_loop import InProcessGame
+    game = InProcessGame(21)
+    contacts, tactics, step = [], [], game.step
+
+    def watched():
+        out = step()
+        contacts.extend((c.time, c.robot) for c in out.contacts)
+        tactics.append((out.time, {r: NAMES[p.selector.current] for r, p in game.players.items()}))
+        return out
+    game.step = watched
+    try:
+        result = game.run(15.0, goals=1)
+        started = game.board.started_at
+    finally:
+        game.close()
+    (goal,) = result["goals"]
+    assert sum(result["score"].values()) == 1 and result["score"][goal["scorer"]] == 1
+    touched_at, robot = max(contacts)
+    in_tactic = [names[robot] for t, names in tactics if t < touched_at][-1]  # decided before the contact began
+    assert (goal["last_touch"], goal["tactic"], goal["own_goal"]) == (robot, in_tactic, robot != goal["scorer"])
+    assert goal["before_goal_s"] == pytest.approx(started + goal["time_s"] - touched_at, abs=1e-6)

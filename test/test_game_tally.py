@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.game.referee import EVENT_GOAL_BACK, EVENT_PUCK_STUCK, EVENT_ROBOT_FAULT
+from air_hockey_agent.core.game.referee import EVENT_GOAL_BACK, EVENT_GOAL_FRONT, EVENT_PUCK_STUCK, EVENT_ROBOT_FAULT
 from air_hockey_agent.core.game.scoreboard import Scoreboard, fault_key
 from air_hockey_agent.sim.contacts import ContactLog
 
@@ -92,7 +92,8 @@ def test_scoreboard_total_adds_up_games():
     total = Scoreboard.total(robots, [one, two]).result(None)
     assert total == {"duration_s": 90.5, "score": {"iiwa_front": 1, "iiwa_back": 2},
                      "hits": {"iiwa_front": 4, "iiwa_back": 6}, "faults": {"puck_stuck: x": 3, "puck_out: y": 1},
-                     "tactics": {"iiwa_front": {"ready": 3, "smash": 1}, "iiwa_back": {"cut": 1}}, "recording": None}
+                     "tactics": {"iiwa_front": {"ready": 3, "smash": 1}, "iiwa_back": {"cut": 1}}, "goals": [],
+                     "recording": None}
     assert one["faults"] == {"puck_stuck: x": 1}  # the inputs are not changed
 
 
@@ -118,3 +119,40 @@ def test_the_table_and_progress_line_show_the_tally_in_columns():
     assert lines[-2] == "  faults: puck_stuck: puck at rest in the neutral zone for 2 s x1"
     assert lines[-1] == "  recording: game.mcap (open it in Foxglove)"
     assert Scoreboard(("iiwa_front", "iiwa_back")).table(None).splitlines()[-1] == "  faults: none"
+
+
+def test_each_goal_is_logged_with_the_last_touch_and_the_tactic_it_began_in():
+    """A goal names the mallet that last touched the puck, in the tactic it was in when the contact began
+    (tactic messages may arrive after the contact's), and whether it was an own goal; a referee event in
+    between (the puck reset) leaves a later goal untouched."""
+    robots = ("iiwa_front", "iiwa_back")
+    board = Scoreboard(robots)
+    board.on_clock(2.0)
+    board.start()
+    board.on_tactic("iiwa_back", "ready", 2.0)
+    board.on_tactic("iiwa_back", "smash", 3.0)
+    board.on_tactic("iiwa_front", "ready", 2.5)
+    board.on_tactic("iiwa_back", "ready", 3.51)  # after the hit, heard before the contact's end
+    board.on_contact("iiwa_back", 3.5)
+    board.on_status(0, 1, EVENT_GOAL_BACK, "goal for iiwa_back", 4.25)
+    board.on_status(0, 1, EVENT_GOAL_BACK, "goal for iiwa_back", 4.25)  # re-published
+    board.on_tactic("iiwa_front", "cut", 7.0)
+    board.on_contact("iiwa_front", 7.2)
+    board.on_status(0, 2, EVENT_GOAL_BACK, "goal for iiwa_back", 8.0)   # the front robot's own goal
+    board.on_contact("iiwa_back", 9.0)
+    board.on_status(0, 2, EVENT_PUCK_STUCK, "puck at rest in the neutral zone for 2 s", 10.0)
+    board.on_status(1, 2, EVENT_GOAL_FRONT, "goal for iiwa_front", 12.0)  # nobody touched it since the reset
+    goals = board.result(None)["goals"]
+    assert goals == [
+        {"time_s": 2.25, "scorer": "iiwa_back", "last_touch": "iiwa_back", "tactic": "smash", "before_goal_s": 0.75,
+         "own_goal": False, "defender_tactic": "ready"},
+        {"time_s": 6.0, "scorer": "iiwa_back", "last_touch": "iiwa_front", "tactic": "cut", "before_goal_s": 0.8,
+         "own_goal": True, "defender_tactic": "cut"},
+        {"time_s": 10.0, "scorer": "iiwa_front", "last_touch": None, "tactic": None, "before_goal_s": None,
+         "own_goal": False, "defender_tactic": "ready"}]
+    assert board.table(None).splitlines()[-2] == ("  goals by the last touch: iiwa_back's smash x1, own goal by "
+                                                  "iiwa_front (cut) x1, untouched, for iiwa_front x1")
+    total = Scoreboard.total(robots, [{**board.result(None), "seed": 5}, {**board.result(None), "seed": 6}])
+    assert [g["seed"] for g in total.result(None)["goals"]] == [5, 5, 5, 6, 6, 6]
+    assert total.goal_sources()["own goal by iiwa_front (cut)"] == 2
+    assert "seed" not in goals[0]  # the inputs are not changed

@@ -103,7 +103,10 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
     lines = result.stdout.strip().splitlines()
     assert len(lines) == 1
     game = json.loads(lines[0])
-    assert set(game) == {"duration_s", "score", "hits", "faults", "tactics", "recording"}
+    assert set(game) == {"duration_s", "score", "hits", "faults", "tactics", "goals", "recording"}
+    for robot in game["score"]:  # each goal logged, with the tactic the last touch began in
+        assert [g["scorer"] for g in game["goals"]].count(robot) == game["score"][robot], game
+    assert all(g["tactic"] in game["tactics"][g["last_touch"]] for g in game["goals"] if g["last_touch"]), game
     assert game["duration_s"] >= 30.0
     assert game["hits"]["iiwa_front"] >= 1 and game["hits"]["iiwa_back"] >= 1, game
     assert not any(k.startswith("robot_fault") for k in game["faults"]), game

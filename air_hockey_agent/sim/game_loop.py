@@ -232,7 +232,7 @@ class InProcessGame:
         t = out.time
         self.board.on_clock(t)
         for contact in out.contacts:
-            self.board.on_contact(contact.robot)
+            self.board.on_contact(contact.robot, contact.time)
         if out.joint_states:
             self._joints(t)
         if out.mocap is not None:
@@ -247,7 +247,7 @@ class InProcessGame:
                 self.recorder.on_status(t, s)
         for robot, player in self.players.items():
             if player.tick.due(t) is not None:
-                self.board.on_tactic(robot, player.decide(t, self.status, self.world, self.recorder))
+                self.board.on_tactic(robot, player.decide(t, self.status, self.world, self.recorder), t)
         if self.recorder is not None:
             self.recorder.on_step(out)
         return out

@@ -44,10 +44,12 @@ class GameMonitor:
             GameStatus, "/game_status",
             lambda m: board.on_status(m.score_front, m.score_back, m.last_event, m.reason,
                                       to_seconds(m.last_event_stamp)), latched)
-        self.node.create_subscription(MalletContact, "/sim/contacts", lambda m: board.on_contact(m.robot), 100)
+        self.node.create_subscription(MalletContact, "/sim/contacts",
+                                      lambda m: board.on_contact(m.robot, to_seconds(m.header.stamp)), 100)
         for robot in robots:
             self.node.create_subscription(TacticState, f"/{robot}/tactic",
-                                          lambda m, r=robot: board.on_tactic(r, m.name), latched)
+                                          lambda m, r=robot: board.on_tactic(r, m.name, to_seconds(m.header.stamp)),
+                                          latched)
         self.writer, self.bag = None, None
         if record is not None:
             from air_hockey_agent.bags.writer import BagWriter
