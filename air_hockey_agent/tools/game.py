@@ -288,12 +288,12 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
             print(Scoreboard.total(ROBOTS, [r]).table(r.get("recording")), flush=True)
     if args.games == 1:
         return _with_versus(args, results, results[0], [v[0] for v in variants if v])
-    total = Scoreboard.total(ROBOTS, results)
+    games = [{"seed": seed, **r, **({"versus_robot": v[0]} if v else {})}
+             for seed, r, v in zip(seeds, results, variants)]
+    total = Scoreboard.total(ROBOTS, games)  # the games' seeds go with their goals
     if not args.json:
         print(f"{args.games} games, seeds {seeds[0]}-{seeds[-1]}: "
               + total.table(None).replace("game over after", "in all", 1), flush=True)
-    games = [{"seed": seed, **r, **({"versus_robot": v[0]} if v else {})}
-             for seed, r, v in zip(seeds, results, variants)]
     return {"games": games, "total": _with_versus(args, results, total.result(None), [v[0] for v in variants if v])}
 
 

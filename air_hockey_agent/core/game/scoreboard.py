@@ -128,7 +128,8 @@ class Scoreboard:
                 board.hits[robot] += r["hits"][robot]
                 board.tactics[robot].update(r["tactics"][robot])
             board.faults.update(r["faults"])
-            board.goal_log += [{**g, **({"seed": r["seed"]} if "seed" in r else {})} for g in r.get("goals", [])]
+            game = {key: r[key] for key in ("seed", "versus_robot") if key in r}  # which game, when several
+            board.goal_log += [{**g, **game} for g in r.get("goals", [])]
         return board
 
     def goal_sources(self) -> Counter:
