@@ -34,6 +34,10 @@ AGENT_PARAMS = TABLE_PARAMS + (
               "may move to get off such a way (in y either way and away from the goal)", 0, 10),
     ParamSpec("ready_blocks", bool, "a puck whose prediction goes into the own goal, which no other tactic "
               "takes, is blocked: the mallet waits on its path where it meets it head-on"),
+    ParamSpec("ready_block_step", float, "[m] the block's candidate points lie where the puck's path crosses "
+                                         "lines x = const this far apart (0: the prediction's samples)", 0.0, 0.5),
+    ParamSpec("ready_block_in_way", bool, "with no block found, a puck going into the own goal is awaited where "
+              "its path crosses the ready point's line"),
     ParamSpec("home_point", list, "[m] depth, y of the home point (pause)", -1.0, 1.0, 2),
     ParamSpec("smash_depth", list, "[m] depth range of the smash area", 0.0, 1.0, 2),
     ParamSpec("smash_rim_margin", float, "[m] smash area distance from the long rims beyond the puck radius", 0.0, 0.5),

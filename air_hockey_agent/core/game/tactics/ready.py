@@ -132,23 +132,53 @@ def heading_in(situation, ctx: Context) -> bool:
     return abs(last[1] + last[3] * (line - last[0]) / last[2]) < ctx.shots.mouth
 
 
+def path_points(situation, ctx: Context) -> list[np.ndarray]:
+    """Positions [m] of the puck's predicted path, in the order the puck passes them: with
+    ``ready_block_step`` > 0 where it crosses lines x = const that many metres apart, from the arm's region's
+    far edge toward the goal (they move only as the prediction does); with 0 the prediction's own samples,
+    which slide along the path from one decision to the next (a fast puck's first sample inside the region
+    moved by 2-3 cm every 10 ms, more than ``resend_distance``: the block was sent again at every decision,
+    each re-plan starting the arm's motion anew, and a mallet asked to move 13 cm in 0.3 s moved 1 cm)."""
+    step = ctx.settings.ready_block_step
+    if step <= 0.0:
+        return [state[:2] for state in situation.samples_until(np.inf)[1]]
+    region = ctx.reach.region
+    lines = np.arange(region.x_max, region.x_min - 1e-9, -step)
+    crossings = ((x, situation.crossing(float(x))) for x in lines)
+    return [np.array([x, c.y]) for x, c in crossings if c is not None]
+
+
 def block_point(situation, ctx: Context) -> np.ndarray | None:
     """Where the mallet waits to keep out a puck that goes into the own goal by itself (:func:`heading_in`):
-    the first predicted position of the puck (own frame [m]) inside the arm's region from which the
-    mallet's way (:func:`way_meeting`) meets the puck without turning it in (:meth:`ShotPredictor.turns_in`;
-    met head-on on its path, it goes back out); None when the puck does not go in or no such position is
-    found."""
+    the first position of the puck's path (:func:`path_points`, own frame [m]) inside the arm's region from
+    which the mallet's way (:func:`way_meeting`) meets the puck without turning it in
+    (:meth:`ShotPredictor.turns_in`; met head-on on its path, it goes back out); with
+    ``ready_block_in_way``, when there is none, where the path crosses the ready point's line (the puck
+    goes in anyway: a mallet on its way may still meet it); None when the puck does not go in or no such
+    position is found."""
     if not heading_in(situation, ctx):
         return None
     distances, samples = meeting_distances(ctx.settings), situation.samples_until(np.inf)
-    for state in samples[1]:
-        point = state[:2]
+    for point in path_points(situation, ctx):
         if not ctx.reach.region.contains(point):
             continue
         meeting = way_meeting(point, samples, ctx, distances)
         if meeting is not None and not ctx.shots.turns_in(*meeting):
             return point
-    return None
+    return in_the_way(situation, ctx) if ctx.settings.ready_block_in_way else None
+
+
+def in_the_way(situation, ctx: Context) -> np.ndarray | None:
+    """Where the puck's predicted path crosses the ready point's line x = const [m] on its way into the own
+    goal (:func:`enters_goal_alone`), inside the arm's region; None otherwise. The mallet waiting there
+    rather than at the ready point may still meet a puck it cannot reach in time by the planner's reach
+    (a 4.5 m/s bank shot crossed the line 12 cm beside the waiting mallet, reachable in about 0.2 s)."""
+    if not enters_goal_alone(situation, ctx):
+        return None
+    x = ctx.settings.point(ctx.settings.ready_point)[0]
+    crossing = situation.crossing(x)
+    point = None if crossing is None else np.array([x, crossing.y])
+    return point if point is not None and ctx.reach.region.contains(point) else None
 
 
 class Ready(Tactic):

@@ -24,6 +24,8 @@ class TacticsSettings:
     ready_checks_way: bool
     ready_dodge_steps: int
     ready_blocks: bool
+    ready_block_step: float
+    ready_block_in_way: bool
     home_point: tuple[float, float]
     smash_depth: tuple[float, float]
     smash_rim_margin: float
