@@ -772,6 +772,51 @@ def test_ready_checks_way_off_keeps_the_waiting_point(model, settings):
     assert d.tactic == READY and "off the way" not in d.reason
 
 
+def _ctx(selector, mallet, now=0.0):
+    from air_hockey_agent.core.game.tactics.base import Context
+    return Context(now, selector.s, selector.reach, selector.shots, np.asarray(mallet, float), np.zeros(2))
+
+
+def test_the_block_points_stay_put_while_the_predictions_samples_slide(model, settings):
+    """Ten milliseconds later on the same path, the points a block is chosen from lie where they lay (on
+    fixed lines x = const, within a millimetre), so an unchanged block is not re-sent; the prediction's own
+    samples (``ready_block_step`` 0) moved by more than ``resend_distance`` at a fast puck's speed."""
+    from air_hockey_agent.core.game.tactics.ready import path_points
+    start = _into_the_goal(settings, 0.7, -0.35, 3.0)
+    first = situation(model, start)
+    later = situation(model, first.at(0.01), t0=0.01)
+    for step, moved in ((settings.ready_block_step, False), (0.0, True)):
+        selector = selector_with(model, settings, ready_block_step=step)
+        ready = settings.point(settings.ready_point)
+        a, b = (path_points(sit, _ctx(selector, ready, sit.t)) for sit in (first, later))
+        a, b = ([p for p in points if selector.reach.region.contains(p)] for points in (a, b))
+        gap = float(np.linalg.norm(a[0] - b[0]))
+        assert (gap > settings.resend_distance) == moved and (moved or gap < 1e-3), (step, gap)
+        if not moved:
+            assert np.allclose(np.diff([p[0] for p in a]), -step)
+            assert path_gap(np.vstack([first.puck[:2], first.states[:, :2]]), a[1]) < 1e-9  # on the path
+
+
+def test_ready_waits_in_the_way_of_a_puck_it_cannot_block_in_time(model, settings):
+    """A 4 m/s puck into the goal that the mallet at the ready point cannot meet in time by the planner's
+    reach: Ready moves it onto the puck's path where that crosses the ready point's line (not left at the
+    ready point, as with ``ready_block_in_way`` off)."""
+    ready = settings.point(settings.ready_point)
+    sit = situation(model, _into_the_goal(settings, 0.35, -0.3, 4.0))
+    for in_way in (True, False):
+        fresh = selector_with(model, settings, ready_block_in_way=in_way)
+        fresh.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}  # only Ready left
+        d = fresh.step(0.0, RUNNING, sit, ready, np.zeros(2))
+        assert d.tactic == READY and not d.reason.startswith("blocking"), d.reason
+        if not in_way:
+            assert d.reason == "waiting at the ready point", d.reason
+            continue
+        assert d.reason.startswith("in the way of the puck"), d.reason
+        p = d.command.point
+        assert p[0] == pytest.approx(ready[0]) and abs(p[1] - ready[1]) > 0.03
+        assert path_gap(np.vstack([sit.puck[:2], sit.states[:, :2]]), p) < 1e-9
+
+
 def test_ready_blocks_off_keeps_the_waiting_point(model, settings):
     fresh = selector_with(model, settings, ready_blocks=False)
     fresh.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}

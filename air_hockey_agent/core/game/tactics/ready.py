@@ -8,7 +8,10 @@ until the puck's predicted path passes clear of it (:func:`clear_of`). In in-pro
 goal mouth past it (README "Tactics and the game").
 
 With ``ready_blocks``, a puck going into the own goal by itself, which no other tactic takes, is met on
-its path where the contact keeps it out (:func:`block_point`). With ``ready_checks_way`` the waiting point
+its path where the contact keeps it out (:func:`block_point`; the points tried lie on fixed lines across
+the path, ``ready_block_step``, so that the chosen one does not slide with the prediction's samples), and
+with ``ready_block_in_way``, when none is found in time, awaited in its way (:func:`in_the_way`). With
+``ready_checks_way`` the waiting point
 is judged by its outcome: when the mallet's way to it meets the predicted puck so that the contact sends
 the puck into the own goal, the mallet waits at the nearest other point whose way does not
 (:func:`off_the_way`).
@@ -152,10 +155,8 @@ def block_point(situation, ctx: Context) -> np.ndarray | None:
     """Where the mallet waits to keep out a puck that goes into the own goal by itself (:func:`heading_in`):
     the first position of the puck's path (:func:`path_points`, own frame [m]) inside the arm's region from
     which the mallet's way (:func:`way_meeting`) meets the puck without turning it in
-    (:meth:`ShotPredictor.turns_in`; met head-on on its path, it goes back out); with
-    ``ready_block_in_way``, when there is none, where the path crosses the ready point's line (the puck
-    goes in anyway: a mallet on its way may still meet it); None when the puck does not go in or no such
-    position is found."""
+    (:meth:`ShotPredictor.turns_in`; met head-on on its path, it goes back out); None when the puck does
+    not go in or no such position is found."""
     if not heading_in(situation, ctx):
         return None
     distances, samples = meeting_distances(ctx.settings), situation.samples_until(np.inf)
@@ -165,12 +166,13 @@ def block_point(situation, ctx: Context) -> np.ndarray | None:
         meeting = way_meeting(point, samples, ctx, distances)
         if meeting is not None and not ctx.shots.turns_in(*meeting):
             return point
-    return in_the_way(situation, ctx) if ctx.settings.ready_block_in_way else None
+    return None
 
 
 def in_the_way(situation, ctx: Context) -> np.ndarray | None:
     """Where the puck's predicted path crosses the ready point's line x = const [m] on its way into the own
-    goal (:func:`enters_goal_alone`), inside the arm's region; None otherwise. The mallet waiting there
+    goal (:func:`enters_goal_alone`), inside the arm's region; None otherwise. Ready's answer, with
+    ``ready_block_in_way``, when :func:`block_point` finds no block. The mallet waiting there
     rather than at the ready point may still meet a puck it cannot reach in time by the planner's reach
     (a 4.5 m/s bank shot crossed the line 12 cm beside the waiting mallet, reachable in about 0.2 s)."""
     if not enters_goal_alone(situation, ctx):
@@ -190,6 +192,11 @@ class Ready(Tactic):
         if block is not None:
             return reach_proposal(READY, block, ctx, f"blocking the puck's way into the goal at "
                                                      f"({block[0]:.2f}, {block[1]:.2f})")
+        way = in_the_way(situation, ctx) if known and ctx.settings.ready_blocks and ctx.settings.ready_block_in_way \
+            else None
+        if way is not None:
+            return reach_proposal(READY, way, ctx, f"in the way of the puck going into the goal, at "
+                                                   f"({way[0]:.2f}, {way[1]:.2f}) (no block in time)")
         point, reason = self._waiting_point(situation, ctx)
         if ctx.settings.ready_checks_way and known:
             dodge = off_the_way(ctx.reach.clamp(point), situation, ctx)
