@@ -192,8 +192,8 @@ class Ready(Tactic):
         if block is not None:
             return reach_proposal(READY, block, ctx, f"blocking the puck's way into the goal at "
                                                      f"({block[0]:.2f}, {block[1]:.2f})")
-        way = in_the_way(situation, ctx) if known and ctx.settings.ready_blocks and ctx.settings.ready_block_in_way \
-            else None
+        st = ctx.settings
+        way = in_the_way(situation, ctx) if known and st.ready_blocks and st.ready_block_in_way else None
         if way is not None:
             return reach_proposal(READY, way, ctx, f"in the way of the puck going into the goal, at "
                                                    f"({way[0]:.2f}, {way[1]:.2f}) (no block in time)")
