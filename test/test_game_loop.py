@@ -217,24 +217,30 @@ def test_in_process_tactics_aim_with_the_trackers_physics():
 
 @pytest.mark.slow  # in-process: no ROS node
 def test_a_goal_names_the_mallet_that_last_touched_the_puck_and_its_tactic_then():
-    """The game's goal log against the simulation's own contacts and the agent's tactic at each step:
-    seed 21's first goal (iiwa_back's smash, about 10 s in) is attributed to the last contact before it."""
+    """The game's goal log against the simulation's own contacts and the agent's tactic at each step: the
+    first goal of the first of a few seeds that score within 20 s (goals are rare in self-play; at ff23a29
+    seed 14 scored after about 10 s, a Smash) is attributed to the last contact before it."""
     from air_hockey_agent.core.game.tactics.base import NAMES
     from air_hockey_agent.sim.game_loop import InProcessGame
-    game = InProcessGame(21)
-    contacts, tactics, step = [], [], game.step
+    for seed in (14, 9, 21, 36):
+        game = InProcessGame(seed)
+        contacts, tactics, step = [], [], game.step
 
-    def watched():
-        out = step()
-        contacts.extend((c.time, c.robot) for c in out.contacts)
-        tactics.append((out.time, {r: NAMES[p.selector.current] for r, p in game.players.items()}))
-        return out
-    game.step = watched
-    try:
-        result = game.run(15.0, goals=1)
-        started = game.board.started_at
-    finally:
-        game.close()
+        def watched(step=step, contacts=contacts, tactics=tactics, game=game):
+            out = step()
+            contacts.extend((c.time, c.robot) for c in out.contacts)
+            tactics.append((out.time, {r: NAMES[p.selector.current] for r, p in game.players.items()}))
+            return out
+        game.step = watched
+        try:
+            result = game.run(20.0, goals=1)
+            started = game.board.started_at
+        finally:
+            game.close()
+        if result["goals"]:
+            break
+    else:
+        pytest.fail("no goal in any of the seeds' first 20 s: choose seeds that score (air-hockey game --in-process)")
     (goal,) = result["goals"]
     assert sum(result["score"].values()) == 1 and result["score"][goal["scorer"]] == 1
     touched_at, robot = max(contacts)
