@@ -779,13 +779,14 @@ def _ctx(selector, mallet, now=0.0):
 
 def test_the_block_points_stay_put_while_the_predictions_samples_slide(model, settings):
     """Ten milliseconds later on the same path, the points a block is chosen from lie where they lay (on
-    fixed lines x = const, within a millimetre), so an unchanged block is not re-sent; the prediction's own
-    samples (``ready_block_step`` 0) moved by more than ``resend_distance`` at a fast puck's speed."""
+    fixed lines x = const, ``ready_block_step`` 0.05 m, within a millimetre), so an unchanged block is not
+    re-sent; the prediction's own samples (``ready_block_step`` 0, the default) moved by more than
+    ``resend_distance`` at a fast puck's speed."""
     from air_hockey_agent.core.game.tactics.ready import path_points
     start = _into_the_goal(settings, 0.7, -0.35, 3.0)
     first = situation(model, start)
     later = situation(model, first.at(0.01), t0=0.01)
-    for step, moved in ((settings.ready_block_step, False), (0.0, True)):
+    for step, moved in ((0.05, False), (0.0, True)):
         selector = selector_with(model, settings, ready_block_step=step)
         ready = settings.point(settings.ready_point)
         a, b = (path_points(sit, _ctx(selector, ready, sit.t)) for sit in (first, later))
