@@ -179,8 +179,10 @@ def in_the_way(situation, ctx: Context) -> np.ndarray | None:
         return None
     x = ctx.settings.point(ctx.settings.ready_point)[0]
     crossing = situation.crossing(x)
-    point = None if crossing is None else np.array([x, crossing.y])
-    return point if point is not None and ctx.reach.region.contains(point) else None
+    if crossing is None:
+        return None
+    point = np.array([x, crossing.y])
+    return point if ctx.reach.region.contains(point) else None
 
 
 class Ready(Tactic):
@@ -198,7 +200,7 @@ class Ready(Tactic):
             return reach_proposal(READY, way, ctx, f"in the way of the puck going into the goal, at "
                                                    f"({way[0]:.2f}, {way[1]:.2f}) (no block in time)")
         point, reason = self._waiting_point(situation, ctx)
-        if ctx.settings.ready_checks_way and known:
+        if st.ready_checks_way and known:
             dodge = off_the_way(ctx.reach.clamp(point), situation, ctx)
             if dodge is not None:
                 point, reason = dodge, reason + "; off the way that would turn the puck into the own goal"
