@@ -38,6 +38,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
                                          "lines x = const this far apart (0: the prediction's samples)", 0.0, 0.5),
     ParamSpec("ready_block_in_way", bool, "with no block found, a puck going into the own goal is awaited where "
               "its path crosses the ready point's line"),
+    ParamSpec("ready_block_keep", bool, "the block the arm is running is kept while it still keeps the puck out "
+              "(not chosen anew at every decision)"),
     ParamSpec("home_point", list, "[m] depth, y of the home point (pause)", -1.0, 1.0, 2),
     ParamSpec("smash_depth", list, "[m] depth range of the smash area", 0.0, 1.0, 2),
     ParamSpec("smash_rim_margin", float, "[m] smash area distance from the long rims beyond the puck radius", 0.0, 0.5),

@@ -15,7 +15,7 @@ from air_hockey_agent.core.game.situation import build_situation, own_frame_phys
 from air_hockey_agent.core.game.speed_map import SpeedMap
 from air_hockey_agent.core.game.tactics.base import (CUT, HOME, INIT, PREPARE, READY, REPEL, SMASH, Proposal,
                                                      first_meeting, path_gap)
-from air_hockey_agent.core.game.tactics.selector import (LIMITS, PAUSED, RUNNING, STOPPED, TOO_FAST, TOO_LATE,
+from air_hockey_agent.core.game.tactics.selector import (ACCEPTED, LIMITS, PAUSED, RUNNING, STOPPED, TOO_FAST, TOO_LATE,
                                                          TacticsSelector)
 from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 from air_hockey_agent.core.motion.region import Region
@@ -796,6 +796,34 @@ def test_the_block_points_stay_put_while_the_predictions_samples_slide(model, se
         if not moved:
             assert np.allclose(np.diff([p[0] for p in a]), -step)
             assert path_gap(np.vstack([first.puck[:2], first.states[:, :2]]), a[1]) < 1e-9  # on the path
+
+
+def test_ready_keeps_the_block_it_runs_while_it_holds(model, settings):
+    """With ``ready_block_keep``, 10 ms later on the same path of a 3 m/s puck into the goal, the block the
+    arm was sent (and accepted) is kept: nothing is sent again. Without it the block is chosen anew from
+    the prediction's samples, which moved by more than ``resend_distance``: sent again. A kept block
+    that no longer holds (the puck now passes beside the goal) is dropped."""
+    from air_hockey_agent.core.game.tactics.ready import block_holds
+    first = situation(model, _into_the_goal(settings, 0.7, -0.35, 3.0))
+    later = situation(model, first.at(0.01), t0=0.01)
+    wide = situation(model, [*first.at(0.02)[:2], -3.0, 0.0, 0, 0], t0=0.02)  # toward the own end rim, wide
+    ready = settings.point(settings.ready_point)
+    for keep in (True, False):
+        selector = selector_with(model, settings, ready_block_keep=keep)
+        selector.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}  # only Ready left
+        d = selector.step(0.0, RUNNING, first, ready, np.zeros(2))
+        assert d.reason.startswith("blocking") and d.command is not None, d.reason
+        selector.on_status(0.0, ACCEPTED, 3.0, 0.01)
+        again = selector.step(0.01, RUNNING, later, ready, np.zeros(2))
+        assert again.reason.startswith("blocking"), again.reason
+        if keep:
+            assert again.command is None and again.reason == d.reason
+            assert block_holds(d.command.point, later, _ctx(selector, ready, 0.01))
+            assert not block_holds(d.command.point, wide, _ctx(selector, ready, 0.02))
+            dropped = selector.step(0.02, RUNNING, wide, ready, np.zeros(2))
+            assert not dropped.reason.startswith("blocking"), dropped.reason
+        else:
+            assert np.linalg.norm(again.command.point - d.command.point) > settings.resend_distance
 
 
 def test_ready_waits_in_the_way_of_a_puck_it_cannot_block_in_time(model, settings):

@@ -10,7 +10,8 @@ goal mouth past it (README "Tactics and the game").
 With ``ready_blocks``, a puck going into the own goal by itself, which no other tactic takes, is met on
 its path where the contact keeps it out (:func:`block_point`; the points tried lie on fixed lines across
 the path, ``ready_block_step``, so that the chosen one does not slide with the prediction's samples), and
-with ``ready_block_in_way``, when none is found in time, awaited in its way (:func:`in_the_way`). With
+with ``ready_block_in_way``, when none is found in time, awaited in its way (:func:`in_the_way`); with
+``ready_block_keep``, the block the arm is running is kept while it still holds (:func:`block_holds`). With
 ``ready_checks_way`` the waiting point
 is judged by its outcome: when the mallet's way to it meets the predicted puck so that the contact sends
 the puck into the own goal, the mallet waits at the nearest other point whose way does not
@@ -169,6 +170,16 @@ def block_point(situation, ctx: Context) -> np.ndarray | None:
     return None
 
 
+def block_holds(point: np.ndarray, situation, ctx: Context) -> bool:
+    """The block at ``point`` [m] (own frame) still keeps the puck out: the puck still goes into the own goal
+    by itself (:func:`heading_in`), ``point`` lies in the arm's region, and the mallet's way to it
+    (:func:`way_meeting`) meets the puck without turning it in."""
+    if not heading_in(situation, ctx) or not ctx.reach.region.contains(point):
+        return False
+    meeting = way_meeting(point, situation.samples_until(np.inf), ctx, meeting_distances(ctx.settings))
+    return meeting is not None and not ctx.shots.turns_in(*meeting)
+
+
 def in_the_way(situation, ctx: Context) -> np.ndarray | None:
     """Where the puck's predicted path crosses the ready point's line x = const [m] on its way into the own
     goal (:func:`enters_goal_alone`), inside the arm's region; None otherwise. Ready's answer, with
@@ -188,9 +199,13 @@ def in_the_way(situation, ctx: Context) -> np.ndarray | None:
 class Ready(Tactic):
     tactic = READY
 
+    def __init__(self) -> None:
+        self._block: np.ndarray | None = None  # [m] the block point last proposed (own frame)
+
     def propose(self, situation, ctx: Context) -> Proposal | None:
         known = situation is not None and ctx.mallet is not None
-        block = block_point(situation, ctx) if known and ctx.settings.ready_blocks else None
+        block = self._block_point(situation, ctx) if known and ctx.settings.ready_blocks else None
+        self._block = block
         if block is not None:
             return reach_proposal(READY, block, ctx, f"blocking the puck's way into the goal at "
                                                      f"({block[0]:.2f}, {block[1]:.2f})")
@@ -205,6 +220,20 @@ class Ready(Tactic):
             if dodge is not None:
                 point, reason = dodge, reason + "; off the way that would turn the puck into the own goal"
         return reach_proposal(READY, point, ctx, reason)
+
+    def _block_point(self, situation, ctx: Context) -> np.ndarray | None:
+        """:func:`block_point`; with ``ready_block_keep``, the block the arm is running while it still holds
+        (:func:`block_holds`) rather than a new one. Chosen anew at every decision, the first position that
+        passed jumped along a fast puck's path (from 0.2 to 0.6 m from the goal and back, and to the ready
+        point when none passed for one decision): each re-plan started the arm's motion anew, the mallet
+        moved 5 cm in 0.25 s and met the puck from the side, turning it into the goal (lab-table self-play,
+        seed 159)."""
+        kept, running = self._block, ctx.running
+        if (ctx.settings.ready_block_keep and kept is not None and running is not None and running.tactic == READY
+                and float(np.hypot(*(running.point - kept))) <= ctx.settings.resend_distance
+                and block_holds(kept, situation, ctx)):
+            return kept
+        return block_point(situation, ctx)
 
     @staticmethod
     def _waiting_point(situation, ctx: Context) -> tuple[np.ndarray, str]:
