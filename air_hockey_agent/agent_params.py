@@ -93,8 +93,6 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("resend_speed", float, "[m/s] hit velocity change that is sent again", 0.0, 5.0),
     ParamSpec("retry_delay", float, "[s] wait after a refused command", 0.0, 5.0),
     ParamSpec("max_lead_extra", float, "[s] largest lead time added after 'too late'", 0.0, 10.0),
-    ParamSpec("lead_kept_in_ready", bool, "another tactic's 'too late' lead survives a fall-back to Ready until "
-              "the refused contact's time"),
     ParamSpec("limits_slowdown", float, "[-] speed factor after a joint-limit refusal", 0.1, 1.0),
     ParamSpec("cut_arrive_early", float, "[s] a Cut's mallet stops this long before the puck arrives", 0.0, 1.0),
     ParamSpec("cut_contact_steps", int, "contact times a Cut tries on the puck's predicted path", 1, 50),

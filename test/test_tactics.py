@@ -1124,36 +1124,6 @@ def test_a_cut_refused_as_too_late_is_not_asked_for_the_same_contact_again(selec
     assert later.time >= first.time + settings.lead_time_step + 0.02 - 1e-9
 
 
-def test_a_too_late_lead_survives_a_fall_back_to_ready(model, settings):
-    """With ``lead_kept_in_ready``: a Cut refused as too late that has no later contact falls back to Ready,
-    and at the next decision does not ask for the refused contact again (Ready stays; Ready's command does
-    not take the Cut's lead); once the refused contact's time has passed the lead is gone. Without it the
-    change to Ready reset the lead and the same Cut was asked again: Cut and Ready alternated."""
-    sit = situation(model, [-0.2, 0.1, -1.5, 0.5, 0, 0], horizon=1.5)
-    ready_times = {}
-    for kept in (True, False):
-        selector = selector_with(model, settings, lead_kept_in_ready=kept)
-        selector.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, PREPARE)}
-        first = selector.step(0.0, RUNNING, sit)
-        assert first.tactic == CUT and first.command is not None, first.reason
-        selector.on_status(0.0, TOO_LATE, math.nan, 0.01)
-        fallback = selector.step(0.01, RUNNING, sit)
-        assert fallback.tactic == READY, fallback.reason  # no contact later on the path
-        ready_times[kept] = fallback.command.time
-        again = selector.step(0.02, RUNNING, sit)
-        assert (again.tactic == READY) == kept, again.reason
-        if kept:
-            assert selector.lead_extra > 0.0 and selector.lead_owner == CUT
-        else:  # the refused contact asked again (not one lead_time_step later)
-            assert again.tactic == CUT and again.command.time < first.command.time + settings.lead_time_step
-    assert ready_times[False] - ready_times[True] >= settings.lead_time_step - 1e-9  # the lead, not Ready's
-    past = selector_with(model, settings, lead_kept_in_ready=True)
-    past.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, PREPARE, CUT)}
-    past.lead_extra, past.lead_owner, past.lead_until, past.current = 0.3, CUT, 0.1, READY
-    past.step(0.2, RUNNING, sit)
-    assert past.lead_extra == 0.0 and past.lead_owner is None
-
-
 def test_a_running_cut_is_kept_when_its_re_plan_is_refused(selector, model, settings):
     """A Cut under way whose re-plan (the prediction moved by more than a re-plan's tolerance) was refused as
     too late is kept while the predicted puck still passes within contact_distance of the planned contact;

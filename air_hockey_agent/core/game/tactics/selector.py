@@ -26,7 +26,7 @@ Every decision period the selector looks at the referee's status and the tracker
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -84,9 +84,6 @@ class TacticsSelector:
         self.executing: Proposal | None = None  # the last accepted command (the arm runs it until another one is)
         self.blocked: dict[int, float] = {}
         self.lead_extra, self.speed_cap = 0.0, math.inf
-        self.lead_owner: int | None = None  # the tactic whose "too late" grew lead_extra ...
-        self.lead_until = -math.inf         # [s] ... and the time of the contact it was refused
-        self.now = -math.inf                # [s] the time of the decision being made
         self.own_half_since: float | None = None  # [s] when the puck last came onto the own half
 
     # --- inputs ------------------------------------------------------------------------------------
@@ -127,7 +124,6 @@ class TacticsSelector:
               and self.lead_extra < self.s.max_lead_extra):
             self.lead_extra = min(self.lead_extra + max(proposal.slack, 0.0) + self.s.lead_time_step,
                                   self.s.max_lead_extra)
-            self.lead_owner, self.lead_until = proposal.tactic, proposal.time
         else:
             self.blocked[proposal.tactic] = now + self.s.retry_delay
         self.sent = None
@@ -137,9 +133,6 @@ class TacticsSelector:
              mallet_velocity: np.ndarray | None = None) -> Decision:
         """The decision at ``now`` [s] for the referee's ``status``, the puck's ``situation`` and the mallet's
         position [m] and velocity [m/s] (own frame; None when unknown)."""
-        self.now = now
-        if self.current == READY and self.lead_owner not in (None, READY) and not self._lead_kept(READY):
-            self.lead_extra, self.lead_owner = 0.0, None  # a lead kept through Ready, past its contact's time
         self._track_possession(now, status, situation)
         if status == STOPPED:
             self.sent, self.executing, self.blocked = None, None, {}
@@ -165,7 +158,7 @@ class TacticsSelector:
                                         f"{NAMES[kept.tactic]} under way kept (its re-plan was refused)", None)
             if self.blocked.get(tactic, -math.inf) > now:
                 continue
-            proposal = self.tactics[tactic].propose(situation, self._context_for(tactic, ctx))
+            proposal = self.tactics[tactic].propose(situation, ctx)
             if proposal is not None:
                 return self._decide(tactic, proposal.reason, self._to_send(proposal, now))
             if tactic == self.current and not math.isinf(self.speed_cap):
@@ -261,23 +254,9 @@ class TacticsSelector:
                 and float(np.linalg.norm(a.velocity - b.velocity)) <= st.resend_speed
                 and (b.flexible_time or abs(a.time - b.time) <= st.resend_time))
 
-    def _lead_kept(self, tactic: int) -> bool:
-        """With ``lead_kept_in_ready``, another tactic's "too late" lead survives a fall-back to ``tactic``
-        Ready until the refused contact's time: reset there, a Cut refused as too late that had no later
-        contact fell back to Ready and at the next decision asked for the same contact again, Cut and Ready
-        alternating every 10 ms until the puck had passed (lab-table self-play, seed 159)."""
-        return (self.s.lead_kept_in_ready and tactic == READY and self.lead_owner not in (None, READY)
-                and self.now <= self.lead_until)
-
-    def _context_for(self, tactic: int, ctx: Context) -> Context:
-        """``ctx`` for ``tactic``: a lead kept for another tactic (:meth:`_lead_kept`) is not Ready's."""
-        return replace(ctx, lead_extra=0.0) if self.lead_extra > 0.0 and self._lead_kept(tactic) else ctx
-
     def _decide(self, tactic: int, reason: str, command: Proposal | None) -> Decision:
         changed = tactic != self.current
         if changed:
-            if not self._lead_kept(tactic):
-                self.lead_extra, self.lead_owner = 0.0, None
-            self.speed_cap = math.inf
+            self.lead_extra, self.speed_cap = 0.0, math.inf
         self.current, self.reason = tactic, reason
         return Decision(tactic, reason, self.forced is not None, command, changed)

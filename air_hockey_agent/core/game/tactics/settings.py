@@ -72,7 +72,6 @@ class TacticsSettings:
     hit_replan_distance: float
     retry_delay: float
     max_lead_extra: float
-    lead_kept_in_ready: bool
     limits_slowdown: float
     cut_arrive_early: float
     cut_contact_steps: int
