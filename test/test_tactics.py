@@ -677,9 +677,7 @@ def _turned_in(point, sit, selector, mallet, velocity, now=0.0):
     by the step-by-step reference predictor from the contact (not the shot model's fast one)?"""
     from air_hockey_agent.core.game.shots import puck_after_contact
     from air_hockey_agent.core.game.tactics.ready import way_meeting
-    from air_hockey_agent.core.game.tactics.base import Context
-    st = selector.s
-    ctx = Context(now, st, selector.reach, selector.shots, np.asarray(mallet, float), np.asarray(velocity, float))
+    st, ctx = selector.s, _ctx(selector, mallet, now, velocity)
     meeting = way_meeting(np.asarray(point, float), sit.samples_until(np.inf), ctx, (st.contact_distance,))
     if meeting is None:
         return False
@@ -758,9 +756,7 @@ def test_ready_does_not_block_a_puck_that_stays_out(selector, model, settings):
 
 def _met(point, sit, selector, mallet, velocity, now=0.0) -> bool:
     from air_hockey_agent.core.game.tactics.ready import way_meeting
-    from air_hockey_agent.core.game.tactics.base import Context
-    st = selector.s
-    ctx = Context(now, st, selector.reach, selector.shots, np.asarray(mallet, float), np.asarray(velocity, float))
+    st, ctx = selector.s, _ctx(selector, mallet, now, velocity)
     return way_meeting(np.asarray(point, float), sit.samples_until(np.inf), ctx, (st.contact_distance,)) is not None
 
 
@@ -772,9 +768,12 @@ def test_ready_checks_way_off_keeps_the_waiting_point(model, settings):
     assert d.tactic == READY and "off the way" not in d.reason
 
 
-def _ctx(selector, mallet, now=0.0):
+def _ctx(selector, mallet, now=0.0, velocity=(0.0, 0.0)):
+    """The tactics' context of ``selector`` at ``now`` [s] with the mallet at ``mallet`` [m] moving at
+    ``velocity`` [m/s] (own frame)."""
     from air_hockey_agent.core.game.tactics.base import Context
-    return Context(now, selector.s, selector.reach, selector.shots, np.asarray(mallet, float), np.zeros(2))
+    return Context(now, selector.s, selector.reach, selector.shots, np.asarray(mallet, float),
+                   np.asarray(velocity, float))
 
 
 def test_the_block_points_stay_put_while_the_predictions_samples_slide(model, settings):

@@ -19,6 +19,8 @@ the puck into the own goal, the mallet waits at the nearest other point whose wa
 """
 from __future__ import annotations
 
+import itertools
+
 import numpy as np
 
 from air_hockey_agent.core.game.tactics.base import (READY, Context, Proposal, Tactic, between, first_within,
@@ -152,32 +154,32 @@ def path_points(situation, ctx: Context) -> list[np.ndarray]:
     return [np.array([x, c.y]) for x, c in crossings if c is not None]
 
 
-def block_point(situation, ctx: Context) -> np.ndarray | None:
+def keeps_out(point: np.ndarray, samples: tuple[np.ndarray, np.ndarray], ctx: Context) -> bool:
+    """A mallet waiting at ``point`` [m] (own frame) keeps out the puck predicted at ``samples`` (times [s],
+    states (n, 6)): ``point`` lies in the arm's region, and the mallet's way to it (:func:`way_meeting`) meets
+    the puck without turning it in (:meth:`ShotPredictor.turns_in`; met head-on on its path, it goes back out)."""
+    if not ctx.reach.region.contains(point):
+        return False
+    meeting = way_meeting(point, samples, ctx, meeting_distances(ctx.settings))
+    return meeting is not None and not ctx.shots.turns_in(*meeting)
+
+
+def block_point(situation, ctx: Context, kept: np.ndarray | None = None) -> np.ndarray | None:
     """Where the mallet waits to keep out a puck that goes into the own goal by itself (:func:`heading_in`):
-    the first position of the puck's path (:func:`path_points`, own frame [m]) inside the arm's region from
-    which the mallet's way (:func:`way_meeting`) meets the puck without turning it in
-    (:meth:`ShotPredictor.turns_in`; met head-on on its path, it goes back out); None when the puck does
-    not go in or no such position is found."""
+    ``kept`` [m] (a block under way) if given and it still keeps the puck out, else the first position of the
+    puck's path (:func:`path_points`, own frame [m]) that does (:func:`keeps_out`); None when the puck does not
+    go in or no such position is found."""
     if not heading_in(situation, ctx):
         return None
-    distances, samples = meeting_distances(ctx.settings), situation.samples_until(np.inf)
-    for point in path_points(situation, ctx):
-        if not ctx.reach.region.contains(point):
-            continue
-        meeting = way_meeting(point, samples, ctx, distances)
-        if meeting is not None and not ctx.shots.turns_in(*meeting):
-            return point
-    return None
+    samples = situation.samples_until(np.inf)
+    candidates = itertools.chain(() if kept is None else (kept,), path_points(situation, ctx))
+    return next((point for point in candidates if keeps_out(point, samples, ctx)), None)
 
 
 def block_holds(point: np.ndarray, situation, ctx: Context) -> bool:
     """The block at ``point`` [m] (own frame) still keeps the puck out: the puck still goes into the own goal
-    by itself (:func:`heading_in`), ``point`` lies in the arm's region, and the mallet's way to it
-    (:func:`way_meeting`) meets the puck without turning it in."""
-    if not heading_in(situation, ctx) or not ctx.reach.region.contains(point):
-        return False
-    meeting = way_meeting(point, situation.samples_until(np.inf), ctx, meeting_distances(ctx.settings))
-    return meeting is not None and not ctx.shots.turns_in(*meeting)
+    by itself (:func:`heading_in`) and :func:`keeps_out` holds."""
+    return heading_in(situation, ctx) and keeps_out(point, situation.samples_until(np.inf), ctx)
 
 
 def in_the_way(situation, ctx: Context) -> np.ndarray | None:
@@ -222,18 +224,18 @@ class Ready(Tactic):
         return reach_proposal(READY, point, ctx, reason)
 
     def _block_point(self, situation, ctx: Context) -> np.ndarray | None:
-        """:func:`block_point`; with ``ready_block_keep``, the block the arm is running while it still holds
-        (:func:`block_holds`) rather than a new one. Chosen anew at every decision, the first position that
+        """:func:`block_point`; with ``ready_block_keep``, the block the arm is running first, kept while it
+        still keeps the puck out, rather than a new one. Chosen anew at every decision, the first position that
         passed jumped along a fast puck's path (from 0.2 to 0.6 m from the goal and back, and to the ready
         point when none passed for one decision): each re-plan started the arm's motion anew, the mallet
         moved 5 cm in 0.25 s and met the puck from the side, turning it into the goal (lab-table self-play,
         seed 159)."""
-        kept, running = self._block, ctx.running
-        if (ctx.settings.ready_block_keep and kept is not None and running is not None and running.tactic == READY
-                and float(np.hypot(*(running.point - kept))) <= ctx.settings.resend_distance
-                and block_holds(kept, situation, ctx)):
-            return kept
-        return block_point(situation, ctx)
+        st, kept, running = ctx.settings, self._block, ctx.running
+        under_way = (kept is not None and running is not None and running.tactic == READY
+                     and float(np.hypot(*(running.point - kept))) <= st.resend_distance)
+        if not (st.ready_block_keep and under_way):
+            kept = None
+        return block_point(situation, ctx, kept)
 
     @staticmethod
     def _waiting_point(situation, ctx: Context) -> tuple[np.ndarray, str]:
