@@ -6,6 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterable
 
+from air_hockey_agent.core.game.tactics.ready import BLOCK_CHOICES
 from air_hockey_agent.params import ParamSpec, ParameterValueError, load_node_params
 from air_hockey_agent.sim.params import ROBOT_BASE_PARAMS
 from air_hockey_agent.tracker_params import MALLET_RADIUS_PARAM, TABLE_PARAMS
@@ -40,6 +41,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
               "its path crosses the ready point's line"),
     ParamSpec("ready_block_keep", bool, "the block the arm is running is kept while it still keeps the puck out "
               "(not chosen anew at every decision)"),
+    ParamSpec("ready_block_choice", str, "which block is tried first: 'first' the puck meets on its path, or "
+              "'margin' the one the mallet reaches longest before the puck", choices=BLOCK_CHOICES),
     ParamSpec("home_point", list, "[m] depth, y of the home point (pause)", -1.0, 1.0, 2),
     ParamSpec("smash_depth", list, "[m] depth range of the smash area", 0.0, 1.0, 2),
     ParamSpec("smash_rim_margin", float, "[m] smash area distance from the long rims beyond the puck radius", 0.0, 0.5),

@@ -788,7 +788,7 @@ def test_the_block_points_stay_put_while_the_predictions_samples_slide(model, se
     for step, moved in ((0.05, False), (0.0, True)):
         selector = selector_with(model, settings, ready_block_step=step)
         ready = settings.point(settings.ready_point)
-        a, b = (path_points(sit, _ctx(selector, ready, sit.t)) for sit in (first, later))
+        a, b = ([p for _, p in path_points(sit, _ctx(selector, ready, sit.t))] for sit in (first, later))
         a, b = ([p for p in points if selector.reach.region.contains(p)] for points in (a, b))
         gap = float(np.linalg.norm(a[0] - b[0]))
         assert (gap > settings.resend_distance) == moved and (moved or gap < 1e-3), (step, gap)
@@ -823,6 +823,33 @@ def test_ready_keeps_the_block_it_runs_while_it_holds(model, settings):
             assert not dropped.reason.startswith("blocking"), dropped.reason
         else:
             assert np.linalg.norm(again.command.point - d.command.point) > settings.resend_distance
+
+
+def test_ready_block_choice_margin_takes_the_block_reached_longest_before_the_puck(model, settings):
+    """A 3 m/s puck into the goal, the mallet at rest at the ready point: with ``ready_block_choice``
+    'first' the block is the first passing position of the puck's path (the farthest from the goal, the
+    tightest to reach); with 'margin' a position the mallet reaches longest before the puck among those
+    that keep it out, with more time to spare than the first one (here the first is where the puck lies:
+    the mallet's way toward it meets the puck coming), and nearer the mallet."""
+    from air_hockey_agent.core.game.tactics.ready import block_point, by_margin, keeps_out, path_points
+    sit = situation(model, _into_the_goal(settings, 0.7, -0.35, 3.0))
+    ready = settings.point(settings.ready_point)
+    chosen = {}
+    for choice in ("first", "margin"):
+        ctx = _ctx(selector_with(model, settings, ready_block_choice=choice), ready, sit.t)
+        chosen[choice] = block_point(sit, ctx)
+        assert chosen[choice] is not None, choice
+    points = path_points(sit, ctx)
+    samples = sit.samples_until(np.inf)
+    passing = [(t, p) for t, p in points if keeps_out(p, samples, ctx)]
+    assert np.allclose(chosen["first"], passing[0][1]) and len(passing) > 1
+
+    def margin(point):
+        t = next(t for t, p in points if np.allclose(p, point))
+        return t - ctx.now - ctx.reach.reach_time(ctx.mallet, point, ctx.mallet_velocity)
+    assert np.allclose(chosen["margin"], by_margin(passing, ctx)[0][1])
+    assert margin(chosen["margin"]) > margin(chosen["first"])
+    assert np.hypot(*(chosen["margin"] - ready)) < np.hypot(*(chosen["first"] - ready))
 
 
 def test_ready_waits_in_the_way_of_a_puck_it_cannot_block_in_time(model, settings):

@@ -11,7 +11,8 @@ With ``ready_blocks``, a puck going into the own goal by itself, which no other 
 its path where the contact keeps it out (:func:`block_point`; the points tried lie on fixed lines across
 the path, ``ready_block_step``, so that the chosen one does not slide with the prediction's samples), and
 with ``ready_block_in_way``, when none is found in time, awaited in its way (:func:`in_the_way`); with
-``ready_block_keep``, the block the arm is running is kept while it still holds (:func:`block_holds`). With
+``ready_block_keep``, the block the arm is running is kept while it still holds (:func:`block_holds`);
+``ready_block_choice`` says which passing position is tried first (:func:`by_margin`). With
 ``ready_checks_way`` the waiting point
 is judged by its outcome: when the mallet's way to it meets the predicted puck so that the contact sends
 the puck into the own goal, the mallet waits at the nearest other point whose way does not
@@ -25,6 +26,8 @@ import numpy as np
 
 from air_hockey_agent.core.game.tactics.base import (READY, Context, Proposal, Tactic, between, first_within,
                                                      reach_proposal, unit)
+
+BLOCK_CHOICES = ("first", "margin")  # ready_block_choice: which block point block_point tries first
 
 
 def guard_point(puck: np.ndarray, gap: float, ctx: Context) -> np.ndarray | None:
@@ -138,8 +141,8 @@ def heading_in(situation, ctx: Context) -> bool:
     return abs(last[1] + last[3] * (line - last[0]) / last[2]) < ctx.shots.mouth
 
 
-def path_points(situation, ctx: Context) -> list[np.ndarray]:
-    """Positions [m] of the puck's predicted path, in the order the puck passes them: with
+def path_points(situation, ctx: Context) -> list[tuple[float, np.ndarray]]:
+    """Times [s] and positions [m] of the puck's predicted path, in the order the puck passes them: with
     ``ready_block_step`` > 0 where it crosses lines x = const that many metres apart, from the arm's region's
     far edge toward the goal (they move only as the prediction does); with 0 the prediction's own samples,
     which slide along the path from one decision to the next (a fast puck's first sample inside the region
@@ -147,11 +150,20 @@ def path_points(situation, ctx: Context) -> list[np.ndarray]:
     each re-plan starting the arm's motion anew, and a mallet asked to move 13 cm in 0.3 s moved 1 cm)."""
     step = ctx.settings.ready_block_step
     if step <= 0.0:
-        return [state[:2] for state in situation.samples_until(np.inf)[1]]
+        times, states = situation.samples_until(np.inf)
+        return [(float(t), state[:2]) for t, state in zip(times, states)]
     region = ctx.reach.region
     lines = np.arange(region.x_max, region.x_min - 1e-9, -step)
     crossings = ((x, situation.crossing(float(x))) for x in lines)
-    return [np.array([x, c.y]) for x, c in crossings if c is not None]
+    return [(c.time, np.array([x, c.y])) for x, c in crossings if c is not None]
+
+
+def by_margin(points: list[tuple[float, np.ndarray]], ctx: Context) -> list[tuple[float, np.ndarray]]:
+    """``points`` (time [s], position [m]) ordered by how long before the puck the mallet would be there, the
+    longest first: the puck's time minus :meth:`ArmReach.reach_time` from where the mallet is."""
+    def margin(point: tuple[float, np.ndarray]) -> float:
+        return point[0] - ctx.now - ctx.reach.reach_time(ctx.mallet, point[1], ctx.mallet_velocity)
+    return sorted(points, key=margin, reverse=True)
 
 
 def keeps_out(point: np.ndarray, samples: tuple[np.ndarray, np.ndarray], ctx: Context) -> bool:
@@ -166,13 +178,17 @@ def keeps_out(point: np.ndarray, samples: tuple[np.ndarray, np.ndarray], ctx: Co
 
 def block_point(situation, ctx: Context, kept: np.ndarray | None = None) -> np.ndarray | None:
     """Where the mallet waits to keep out a puck that goes into the own goal by itself (:func:`heading_in`):
-    ``kept`` [m] (a block under way) if given and it still keeps the puck out, else the first position of the
-    puck's path (:func:`path_points`, own frame [m]) that does (:func:`keeps_out`); None when the puck does not
-    go in or no such position is found."""
+    ``kept`` [m] (a block under way) if given and it still keeps the puck out, else a position of the puck's
+    path (:func:`path_points`, own frame [m]) that does (:func:`keeps_out`): with ``ready_block_choice``
+    'first' the first the puck passes, with 'margin' the one the mallet reaches longest before the puck
+    (:func:`by_margin`); None when the puck does not go in or no such position is found."""
     if not heading_in(situation, ctx):
         return None
     samples = situation.samples_until(np.inf)
-    candidates = itertools.chain(() if kept is None else (kept,), path_points(situation, ctx))
+    points = path_points(situation, ctx)
+    if ctx.settings.ready_block_choice == "margin":
+        points = by_margin(points, ctx)
+    candidates = itertools.chain(() if kept is None else (kept,), (point for _, point in points))
     return next((point for point in candidates if keeps_out(point, samples, ctx)), None)
 
 

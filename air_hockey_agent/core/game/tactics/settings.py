@@ -27,6 +27,7 @@ class TacticsSettings:
     ready_block_step: float
     ready_block_in_way: bool
     ready_block_keep: bool
+    ready_block_choice: str
     home_point: tuple[float, float]
     smash_depth: tuple[float, float]
     smash_rim_margin: float
