@@ -28,6 +28,8 @@ class TacticsSettings:
     ready_block_in_way: bool
     ready_block_keep: bool
     ready_block_choice: str
+    ready_unseen_time: float
+    ready_unseen_point: tuple[float, float]
     home_point: tuple[float, float]
     smash_depth: tuple[float, float]
     smash_rim_margin: float
