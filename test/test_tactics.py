@@ -855,12 +855,16 @@ def test_ready_block_choice_margin_takes_the_block_reached_longest_before_the_pu
 def test_ready_waits_deep_while_the_puck_is_unseen(model, settings):
     """With ``ready_unseen_time`` 0.1 s, an estimate whose last frame is 0.2 s old (a mocap dropout; the puck
     last seen at rest on the opponent's half) or none at all: Ready waits at ``ready_unseen_point``, inside
-    the arm's region; with a fresh estimate, or with the option off (0), at the ready point."""
+    the arm's region; with a fresh estimate, or with the option off (0), or for a puck last seen on the own
+    half beside the ready point (the guard's rules), at the ready point."""
     sit = situation(model, [0.4, 0.1, 0.0, 0.0, 0.0, 0.0])
+    own = situation(model, [-0.5, 0.3, 0.0, 0.0, 0.0, 0.0])
     ready, deep = settings.point(settings.ready_point), settings.point((0.08, 0.0))
-    cases = ((0.1, sit, 0.2, deep), (0.1, None, 0.2, deep), (0.1, sit, 0.05, ready), (0.0, sit, 0.2, ready))
+    cases = ((0.1, sit, 0.2, deep), (0.1, None, 0.2, deep), (0.1, sit, 0.05, ready), (0.0, sit, 0.2, ready),
+             (0.1, own, 0.2, ready))
     for wait, seen, now, where in cases:
         fresh = selector_with(model, settings, ready_unseen_time=wait, ready_unseen_point=(0.08, 0.0))
+        fresh.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}  # only Ready left
         d = fresh.step(now, RUNNING, seen, ready + np.array([0.0, 0.2]), np.zeros(2))
         assert d.tactic == READY and d.command is not None, (wait, now, d.reason)
         assert np.allclose(d.command.point, where), (wait, now, d.command.point, d.reason)

@@ -215,15 +215,17 @@ def in_the_way(situation, ctx: Context) -> np.ndarray | None:
 
 
 def unseen(situation, ctx: Context) -> bool:
-    """With ``ready_unseen_time`` > 0: no estimate (none, or one older than ``stale_estimate``) or one whose
-    last frame lies more than ``ready_unseen_time`` [s] back (a mocap dropout, up to 0.9 s in the lab's
-    recordings: the opponent's shot is not seen until the puck is 0.3 s from the goal). A mallet waiting
+    """With ``ready_unseen_time`` > 0: no estimate (none, or one older than ``stale_estimate``), or one on the
+    opponent's half whose last frame lies more than ``ready_unseen_time`` [s] back (a mocap dropout, up to
+    0.9 s in the lab's recordings: the opponent's shot was not seen until the puck was 0.3 s from the goal;
+    a puck last seen on the own half is left to the other rules: the mallet going deep could meet it on
+    the way). A mallet waiting
     deeper covers more of the goal mouth against a shot it has not seen: a shot at 33 degrees crosses the
     ready point's line (0.16 m out) 0.10 m to the side of where it enters the goal, a line 0.08 m out
     0.05 m to the side, and a centred mallet meets a puck whose centre passes within a contact distance
     (0.08 m) of its own."""
     wait = ctx.settings.ready_unseen_time
-    return wait > 0.0 and (situation is None or ctx.now - situation.t > wait)
+    return wait > 0.0 and (situation is None or (situation.puck[0] >= 0.0 and ctx.now - situation.t > wait))
 
 
 class Ready(Tactic):
