@@ -831,7 +831,8 @@ def test_ready_block_choice_margin_takes_the_block_reached_longest_before_the_pu
     tightest to reach); with 'margin' a position the mallet reaches longest before the puck among those
     that keep it out, with more time to spare than the first one (here the first is where the puck lies:
     the mallet's way toward it meets the puck coming), and nearer the mallet."""
-    from air_hockey_agent.core.game.tactics.ready import block_point, by_margin, keeps_out, path_points
+    from air_hockey_agent.core.game.tactics.ready import (block_point, by_margin, keeps_out, path_points,
+                                                          time_to_spare)
     sit = situation(model, _into_the_goal(settings, 0.7, -0.35, 3.0))
     ready = settings.point(settings.ready_point)
     chosen = {}
@@ -845,8 +846,7 @@ def test_ready_block_choice_margin_takes_the_block_reached_longest_before_the_pu
     assert np.allclose(chosen["first"], passing[0][1]) and len(passing) > 1
 
     def margin(point):
-        t = next(t for t, p in points if np.allclose(p, point))
-        return t - ctx.now - ctx.reach.reach_time(ctx.mallet, point, ctx.mallet_velocity)
+        return time_to_spare(next(t for t, p in points if np.allclose(p, point)), point, ctx)
     assert np.allclose(chosen["margin"], by_margin(passing, ctx)[0][1])
     assert margin(chosen["margin"]) > margin(chosen["first"])
     assert np.hypot(*(chosen["margin"] - ready)) < np.hypot(*(chosen["first"] - ready))

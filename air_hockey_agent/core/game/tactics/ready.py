@@ -158,12 +158,15 @@ def path_points(situation, ctx: Context) -> list[tuple[float, np.ndarray]]:
     return [(c.time, np.array([x, c.y])) for x, c in crossings if c is not None]
 
 
+def time_to_spare(time: float, point: np.ndarray, ctx: Context) -> float:
+    """How long [s] before the puck, there at ``time`` [s], the mallet would be at ``point`` [m]: the time left
+    until then minus :meth:`ArmReach.reach_time` from where the mallet is (negative: after the puck)."""
+    return time - ctx.now - ctx.reach.reach_time(ctx.mallet, point, ctx.mallet_velocity)
+
+
 def by_margin(points: list[tuple[float, np.ndarray]], ctx: Context) -> list[tuple[float, np.ndarray]]:
-    """``points`` (time [s], position [m]) ordered by how long before the puck the mallet would be there, the
-    longest first: the puck's time minus :meth:`ArmReach.reach_time` from where the mallet is."""
-    def margin(point: tuple[float, np.ndarray]) -> float:
-        return point[0] - ctx.now - ctx.reach.reach_time(ctx.mallet, point[1], ctx.mallet_velocity)
-    return sorted(points, key=margin, reverse=True)
+    """``points`` (time [s], position [m]) ordered by :func:`time_to_spare`, the longest first."""
+    return sorted(points, key=lambda point: time_to_spare(point[0], point[1], ctx), reverse=True)
 
 
 def keeps_out(point: np.ndarray, samples: tuple[np.ndarray, np.ndarray], ctx: Context) -> bool:
@@ -219,11 +222,10 @@ def unseen(situation, ctx: Context) -> bool:
     opponent's half whose last frame lies more than ``ready_unseen_time`` [s] back (a mocap dropout, up to
     0.9 s in the lab's recordings: the opponent's shot was not seen until the puck was 0.3 s from the goal;
     a puck last seen on the own half is left to the other rules: the mallet going deep could meet it on
-    the way). A mallet waiting
-    deeper covers more of the goal mouth against a shot it has not seen: a shot at 33 degrees crosses the
-    ready point's line (0.16 m out) 0.10 m to the side of where it enters the goal, a line 0.08 m out
-    0.05 m to the side, and a centred mallet meets a puck whose centre passes within a contact distance
-    (0.08 m) of its own."""
+    the way). A mallet waiting deeper covers more of the goal mouth against a shot it has not seen: a shot
+    at 33 degrees crosses the ready point's line (0.16 m out) 0.10 m to the side of where it enters the
+    goal, a line 0.08 m out 0.05 m to the side, and a centred mallet meets a puck whose centre passes
+    within a contact distance (0.08 m) of its own."""
     wait = ctx.settings.ready_unseen_time
     return wait > 0.0 and (situation is None or (situation.puck[0] >= 0.0 and ctx.now - situation.t > wait))
 
