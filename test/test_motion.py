@@ -21,6 +21,7 @@ from air_hockey_agent.core.motion.planner import (ACCEPTED, INVALID, LIMITS, OUT
 from air_hockey_agent.core.motion import task_motion as tm
 from air_hockey_agent.core.motion.tracking import track
 from air_hockey_agent.motion_params import build_planner, load_motion_params
+from air_hockey_agent.sim.params import load_sim_params
 
 ROBOTS = ("iiwa_front", "iiwa_back")
 JOINTS = tuple(f"iiwa_joint_{i}" for i in range(1, 8))
@@ -279,6 +280,31 @@ def test_a_new_command_continues_from_the_running_plan_without_a_jump(front):
     step = second.q[0] - q
     assert np.max(np.abs(step) / (second.times[0] - 0.3)) <= front.limits.dq_max_real.max()
     assert np.max(np.abs((second.q[0] - q) / (second.times[0] - 0.3) - dq)) < 0.5
+
+
+def test_a_hit_planned_while_the_arm_descends_from_home_continues_the_descent(front):
+    """A Smash forced while Ready still lowers the arm from its raised home pose (the node graph's strategy
+    test on a slow machine): the approach takes the start's vertical velocity over and reaches the playing
+    height without passing below it. Stopping the descent at the first knot asked joint 4 for 385 % of its
+    acceleration limit, and every lead time was refused."""
+    s = front.s
+    home = ArmState(0.0, np.array(load_sim_params()["home_joint_positions"], float), np.zeros(7))
+    reach = front.plan(Command(np.array([-0.818, 0.0]), np.zeros(2), s.height_transition + 0.05), home)
+    assert reach.ok, reach.message
+    descent = JointTrajectory.from_points(JOINTS, 0.0, reach.times, reach.q, reach.dq, home.q, home.dq)
+    checked = 0
+    for t in np.arange(0.05, s.height_transition + 0.05, 0.05):
+        q, dq = descent.sample(t)
+        start = ArmState(t, q, dq)
+        z, vz = front.kin.position(q)[2], (front.kin.position_and_jacobian(q)[1] @ dq)[2]
+        plan = front.plan(Command(np.array([-0.7155, 0.3632]), np.array([2.08, -0.457]), t + 1.2), start)
+        assert plan.ok, (t, plan.message)
+        _, _, _, mallet = _check_limits_and_plane(front, plan, start)
+        first_z = front.kin.position(plan.q[0])[2]
+        assert first_z == pytest.approx(z + vz * s.dt, abs=0.2 * abs(vz) * s.dt + 2e-4), t  # the descent goes on
+        assert np.min(mallet[:, 2]) >= s.height - 2e-3
+        checked += abs(vz) > 0.1
+    assert checked >= 2  # some starts really were moving down fast
 
 
 def _moving(planner, point, velocity):

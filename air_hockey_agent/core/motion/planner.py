@@ -360,12 +360,20 @@ class MotionPlanner:
 
     def _from_start(self, xy: np.ndarray, start: ArmState) -> np.ndarray:
         """Targets (n, 3) for planar points ``xy`` (n, 2) that leave the start's height for the playing
-        height smoothly (cubic smoothstep over ``height_transition`` s), e.g. from a raised home pose."""
+        height smoothly: a cubic Hermite from the start's height and vertical velocity to the playing height
+        at rest, over ``height_transition`` s, e.g. from a raised home pose. From an arm still descending
+        (a Smash forced during Ready's descent from home) it continues the descent, over less time where
+        the full transition would carry the mallet past the playing height (Hermite end slope limit 3,
+        Fritsch and Carlson 1980: then z - height falls as (1 - s)^3); stopping the descent at once asked a
+        joint for several times its acceleration limit."""
         targets = self._at_height(xy)
-        z0 = float(self.kin.position(start.q)[2])
-        t = np.arange(1, len(targets) + 1) * self.s.dt / self.s.height_transition
-        blend = np.clip(t, 0.0, 1.0)
-        targets[:, 2] += (z0 - self.s.height) * (1.0 - (3 * blend ** 2 - 2 * blend ** 3))
+        position, jac = self.kin.position_and_jacobian(start.q)
+        above, vz = float(position[2]) - self.s.height, float(jac[2] @ start.dq)
+        duration = self.s.height_transition
+        if vz * above < 0.0 and abs(vz) * duration > 3.0 * abs(above):
+            duration = 3.0 * abs(above) / abs(vz)
+        s = np.clip(np.arange(1, len(targets) + 1) * self.s.dt / duration, 0.0, 1.0)
+        targets[:, 2] += above * (2 * s ** 3 - 3 * s ** 2 + 1) + vz * duration * (s ** 3 - 2 * s ** 2 + s)
         return targets
 
     def _at_height(self, xy: np.ndarray) -> np.ndarray:
