@@ -251,8 +251,9 @@ def test_strategy_test_with_a_defending_opponent(ros_env, tmp_path):
     report = json.loads(result.stdout.strip().splitlines()[-1])
     assert report["defended"] is True and {"defended_rate", "success_rate"} <= set(report["smash_left"])
     trials = [json.loads(line) for line in lines_file.read_text().splitlines()]
-    assert len(trials) == 3 and not any(t["error"] for t in trials) and all(t["hit"] for t in trials), trials
-    assert sum(t["defended"] for t in trials) >= 2, trials  # the released opponent met the shots
+    outcomes = "; ".join(f"{t['strategy']}: hit {t['hit']}, {t['reason']} ({t['tactic']})" for t in trials)
+    assert len(trials) == 3 and not any(t["error"] for t in trials) and all(t["hit"] for t in trials), outcomes
+    assert sum(t["defended"] for t in trials) >= 2, outcomes  # the released opponent met the shots
     leftovers = run(["pgrep", "-f", f"{BIN}/(table_sim|strategy_test|tactics|puck_tracker|trajectory_generator)"])
     assert leftovers.stdout.strip() == ""
 

@@ -132,11 +132,13 @@ class StrategyTestNode(AirHockeyNode):
             self.phase = "force"
             self.call(self.reset_client, Trigger.Request())
         elif self.phase == "force":  # wait at the ready point, as in a game, then the tested tactic
-            self.phase, self.phase_start = "force opponent" if self.opponent_client else "ready", now
+            self.phase, self.phase_start = "force opponent" if self.opponent_client else "ready", None
             self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS["ready"]))
         elif self.phase == "force opponent":
             self.phase, self.opponent_waits = "ready", True
             self.call(self.opponent_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS["ready"]))
+        elif self.phase == "ready" and self.phase_start is None:
+            self.phase_start = now  # Ready is in force (answered): settle from here, not from the request
         elif self.phase == "ready" and now - self.phase_start >= self.params["settle"]:
             self.phase = "settle"
             tactic = self.trial.tactic  # "": released to the state machine
