@@ -18,16 +18,18 @@ import math
 import time
 from collections import Counter
 from dataclasses import replace
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from air_hockey_agent.core.motion.planner import OUTCOME_NAMES, ArmState, Command, MotionPlanner
-from air_hockey_agent.core.motion.hit_config import best_hit_configuration
-from air_hockey_agent.core.motion.ik import solve_ik
-from air_hockey_agent.motion_params import build_planner, load_motion_params
 from air_hockey_agent.tools.json_output import json_text
 from air_hockey_agent.tools.progress import Progress
 from air_hockey_agent.tools.argtypes import count, seed
+
+# The motion stack (numba, pinocchio: 0.3 s) is imported where it is used: every air-hockey command imports
+# this module to build its command line.
+if TYPE_CHECKING:
+    from air_hockey_agent.core.motion.planner import ArmState, Command, MotionPlanner
 
 ROBOT = "iiwa_front"
 READY_POINT = (-0.70, 0.0)       # [m] start of every command: in front of the own goal, like a ready pose
@@ -50,6 +52,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 def ready_state(planner: MotionPlanner, point=READY_POINT) -> ArmState:
     """The arm at rest with the mallet at ``point`` [m] (planner frame) at the playing height."""
+    from air_hockey_agent.core.motion.ik import solve_ik
+    from air_hockey_agent.core.motion.planner import ArmState
     s = planner.s
     ik = solve_ik(planner.kin, planner.limits, np.array([*point, s.height]), s.reference, s.reference,
                   s.ik_iterations, s.ik_tolerance)
@@ -59,6 +63,8 @@ def ready_state(planner: MotionPlanner, point=READY_POINT) -> ArmState:
 def fastest_hit(planner: MotionPlanner, start: ArmState, point: np.ndarray, direction: np.ndarray) -> float | None:
     """The fastest hit [m/s] the arm allows at ``point`` along ``direction`` (as the planner finds it:
     IK from the start posture, then the hit posture search), or None where IK fails."""
+    from air_hockey_agent.core.motion.hit_config import best_hit_configuration
+    from air_hockey_agent.core.motion.ik import solve_ik
     s = planner.s
     ik = solve_ik(planner.kin, planner.limits, np.array([*point, s.height]), start.q, s.reference,
                   s.ik_iterations, s.ik_tolerance)
@@ -70,6 +76,7 @@ def fastest_hit(planner: MotionPlanner, start: ArmState, point: np.ndarray, dire
 
 def hit_commands(planner: MotionPlanner, start: ArmState, n: int, rng: np.random.Generator) -> list[Command]:
     """Random hits within the arm's speed at each point (its LP maximum along the direction)."""
+    from air_hockey_agent.core.motion.planner import Command
     out = []
     while len(out) < n:
         point = planner.region.random_point(rng)
@@ -84,6 +91,7 @@ def hit_commands(planner: MotionPlanner, start: ArmState, n: int, rng: np.random
 
 
 def reach_commands(planner: MotionPlanner, start: ArmState, n: int, rng: np.random.Generator) -> list[Command]:
+    from air_hockey_agent.core.motion.planner import Command
     return [Command(planner.region.random_point(rng), np.zeros(2), start.t + rng.uniform(*LEAD_TIME)) for _ in range(n)]
 
 
@@ -159,6 +167,8 @@ def hit_speed_map(planner: MotionPlanner, start: ArmState, goal_x: float, n: int
 
 
 def run(args: argparse.Namespace) -> int:
+    from air_hockey_agent.core.motion.planner import OUTCOME_NAMES
+    from air_hockey_agent.motion_params import build_planner, load_motion_params
     params = load_motion_params()
     planner = build_planner(params, ROBOT)
     rng = np.random.default_rng(args.seed)
