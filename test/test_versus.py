@@ -118,7 +118,7 @@ def test_versus_plays_each_seed_on_both_sides_and_equal_agents_tie_exactly(tmp_p
     default) ties every pair exactly, goals and hits; the tally is the results'; the text has the line."""
     same = write(tmp_path / "same.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.24\n")
     command = [str(BIN / "air-hockey"), "game", "--in-process", "--games", "4", "--workers", "2", "--seed", "31",
-               "--duration", "20", "--versus", str(same)]
+               "--duration", "10", "--versus", str(same)]
     out = subprocess.run([*command, "--json"], capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stderr[-2000:]
     data = json.loads(out.stdout)
