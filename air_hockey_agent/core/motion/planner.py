@@ -251,7 +251,7 @@ class MotionPlanner:
         (index 0) to just before the hit; or a refusal."""
         dt = self.s.dt
         run_pos, _ = tm.strike(hit, direction, speed, n_strike, dt)
-        run_start = hit - speed * n_strike * dt / 2 * direction
+        run_start = tm.run_up_start(hit, direction, speed, n_strike, dt)
         backward = np.vstack([run_pos[-2::-1], run_start[None]]) if n_strike > 1 else run_start[None]
         back = track(self.kin, self.limits, self.qp, q_hit, -dq_hit, self._at_height(backward), dt,
                      q_hit, self.s.posture_gain)
@@ -271,7 +271,7 @@ class MotionPlanner:
         s, dt = self.s, self.s.dt
         p0, v0 = self._mallet(start)
         n_strike, no_room = self._run_up(hit, direction, speed)
-        run_start = hit - speed * n_strike * dt / 2 * direction
+        run_start = tm.run_up_start(hit, direction, speed, n_strike, dt)
         reach = tm.shortest_hermite_duration(p0, v0, run_start, s.reach_acceleration, dt)
         n_approach = steps - n_strike
         if n_approach * dt < reach:

@@ -22,17 +22,21 @@ def steps_for(duration: float, dt: float) -> int:
     return max(1, int(math.ceil(duration / dt - 1e-9)))
 
 
+def run_up_start(hit: np.ndarray, direction: np.ndarray, speed: float, steps: int, dt: float) -> np.ndarray:
+    """Where the run-up of :func:`strike` begins [m]: ``speed * steps * dt / 2`` (its length at the mean
+    speed v/2) behind ``hit`` along unit ``direction``."""
+    return hit - speed * steps * dt / 2 * direction
+
+
 def strike(hit: np.ndarray, direction: np.ndarray, speed: float, steps: int, dt: float) -> tuple[np.ndarray, np.ndarray]:
-    """Run-up from rest to ``hit`` with ``speed`` [m/s] along unit ``direction``, over ``steps`` grid steps.
-    The run-up length is ``speed * steps * dt / 2`` (mean speed v/2); the last sample is the hit."""
-    duration = steps * dt
-    length = speed * duration / 2
+    """Run-up from rest to ``hit`` with ``speed`` [m/s] along unit ``direction``, over ``steps`` grid steps,
+    from :func:`run_up_start`; the last sample is the hit."""
+    length = speed * steps * dt / 2
     t = np.arange(1, steps + 1) * dt
     a3, a4 = speed ** 3 / (4 * length ** 2), -speed ** 4 / (16 * length ** 3)
     s = a3 * t ** 3 + a4 * t ** 4
     ds = 3 * a3 * t ** 2 + 4 * a4 * t ** 3
-    start = hit - length * direction
-    return start + s[:, None] * direction, ds[:, None] * direction
+    return run_up_start(hit, direction, speed, steps, dt) + s[:, None] * direction, ds[:, None] * direction
 
 
 def run_up_length(behind: float, speed: float, lengths: tuple[float, float], longest_time: float) -> float:
