@@ -75,5 +75,6 @@ def test_the_command_line_is_built_without_the_heavy_libraries():
     result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
     assert result.returncode == 0 and result.stdout.strip() == "", result.stdout + result.stderr[-1000:]
     sources = sorted((REPO / "air_hockey_agent").rglob("*.py"))
-    compiled = [s for s in sources if (s.parent / "__pycache__" / f"{s.stem}.{sys.implementation.cache_tag}.pyc").exists()]
+    tag = sys.implementation.cache_tag
+    compiled = [s for s in sources if (s.parent / "__pycache__" / f"{s.stem}.{tag}.pyc").exists()]
     assert len(compiled) == len(sources), sorted(set(map(str, sources)) - set(map(str, compiled)))[:5]
