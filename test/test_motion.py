@@ -296,7 +296,8 @@ def test_a_hit_planned_while_the_arm_descends_from_home_continues_the_descent(fr
     for t in np.arange(0.05, s.height_transition + 0.05, 0.05):
         q, dq = descent.sample(t)
         start = ArmState(t, q, dq)
-        z, vz = front.kin.position(q)[2], (front.kin.position_and_jacobian(q)[1] @ dq)[2]
+        position, jac = front.kin.position_and_jacobian(q)
+        z, vz = position[2], (jac @ dq)[2]
         plan = front.plan(Command(np.array([-0.7155, 0.3632]), np.array([2.08, -0.457]), t + 1.2), start)
         assert plan.ok, (t, plan.message)
         _, _, _, mallet = _check_limits_and_plane(front, plan, start)
