@@ -6,7 +6,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any, Iterable
 
-from air_hockey_agent.core.game.tactics.ready import BLOCK_CHOICES
+from air_hockey_agent.core.game.tactics.settings import BLOCK_CHOICES
 from air_hockey_agent.params import ParamSpec, ParameterValueError, load_node_params
 from air_hockey_agent.sim.params import ROBOT_BASE_PARAMS
 from air_hockey_agent.tracker_params import MALLET_RADIUS_PARAM, TABLE_PARAMS

@@ -15,6 +15,7 @@ def node_parameters() -> dict[str, frozenset[str]]:
     from air_hockey_agent.sim.params import SIM_PARAMS
     from air_hockey_agent.strategy_params import STRATEGY_PARAMS
     from air_hockey_agent.sysid_params import SYSID_PARAMS
+    from air_hockey_agent.tool_node_params import OPTIMIZER_PARAMS, PLAYER_PARAMS
     from air_hockey_agent.tools.game import GAME_PARAMS
     from air_hockey_agent.tools.synth_bag import SESSION_PARAMS
     from air_hockey_agent.tracker_params import TRACKER_NODE_PARAMS
@@ -24,11 +25,6 @@ def node_parameters() -> dict[str, frozenset[str]]:
              "visualizer": VISUALIZER_PARAMS,
              # the tools' own sections (config/sysid.yaml, synthetic.yaml, game.yaml, reference_filter.yaml)
              "sysid": SYSID_PARAMS, "synth_bag": SESSION_PARAMS, "game": GAME_PARAMS,
-             "reference_filter": REFERENCE_PARAMS}
-    try:  # the two tool nodes keep their declarations next to their code (rclpy)
-        from air_hockey_agent.nodes.bag_player import PLAYER_PARAMS
-        from air_hockey_agent.nodes.prediction_optimizer import OPTIMIZER_PARAMS
-        specs.update(bag_player=PLAYER_PARAMS, prediction_optimizer=OPTIMIZER_PARAMS)
-    except ImportError:
-        pass
+             "reference_filter": REFERENCE_PARAMS, "bag_player": PLAYER_PARAMS,
+             "prediction_optimizer": OPTIMIZER_PARAMS}
     return {name: frozenset(s.name for s in group) for name, group in specs.items()}

@@ -20,15 +20,7 @@ from air_hockey_agent.bags.playback import paced
 from air_hockey_agent.bags.reader import BagError, bag_topics, iter_raw
 from air_hockey_agent.nodes.messages import message_class, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
-from air_hockey_agent.params import ParamSpec
-
-PLAYER_PARAMS = (
-    ParamSpec("bag", str, "rosbag2 bag directory (or its .mcap/.db3 file) or ROS 1 .bag file to replay"),
-    ParamSpec("rate", float, "replay speed factor (1.0 = as recorded)", 1e-3, 1000.0),
-    ParamSpec("loop", bool, "start again at the end"),
-    ParamSpec("publish_clock", bool, "publish the bag's time on /clock"),
-    ParamSpec("topics", str, "comma-separated topics to replay (empty: all)"),
-)
+from air_hockey_agent.tool_node_params import PLAYER_PARAMS
 
 
 class BagPlayerNode(AirHockeyNode):

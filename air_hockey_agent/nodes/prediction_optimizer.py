@@ -23,26 +23,10 @@ from air_hockey_agent.core.estimation.evaluation import valid_poses
 from air_hockey_agent.core.identification.sysid import PHYSICAL, errors_through_steps, identify
 from air_hockey_agent.nodes.messages import to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeFailure, NodeStartupError, run
-from air_hockey_agent.params import ParamSpec
-from air_hockey_agent.sysid_params import SYSID_PARAMS, bounds
+from air_hockey_agent.sysid_params import bounds
+from air_hockey_agent.tool_node_params import OPTIMIZER_PARAMS
 from air_hockey_agent.tools.sysid_report import write_params_yaml
 from air_hockey_agent.tracker_params import load_tracker_params
-
-OPTIMIZER_PARAMS = (
-    ParamSpec("bags", str, "comma-separated bags or directories of bags"),
-    ParamSpec("topic", str, "PoseStamped (or tf2_msgs/TFMessage) topic in the bags"),
-    ParamSpec("frame", str, "the puck's child frame when topic is a TFMessage topic such as /tf"),
-    ParamSpec("table_frame", str, "take the table pose from the bags' transform to this frame (empty: "
-                                  "mocap_table_pose)"),
-    ParamSpec("tracker", str, "namespace of the puck_tracker's services (e.g. /iiwa_front; empty: /)"),
-    ParamSpec("horizon", float, "[s] prediction horizon of the loss", 0.05, 3.0),
-    ParamSpec("iterations", int, "HEBO iterations", 1, 1000),
-    ParamSpec("batch", int, "suggestions per iteration", 1, 100),
-    ParamSpec("split", float, "training fraction of the trajectories", 0.0, 1.0),
-    ParamSpec("seed", int, "seed of the split and of HEBO", 0, 2**31 - 1),
-    ParamSpec("out", str, "parameter YAML to write (empty: do not write)"),
-    ParamSpec("service_timeout", float, "[s] wait for each service answer", 0.1, 600.0),
-) + SYSID_PARAMS
 
 
 class PredictionOptimizerNode(AirHockeyNode):

@@ -27,8 +27,6 @@ import numpy as np
 from air_hockey_agent.core.game.tactics.base import (READY, Context, Proposal, Tactic, between, first_within,
                                                      reach_proposal, unit)
 
-BLOCK_CHOICES = ("first", "margin")  # ready_block_choice: which block point block_point tries first
-
 
 def guard_point(puck: np.ndarray, gap: float, ctx: Context) -> np.ndarray | None:
     """Where the mallet waits for a puck at ``puck`` (x, y [m], own frame) behind the ready line: on the line

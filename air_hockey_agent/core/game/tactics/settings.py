@@ -12,6 +12,8 @@ import numpy as np
 
 from air_hockey_agent.core.table import TableGeometry
 
+BLOCK_CHOICES = ("first", "margin")  # ready_block_choice: which block point ready.block_point tries first
+
 
 @dataclass(frozen=True)
 class TacticsSettings:
