@@ -4,17 +4,14 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Any, Iterable
+from typing import TYPE_CHECKING, Any, Iterable
 
-from air_hockey_agent.core.frames import table_to_robot
-from air_hockey_agent.core.motion.kinematics import MalletKinematics
-from air_hockey_agent.core.motion.limits import JointLimits
-from air_hockey_agent.core.motion.planner import MotionPlanner, MotionSettings
-from air_hockey_agent.core.motion.region import Region
 from air_hockey_agent.params import ParamSpec, load_node_params
-from air_hockey_agent.paths import model_path
 from air_hockey_agent.sim.params import ROBOT_BASE_PARAMS, ROBOTS
 from air_hockey_agent.tracker_params import MALLET_RADIUS_PARAM, TABLE_PARAMS
+
+if TYPE_CHECKING:
+    from air_hockey_agent.core.motion.planner import MotionPlanner
 
 NODE_NAME = "/trajectory_generator"
 PARAM_FILES = ("table.yaml", "motion.yaml")
@@ -53,7 +50,15 @@ def load_motion_params(extra_files: Iterable[Path] = ()) -> dict[str, Any]:
 
 
 def build_planner(params: dict[str, Any], robot: str) -> MotionPlanner:
-    """The motion planner of ``robot``, in its own table frame (both robots share one code path)."""
+    """The motion planner of ``robot``, in its own table frame (both robots share one code path). The motion
+    stack (pinocchio, numba) is imported here, not with the declarations: every command's parameter checks
+    read those (:mod:`air_hockey_agent.param_registry`)."""
+    from air_hockey_agent.core.frames import table_to_robot
+    from air_hockey_agent.core.motion.kinematics import MalletKinematics
+    from air_hockey_agent.core.motion.limits import JointLimits
+    from air_hockey_agent.core.motion.planner import MotionPlanner, MotionSettings
+    from air_hockey_agent.core.motion.region import Region
+    from air_hockey_agent.paths import model_path
     if robot not in ROBOTS:
         raise ValueError(f"robot must be one of {', '.join(ROBOTS)}, got '{robot}'")
     x, y, z, yaw = params[f"robot_base.{robot}"]

@@ -65,15 +65,31 @@ def test_colcon_style_install_puts_executables_under_lib_package(tmp_path):
     assert found.stdout.strip() == str(prefix)
 
 
+HEAVY = ("scipy.optimize", "numba", "pinocchio", "torch", "rclpy")
+
+
+def heavy_imports(code: str) -> str:
+    """The heavy libraries (:data:`HEAVY`) a fresh interpreter has imported after running ``code``."""
+    probe = f"import sys\n{code}\nprint(' '.join(m for m in {HEAVY!r} if m in sys.modules))"
+    result = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120)
+    assert result.returncode == 0, result.stderr[-1000:]
+    return result.stdout.strip()
+
+
+def test_the_parameter_checks_read_every_declaration_without_the_heavy_libraries():
+    """Every tool and node checks its parameter files against every node's declarations (param_registry):
+    reading them imported the tactics and motion stacks (numba, pinocchio) and the tool nodes' rclpy,
+    0.5 s of each command's start."""
+    assert heavy_imports("from air_hockey_agent.tracker_params import load_tracker_params\n"
+                         "load_tracker_params()") == ""
+
+
 def test_the_command_line_is_built_without_the_heavy_libraries():
     """Every `air-hockey` command builds the whole command line (each tool's parser) before it runs: that
-    must not import scipy.optimize, numba, pinocchio or torch, which only some tools need (they made a
-    failing command take 1.2 s instead of 0.5 s). Each package's compiled modules are in place (setup_venv.sh
-    byte-compiles it: with PYTHONDONTWRITEBYTECODE every process recompiled them)."""
-    code = ("import sys\nfrom air_hockey_agent.tools.cli import build_parser\nbuild_parser()\n"
-            "print(' '.join(m for m in ('scipy.optimize', 'numba', 'pinocchio', 'torch') if m in sys.modules))")
-    result = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
-    assert result.returncode == 0 and result.stdout.strip() == "", result.stdout + result.stderr[-1000:]
+    must not import scipy.optimize, numba, pinocchio, torch or rclpy, which only some tools need (they made
+    a failing command take 1.2 s instead of 0.5 s). Each package's compiled modules are in place
+    (setup_venv.sh byte-compiles it: with PYTHONDONTWRITEBYTECODE every process recompiled them)."""
+    assert heavy_imports("from air_hockey_agent.tools.cli import build_parser\nbuild_parser()") == ""
     sources = sorted((REPO / "air_hockey_agent").rglob("*.py"))
     tag = sys.implementation.cache_tag
     compiled = [s for s in sources if (s.parent / "__pycache__" / f"{s.stem}.{tag}.pyc").exists()]
