@@ -172,6 +172,9 @@ def test_a_table_acceleration_that_varies_over_the_table_is_shown(film, varies):
     check = result.field
     assert check is not None and len(check.cells) == 8
     assert (check.p_value < settings["split.field_significance"]) == varies, check.p_value
+    from scipy.stats import f as f_distribution  # the reference the p-value's closed form must match
+    n, k = sum(cell["windows"] for cell in check.cells), len(check.cells)
+    assert check.p_value == pytest.approx(f_distribution.sf(check.f_statistic, 2 * (k - 1), 2 * (n - k)), rel=1e-9)
     table = TableGeometry.from_params(load_tracker_params())
     one_cell = field_check(result.flight, table, (1, 1), settings["split.field_min_windows"])
     assert one_cell is None  # nothing to compare a single cell with
