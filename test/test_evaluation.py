@@ -204,6 +204,53 @@ def test_valid_poses_screen_glitches_and_off_table_poses_only(params):
     assert valid_poses(frames, ekf) == [True, True, True, True, False, True, True, False, False, True]
 
 
+def test_the_nearest_stamps_are_the_bisection_loops_ties_and_ends_included():
+    """:func:`nearest_indices` (array arithmetic, evaluate_stream's pairing of each start with the valid
+    pose nearest t + h) picks what the bisection loop picks, on stamps with ties, duplicates and targets
+    beyond both ends."""
+    import bisect
+    from air_hockey_agent.core.estimation.evaluation import nearest_indices
+
+    def _nearest(times, t):
+        if not times:
+            return None
+        i = bisect.bisect_left(times, t)
+        return min((k for k in (i - 1, i) if 0 <= k < len(times)), key=lambda k: abs(times[k] - t))
+    rng = np.random.default_rng(3)
+    for _ in range(500):
+        times = sorted(rng.choice([0.0, 0.1, 0.2, 0.25, 0.3], int(rng.integers(0, 8))).tolist())
+        targets = np.concatenate([rng.uniform(-0.2, 0.6, 5), times, np.asarray(times) + 0.05])
+        loop = [-1 if _nearest(times, float(t)) is None else _nearest(times, float(t)) for t in targets]
+        assert nearest_indices(times, targets).tolist() == loop, (times, targets)
+
+
+def test_marker_glitches_are_the_pose_loops():
+    """:func:`marker_glitches` over arrays flags exactly the poses a loop over them flags (a pose faster
+    than ``speed`` from every usable neighbour: usable within ``max_gap``, not at the same stamp)."""
+    from air_hockey_agent.core.estimation.evaluation import marker_glitches
+
+    def loop(stamps, poses, ok, speed, max_gap):
+        posed = [k for k, good in enumerate(ok) if good]
+        out = []
+        for i, k in enumerate(posed):
+            rates = [np.hypot(*(poses[k][:2] - poses[n][:2])) / abs(stamps[k] - stamps[n])
+                     for n in (posed[j] for j in (i - 1, i + 1) if 0 <= j < len(posed))
+                     if 0.0 < abs(stamps[k] - stamps[n]) <= max_gap]
+            if rates and min(rates) > speed:
+                out.append(k)
+        return out
+    rng = np.random.default_rng(4)
+    flagged = 0
+    for _ in range(500):
+        n = int(rng.integers(0, 12))
+        stamps = np.cumsum(rng.choice([0.0, 1 / 120, 0.02, 0.3], n)).tolist()
+        poses, ok = [rng.normal(0.0, 0.05, 3) for _ in range(n)], (rng.random(n) < 0.8).tolist()
+        expected = loop(stamps, poses, ok, 3.0, 0.1)
+        assert marker_glitches(stamps, poses, ok, 3.0, 0.1) == expected
+        flagged += len(expected)
+    assert flagged > 100  # the cases exercise the rule, not only its empty answer
+
+
 def test_off_table_warning_and_poses_in_the_table_frame(params):
     from air_hockey_agent.bags.reader import PoseRecord
     from air_hockey_agent.bags.trajectories import measurements_of, off_table_warning
