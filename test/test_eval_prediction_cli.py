@@ -25,6 +25,15 @@ def bags(tmp_path_factory):
     return root
 
 
+@pytest.fixture(scope="module")
+def report_a(bags):
+    """`eval-prediction a --json`, run once for the tests that compare another reading of the same poses
+    (or a derived bag) with it."""
+    out = cli("eval-prediction", bags / "a", "--json")
+    assert out.returncode == 0, out.stderr
+    return json.loads(out.stdout)
+
+
 def strict_json(text):
     """JSON as RFC 8259 has it: Python's json module would also read NaN and Infinity, which are not JSON."""
     def refuse(word):
@@ -97,13 +106,11 @@ def test_json_text_writes_every_non_finite_float_as_null():
     assert value["a"] != value["a"] and value["b"][1] == float("inf")  # the input is left as it was
 
 
-def test_thesis_style_columns_are_sysids_over_the_same_trajectories(bags):
+def test_thesis_style_columns_are_sysids_over_the_same_trajectories(bags, report_a):
     """eval-prediction's trajectory-level columns (thesis tables 5.2-5.4) are the ones sysid reports: with
     the default parameters at 1.0 s, sysid's "before" loss pooled over its training and validation
     trajectories (weighted by comparisons) and the lower of their minima are eval-prediction's."""
-    out = cli("eval-prediction", bags / "a", "--json")
-    assert out.returncode == 0, out.stderr
-    thesis = json.loads(out.stdout)["thesis_style"]
+    thesis = report_a["thesis_style"]
     assert thesis["trajectories"] >= 3 and set(thesis) == {"trajectories", "0.5", "1.0", "1.5"}
     ident = cli("sysid", bags / "a", "--json", timeout=300)
     assert ident.returncode == 0, ident.stderr
@@ -136,39 +143,38 @@ def test_a_directory_of_bags_is_its_bags_in_path_order(bags):
     assert json.loads(searched.stdout) == json.loads(listed.stdout) and json.loads(searched.stdout)["bags"] == 2
 
 
-def test_a_ros1_copy_of_a_bag_gives_the_same_figures(bags, tmp_path):
+def test_a_ros1_copy_of_a_bag_gives_the_same_figures(bags, report_a, tmp_path):
     """The lab recorded with ROS 1: the same session converted by rosbags' own converter (Noetic types, a header
     with seq, ROS 1 serialisation) is evaluated exactly like the rosbag2 original."""
     converted = subprocess.run([str(EXE.parent / "rosbags-convert"), "--src", str(bags / "a"), "--dst",
                                 str(tmp_path / "a.bag"), "--dst-typestore", "ros1_noetic",
                                 "--include-topic", "/optitrack/puck"], capture_output=True, text=True, timeout=120)
     assert converted.returncode == 0, converted.stderr
-    original, ros1 = (cli("eval-prediction", bag, "--json") for bag in (bags / "a", tmp_path / "a.bag"))
-    assert original.returncode == ros1.returncode == 0, ros1.stderr
-    assert json.loads(ros1.stdout) == json.loads(original.stdout)
+    ros1 = cli("eval-prediction", tmp_path / "a.bag", "--json")
+    assert ros1.returncode == 0, ros1.stderr
+    assert json.loads(ros1.stdout) == report_a
     assert json.loads(ros1.stdout)["frames"] > 500
 
 
-def test_the_puck_on_tf_gives_the_same_figures(bags, tmp_path):
+def test_the_puck_on_tf_gives_the_same_figures(bags, report_a, tmp_path):
     """The ROS 1 lab's tracker read the puck from /tf (child frame "Puck"): the same poses as transforms,
     beside another body's, are evaluated exactly like the PoseStamped original."""
     assert poses_to_tf_bag(bags / "a", tmp_path / "tf.bag") > 500
-    original, tf = cli("eval-prediction", bags / "a", "--json"), cli("eval-prediction", tmp_path / "tf.bag",
-                                                                      "--topic", "/tf", "--json")
+    tf = cli("eval-prediction", tmp_path / "tf.bag", "--topic", "/tf", "--json")
     assert tf.returncode == 0, tf.stderr
-    assert json.loads(tf.stdout) == json.loads(original.stdout)
+    assert json.loads(tf.stdout) == report_a
     wrong = cli("eval-prediction", tmp_path / "tf.bag", "--topic", "/tf", "--frame", "puck")
     assert wrong.returncode == 2 and len(wrong.stderr.strip().splitlines()) == 1
     assert "no transform to frame puck on /tf (child frames: Puck, Table; choose one with --frame)" in wrong.stderr
 
 
-def test_the_table_pose_can_come_from_the_bags_own_transform(bags, tmp_path):
+def test_the_table_pose_can_come_from_the_bags_own_transform(bags, report_a, tmp_path):
     """The ROS 1 lab's TF tree holds world -> Table (static): --table-frame Table takes the table pose from
     it. The same session carried into a world where the table stands elsewhere and turned 0.3 rad gives
     the original's figures; without --table-frame the poses lie off the table and a warning says so."""
     lab = ((1.694, 0.813, 0.1, 0.3), "Table")  # REFERENCE_FACTS: the lab's static world -> Table, turned
     assert poses_to_tf_bag(bags / "a", tmp_path / "lab.bag", moved=lab, table_in_source=(1.504, 0.0, 0.0, 0.0)) > 500
-    original = json.loads(cli("eval-prediction", bags / "a", "--json").stdout)
+    original = report_a
     moved = cli("eval-prediction", tmp_path / "lab.bag", "--topic", "/tf", "--table-frame", "Table", "--json")
     assert moved.returncode == 0, moved.stderr
     report = json.loads(moved.stdout)
@@ -312,7 +318,7 @@ def test_synth_bag_from_the_mujoco_table(tmp_path):
     assert "dmin and dmax in (0, 1)" in out.stderr and not (tmp_path / "mj2").exists()
 
 
-def test_a_pose_with_an_empty_header_stamp_is_left_out_with_a_warning(bags, tmp_path):
+def test_a_pose_with_an_empty_header_stamp_is_left_out_with_a_warning(bags, report_a, tmp_path):
     """One message with a zero stamp among the session's: left in, it stretched the recording's span (the
     re-initialisations per second fell from 0.10 to 0.008 on an eight-shot bag) and, in sysid's and the
     thesis-style columns' preprocessing, asked for a grid from 0 s on. Now left out, with a warning, and
@@ -330,10 +336,10 @@ def test_a_pose_with_an_empty_header_stamp_is_left_out_with_a_warning(bags, tmp_
             if k == 300:
                 msg.header.stamp.sec, msg.header.stamp.nanosec = 0, 0
             writer.write("/optitrack/puck", log_ns, msg)
-    clean, out = (cli("eval-prediction", bag, "--json") for bag in (bags / "a", odd))
+    out = cli("eval-prediction", odd, "--json")
     assert out.returncode == 0, out.stderr
     assert "1 pose(s) whose header stamp lies more than max_prediction_gap 2 s" in out.stderr
-    clean, got = json.loads(clean.stdout), json.loads(out.stdout)
+    clean, got = report_a, json.loads(out.stdout)
     assert got["frames"] == clean["frames"] - 1
     assert got["reinit_per_s"] == pytest.approx(clean["reinit_per_s"], rel=0.01)
     assert cli("sysid", odd, "--json", timeout=300).returncode == 0
