@@ -247,10 +247,9 @@ def evaluate_stream(ekf: PuckEKF, frames: Iterable[Frame], totals: EvaluationTot
     records, stamps, invalid = _filter_pass(ekf, frames, keep_cov=totals.loglik)
     truth = [r for r in records if r.z is not None]
     truth_t = [r.t for r in truth]
-    starts = [r for r in records if r.x is not None]
+    starts = [r for r in records if r.x is not None][::totals.stride]
     period = stream_frame_period(stamps, ekf.settings.max_prediction_gap, ekf.settings.dt)
     tolerance = 0.5 * period  # the valid pose nearest t + h lies within half a frame of it
-    starts = starts[::totals.stride]
     start_t = np.array([start.t for start in starts], float)
     for h in totals.horizons:
         errors, nll, paths = totals.errors[horizon_key(h)], totals.nll[horizon_key(h)], totals.paths[horizon_key(h)]
