@@ -72,6 +72,21 @@ def situation(model, state, t0=0.0, robot="iiwa_front", horizon=1.0):
 
 
 # --- building blocks --------------------------------------------------------------------------------
+def test_samples_from_start_at_the_state_then_and_keep_the_later_samples(model):
+    sit = situation(model, [-0.5, 0.1, 1.0, -0.5, 0.0, 0.0], t0=2.0)
+    for start in (1.5, 2.0):  # not after the estimate: the estimate and every sample
+        for got, want in zip(sit.samples_from(start, np.inf), sit.samples_until(np.inf)):
+            np.testing.assert_array_equal(got, want)
+    start = 0.5 * (sit.times[3] + sit.times[4])  # between two samples
+    times, states = sit.samples_from(start, sit.times[9])
+    np.testing.assert_array_equal(times, np.concatenate([[start], sit.times[4:10]]))
+    np.testing.assert_allclose(states[0], 0.5 * (sit.states[3] + sit.states[4]), atol=1e-12)
+    np.testing.assert_array_equal(states[1:], sit.states[4:10])
+    times, states = sit.samples_from(sit.times[-1] + 1.0, np.inf)  # beyond the horizon: the last sample
+    assert times.tolist() == [sit.times[-1] + 1.0]
+    np.testing.assert_array_equal(states[0], sit.states[-1])
+
+
 def test_expected_carries_a_creeping_puck_on_beyond_the_horizon_and_holds_a_resting_one(model):
     start = np.array([-0.5, 0.1, 0.05, -0.02, 0.0, 0.0])
     sit = situation(model, start, horizon=0.5)
@@ -678,7 +693,7 @@ def _turned_in(point, sit, selector, mallet, velocity, now=0.0):
     from air_hockey_agent.core.game.shots import puck_after_contact
     from air_hockey_agent.core.game.tactics.ready import way_meeting
     st, ctx = selector.s, _ctx(selector, mallet, now, velocity)
-    meeting = way_meeting(np.asarray(point, float), sit.samples_until(np.inf), ctx, (st.contact_distance,))
+    meeting = way_meeting(np.asarray(point, float), sit.samples_from(now, np.inf), ctx, (st.contact_distance,))
     if meeting is None:
         return False
     after = puck_after_contact(meeting[0], meeting[2], meeting[1], st.mallet_restitution, st.mallet_friction,
@@ -703,6 +718,26 @@ def test_ready_moves_off_a_way_that_would_turn_the_puck_into_the_own_goal(select
     assert np.linalg.norm(d.command.point - ready) > 0.05
     assert not _turned_in(d.command.point, sit, selector, ready, np.zeros(2))
     assert selector.reach.region.contains(d.command.point)
+
+
+def test_ready_blocks_on_the_pucks_path_from_now_on_with_an_old_estimate(model, settings):
+    """An estimate 0.115 s old (mocap latency and a lost frame or two), a 1.6 m/s puck going into the goal: the
+    block lies on the puck's path from now on, where the mallet's way from now meets it and the contact, by
+    the step-by-step reference predictor, keeps it out. (Judged with the samples before now, which met a
+    mallet extrapolated back along its present velocity, the block was the estimate's position, 0.19 m behind
+    the puck.)"""
+    from air_hockey_agent.core.game.tactics.ready import meeting_distances, way_meeting
+    selector = selector_with(model, settings)
+    selector.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}  # only Ready left
+    now, mallet, velocity = 0.115, np.array([-0.776, -0.008]), np.array([0.42, -0.44])
+    sit = situation(model, _into_the_goal(settings, 0.628, 0.094, 1.64))
+    d = selector.step(now, RUNNING, sit, mallet, velocity)
+    assert d.tactic == READY and d.reason.startswith("blocking"), d.reason
+    p = d.command.point
+    assert path_gap(sit.samples_from(now, np.inf)[1][:, :2], p) < 1e-9, p  # on the path from now on
+    ctx = _ctx(selector, mallet, now, velocity)
+    assert way_meeting(p, sit.samples_from(now, np.inf), ctx, meeting_distances(settings)) is not None
+    assert not _turned_in(p, sit, selector, mallet, velocity, now)
 
 
 def test_ready_stays_on_a_way_whose_meeting_sends_the_puck_away(model, settings):
@@ -757,7 +792,7 @@ def test_ready_does_not_block_a_puck_that_stays_out(selector, model, settings):
 def _met(point, sit, selector, mallet, velocity, now=0.0) -> bool:
     from air_hockey_agent.core.game.tactics.ready import way_meeting
     st, ctx = selector.s, _ctx(selector, mallet, now, velocity)
-    return way_meeting(np.asarray(point, float), sit.samples_until(np.inf), ctx, (st.contact_distance,)) is not None
+    return way_meeting(np.asarray(point, float), sit.samples_from(now, np.inf), ctx, (st.contact_distance,)) is not None
 
 
 def test_ready_checks_way_off_keeps_the_waiting_point(model, settings):

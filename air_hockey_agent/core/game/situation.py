@@ -93,6 +93,17 @@ class Situation:
         keep = self.times <= end
         return np.concatenate([[self.t], self.times[keep]]), np.vstack([self.puck[None, :], self.states[keep]])
 
+    def samples_from(self, start: float, end: float) -> tuple[np.ndarray, np.ndarray]:
+        """The predicted state at ``start`` [s] (:meth:`at`) and the samples after it up to ``end`` [s]: their
+        times (m,) [s, absolute] and states (m, 6); :meth:`samples_until` when ``start`` is not after the
+        estimate. What to compare with a mallet whose way begins now: a sample older than now met a mallet
+        extrapolated back along its present velocity (after a 0.9 s mocap dropout, 0.9 s of a mallet that
+        was not moving that way)."""
+        if start <= self.t:
+            return self.samples_until(end)
+        keep = (self.times > start) & (self.times <= end)
+        return np.concatenate([[start], self.times[keep]]), np.vstack([self.at(start)[None, :], self.states[keep]])
+
     def at(self, t: float) -> np.ndarray:
         """Predicted state at ``t`` [s]: linear between samples (the estimate is the first), the last
         sample beyond the horizon."""

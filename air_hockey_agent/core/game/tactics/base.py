@@ -140,16 +140,17 @@ def approach_clear(puck: np.ndarray, hit_point: np.ndarray, velocity: np.ndarray
 def strike_way_clear(situation: Situation, hit_point: np.ndarray, velocity: np.ndarray, t_hit: float,
                      ctx: Context) -> bool:
     """The mallet's way to the strike of a hit at ``hit_point`` [m] with ``velocity`` [m/s] at ``t_hit`` [s]
-    keeps a clear distance (a contact distance plus ``approach_clearance``) off the puck as predicted until the
-    strike begins: the planner's staged approach, its shortest reach from where the mallet is to the run-up's
-    start (:meth:`ArmReach.reach_way`), where it waits for the strike (a run-up from rest, taking twice its
-    length over the hit speed). :func:`approach_clear` judges the straight way against the puck at the hit
-    time only: a puck leaving from behind the mallet crossed its way and was hit early, into the own goal."""
+    keeps a clear distance (a contact distance plus ``approach_clearance``) off the puck as predicted from now
+    until the strike begins: the planner's staged approach, its shortest reach from where the mallet is to the
+    run-up's start (:meth:`ArmReach.reach_way`), where it waits for the strike (a run-up from rest, taking
+    twice its length over the hit speed). :func:`approach_clear` judges the straight way against the puck at
+    the hit time only: a puck leaving from behind the mallet crossed its way and was hit early, into the own
+    goal."""
     if ctx.mallet is None:
         return True
     speed = float(np.linalg.norm(velocity))
     start = ctx.reach.run_up_start(hit_point, velocity / speed, speed)
-    times, states = situation.samples_until(t_hit - 2.0 * float(np.linalg.norm(hit_point - start)) / speed)
+    times, states = situation.samples_from(ctx.now, t_hit - 2.0 * float(np.linalg.norm(hit_point - start)) / speed)
     way, _ = ctx.reach.reach_way(ctx.mallet, ctx.mallet_velocity, start, times - ctx.now)
     return first_within(states[:, :2] - way, ctx.settings.clear_distance) is None
 

@@ -61,11 +61,11 @@ def clear_of(point: np.ndarray, path: np.ndarray, gap: float, x_max: float) -> n
 def way_meeting(target: np.ndarray, samples: tuple[np.ndarray, np.ndarray], ctx: Context,
                 distances: tuple[float, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
     """Where the mallet, reaching ``target`` [m] from where it is now (:meth:`ArmReach.reach_way`), first
-    meets the puck predicted at ``samples`` (times [s], states (n, 6)), meeting taken as coming within the
-    first of ``distances`` [m] the puck comes within at all: the puck state, the unit normal (mallet to
-    puck) and the mallet's velocity [m/s] then; None when it comes within none. (A contact distance first:
-    judged where it comes within a larger one, a puck that does touch would get a normal it does not have;
-    a larger one then counts near misses.)"""
+    meets the puck predicted at ``samples`` (times [s] from now on, :meth:`Situation.samples_from`; states
+    (n, 6)), meeting taken as coming within the first of ``distances`` [m] the puck comes within at all:
+    the puck state, the unit normal (mallet to puck) and the mallet's velocity [m/s] then; None when it
+    comes within none. (A contact distance first: judged where it comes within a larger one, a puck that
+    does touch would get a normal it does not have; a larger one then counts near misses.)"""
     times, states = samples
     way, way_velocity = ctx.reach.reach_way(ctx.mallet, ctx.mallet_velocity, target, times - ctx.now)
     rel = states[:, :2] - way
@@ -107,7 +107,7 @@ def off_the_way(target: np.ndarray, situation, ctx: Context) -> np.ndarray | Non
     the contact turns it into the own goal (a near miss, within ``approach_clearance``, counts): the
     nearest of :func:`dodge_points` whose way meets the puck without that, or misses it while the puck does
     not go in by itself; None when ``target`` is fine or no such point is found."""
-    distances, samples = meeting_distances(ctx.settings), situation.samples_until(np.inf)
+    distances, samples = meeting_distances(ctx.settings), situation.samples_from(ctx.now, np.inf)
     meeting = way_meeting(target, samples, ctx, distances)
     if meeting is None or not ctx.shots.turns_in(*meeting):
         return None
@@ -140,15 +140,16 @@ def heading_in(situation, ctx: Context) -> bool:
 
 
 def path_points(situation, ctx: Context) -> list[tuple[float, np.ndarray]]:
-    """Times [s] and positions [m] of the puck's predicted path, in the order the puck passes them: with
-    ``ready_block_step`` > 0 where it crosses lines x = const that many metres apart, from the arm's region's
-    far edge toward the goal (they move only as the prediction does); with 0 the prediction's own samples,
-    which slide along the path from one decision to the next (a fast puck's first sample inside the region
-    moved by 2-3 cm every 10 ms, more than ``resend_distance``: the block was sent again at every decision,
-    each re-plan starting the arm's motion anew, and a mallet asked to move 13 cm in 0.3 s moved 1 cm)."""
+    """Times [s] and positions [m] of the puck's predicted path from now on, in the order the puck passes them:
+    with ``ready_block_step`` > 0 where it crosses lines x = const that many metres apart, from the arm's
+    region's far edge toward the goal (they move only as the prediction does); with 0 the prediction's own
+    samples, which slide along the path from one decision to the next (a fast puck's first sample inside the
+    region moved by 2-3 cm every 10 ms, more than ``resend_distance``: the block was sent again at every
+    decision, each re-plan starting the arm's motion anew, and a mallet asked to move 13 cm in 0.3 s moved 1
+    cm)."""
     step = ctx.settings.ready_block_step
     if step <= 0.0:
-        times, states = situation.samples_until(np.inf)
+        times, states = situation.samples_from(ctx.now, np.inf)
         return [(float(t), state[:2]) for t, state in zip(times, states)]
     region = ctx.reach.region
     lines = np.arange(region.x_max, region.x_min - 1e-9, -step)
@@ -185,7 +186,7 @@ def block_point(situation, ctx: Context, kept: np.ndarray | None = None) -> np.n
     (:func:`by_margin`); None when the puck does not go in or no such position is found."""
     if not heading_in(situation, ctx):
         return None
-    samples = situation.samples_until(np.inf)
+    samples = situation.samples_from(ctx.now, np.inf)
     points = path_points(situation, ctx)
     if ctx.settings.ready_block_choice == "margin":
         points = by_margin(points, ctx)
@@ -196,7 +197,7 @@ def block_point(situation, ctx: Context, kept: np.ndarray | None = None) -> np.n
 def block_holds(point: np.ndarray, situation, ctx: Context) -> bool:
     """The block at ``point`` [m] (own frame) still keeps the puck out: the puck still goes into the own goal
     by itself (:func:`heading_in`) and :func:`keeps_out` holds."""
-    return heading_in(situation, ctx) and keeps_out(point, situation.samples_until(np.inf), ctx)
+    return heading_in(situation, ctx) and keeps_out(point, situation.samples_from(ctx.now, np.inf), ctx)
 
 
 def in_the_way(situation, ctx: Context) -> np.ndarray | None:
