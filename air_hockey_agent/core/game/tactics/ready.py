@@ -145,8 +145,8 @@ def path_points(situation, ctx: Context) -> list[tuple[float, np.ndarray]]:
     region's far edge toward the goal (they move only as the prediction does); with 0 the prediction's own
     samples, which slide along the path from one decision to the next (a fast puck's first sample inside the
     region moved by 2-3 cm every 10 ms, more than ``resend_distance``: the block was sent again at every
-    decision, each re-plan starting the arm's motion anew, and a mallet asked to move 13 cm in 0.3 s moved 1
-    cm)."""
+    decision, each re-plan starting the arm's motion anew, and a mallet asked to move 13 cm in 0.3 s moved
+    1 cm)."""
     step = ctx.settings.ready_block_step
     if step <= 0.0:
         times, states = situation.samples_from(ctx.now, np.inf)
