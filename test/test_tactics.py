@@ -837,7 +837,7 @@ def test_ready_keeps_the_block_it_runs_while_it_holds(model, settings):
     arm was sent (and accepted) is kept: nothing is sent again. Without it the block is chosen anew from
     the prediction's samples, which moved by more than ``resend_distance``: sent again. A kept block
     that no longer holds (the puck now passes beside the goal) is dropped."""
-    from air_hockey_agent.core.game.tactics.ready import block_holds
+    from air_hockey_agent.core.game.tactics.ready import block_point
     first = situation(model, _into_the_goal(settings, 0.7, -0.35, 3.0))
     later = situation(model, first.at(0.01), t0=0.01)
     wide = situation(model, [*first.at(0.02)[:2], -3.0, 0.0, 0, 0], t0=0.02)  # toward the own end rim, wide
@@ -852,8 +852,11 @@ def test_ready_keeps_the_block_it_runs_while_it_holds(model, settings):
         assert again.reason.startswith("blocking"), again.reason
         if keep:
             assert again.command is None and again.reason == d.reason
-            assert block_holds(d.command.point, later, _ctx(selector, ready, 0.01))
-            assert not block_holds(d.command.point, wide, _ctx(selector, ready, 0.02))
+            kept = d.command.point  # held while it still keeps the puck out, dropped once it does not
+            held = block_point(later, _ctx(selector, ready, 0.01), kept)
+            assert held is not None and np.array_equal(held, kept)
+            gone = block_point(wide, _ctx(selector, ready, 0.02), kept)
+            assert gone is None or not np.array_equal(gone, kept)
             dropped = selector.step(0.02, RUNNING, wide, ready, np.zeros(2))
             assert not dropped.reason.startswith("blocking"), dropped.reason
         else:

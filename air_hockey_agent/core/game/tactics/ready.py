@@ -11,12 +11,11 @@ With ``ready_blocks``, a puck going into the own goal by itself, which no other 
 its path where the contact keeps it out (:func:`block_point`; the points tried lie on fixed lines across
 the path, ``ready_block_step``, so that the chosen one does not slide with the prediction's samples), and
 with ``ready_block_in_way``, when none is found in time, awaited in its way (:func:`in_the_way`); with
-``ready_block_keep``, the block the arm is running is kept while it still holds (:func:`block_holds`);
-``ready_block_choice`` says which passing position is tried first (:func:`by_margin`). With
-``ready_checks_way`` the waiting point
-is judged by its outcome: when the mallet's way to it meets the predicted puck so that the contact sends
-the puck into the own goal, the mallet waits at the nearest other point whose way does not
-(:func:`off_the_way`).
+``ready_block_keep``, the block the arm is running is kept while it still holds (``kept`` of
+:func:`block_point`); ``ready_block_choice`` says which passing position is tried first
+(:func:`by_margin`). With ``ready_checks_way`` the waiting point is judged by its outcome: when the
+mallet's way to it meets the predicted puck so that the contact sends the puck into the own goal, the
+mallet waits at the nearest other point whose way does not (:func:`off_the_way`).
 """
 from __future__ import annotations
 
@@ -192,12 +191,6 @@ def block_point(situation, ctx: Context, kept: np.ndarray | None = None) -> np.n
         points = by_margin(points, ctx)
     candidates = itertools.chain(() if kept is None else (kept,), (point for _, point in points))
     return next((point for point in candidates if keeps_out(point, samples, ctx)), None)
-
-
-def block_holds(point: np.ndarray, situation, ctx: Context) -> bool:
-    """The block at ``point`` [m] (own frame) still keeps the puck out: the puck still goes into the own goal
-    by itself (:func:`heading_in`) and :func:`keeps_out` holds."""
-    return heading_in(situation, ctx) and keeps_out(point, situation.samples_from(ctx.now, np.inf), ctx)
 
 
 def in_the_way(situation, ctx: Context) -> np.ndarray | None:
