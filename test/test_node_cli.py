@@ -121,6 +121,7 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
     for robot in ("iiwa_front", "iiwa_back"):  # recorded joint states and plans of both arms, inside the region
         assert arms[robot]["joint_states"] > 1000 and arms[robot]["trajectories"] >= 1, arms
         assert arms[robot]["worst_outside_m"] < 0.005 and arms[robot]["trajectories_outside"] == 0, arms
+        assert arms[robot]["contacts"]["puck"] == "/sim/puck_true_state", arms  # the contact law's report
     spans, shown = _marker_stamps(game["recording"])
     from air_hockey_agent.bags.reader import iter_raw  # latched topics recorded from before the recorder joined
     latched = [topic for topic, _, _ in iter_raw(game["recording"], ["/iiwa_front/puck/physics", "/iiwa_back/puck/physics"])]

@@ -1,0 +1,210 @@
+"""How well the tactics' contact law predicted the puck's exit at a robot's mallet contacts in a recorded game
+(ROS-free): `air-hockey game-check`'s contact report.
+
+The tactics aim every Cut, Prepare and Smash with :func:`~air_hockey_agent.core.game.shots.puck_after_contact`
+(Routh's impact with the mallet as a moving wall, ``mallet_restitution`` and ``mallet_friction`` of
+``config/agent.yaml``, neither measured on a real table). Here each contact is measured from the puck's
+positions alone: a straight line fitted to the positions in a window before the contact and another after it
+(the table's deceleration changes the speed by about 1 mm/s over such a window) give the velocities in and
+out, the mallet's position and velocity come from the arm's joint states (the motion layer's kinematics), and
+the law's exit from the same inputs is compared with the one measured. Contacts whose windows hold a rim
+impact, another contact or too few positions are left out. A least-squares fit of the law's two constants to
+the measured exits says what they would have to be (on a real robot: what to configure). On the simulated
+table, where the law was already measured by hand (README "Tactics and the game"), a moving mallet's contact
+is where it errs.
+"""
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from air_hockey_agent.core.game.shots import puck_after_contact
+
+TOUCH_MARGIN = 0.005   # [m] the centres closer than the contact distance plus this and half the way the puck
+#                        moved against the mallet since the frame before or until the frame after count as
+#                        touching (the mocap noise is a fraction of a millimetre; a 120 Hz frame moves a puck
+#                        closing at 3 m/s 25 mm, so a fast contact may fall between two frames)
+FIT_WINDOW = 0.05      # [s] positions fitted on either side: 6 frames at 120 Hz
+FIT_GUARD = 0.01       # [s] left out next to the contact (the contact lasts a few ms; the mallet may still be
+#                        within the margin)
+MIN_POSITIONS = 4      # a side with fewer positions in its window is not measured
+RIM_CLEARANCE = 0.01   # [m] a window whose puck comes this near a rim (beyond its radius) is not measured
+PARKED_SPEED = 0.05    # [m/s] a mallet slower than this counts as parked
+FAST_SPEED = 0.6       # [m/s] ... faster than this as fast (the report's three classes)
+
+
+@dataclass(frozen=True)
+class ContactGeometry:
+    """What the check needs of the table and the law: the contact distance (puck plus mallet radius) [m], the
+    puck's radius [m], the half length and half width of the playing surface [m], and the law's restitution
+    and Coulomb friction [-] as configured."""
+
+    contact_distance: float
+    puck_radius: float
+    half_length: float
+    half_width: float
+    restitution: float
+    friction: float
+
+
+@dataclass(frozen=True)
+class MeasuredContact:
+    """One contact (own frame of the robot): when it began [s], the puck's state (x, y, vx, vy) [m, m/s] at
+    that time from the fit before, the mallet's position [m] and velocity [m/s] then, the unit normal (mallet
+    to puck), and the puck's velocity after it, measured and by the law [m/s]."""
+
+    time: float
+    puck: np.ndarray
+    mallet: np.ndarray
+    mallet_velocity: np.ndarray
+    normal: np.ndarray
+    exit_measured: np.ndarray
+    exit_law: np.ndarray
+
+    @property
+    def mallet_speed(self) -> float:
+        return float(np.hypot(*self.mallet_velocity))
+
+    @property
+    def error(self) -> float:
+        """|measured - law| [m/s]."""
+        return float(np.hypot(*(self.exit_measured - self.exit_law)))
+
+    @property
+    def along(self) -> float:
+        """The measured exit minus the law's along the law's exit direction [m/s] (negative: slower)."""
+        speed = float(np.hypot(*self.exit_law))
+        return 0.0 if speed <= 0.0 else float((self.exit_measured - self.exit_law) @ self.exit_law) / speed
+
+
+def line_fit(t: np.ndarray, xy: np.ndarray, at: float) -> tuple[np.ndarray, np.ndarray]:
+    """Least-squares straight line through positions ``xy`` (n, 2) [m] at times ``t`` (n,) [s]: its position at
+    ``at`` [s] and its velocity [m/s]."""
+    dt = np.asarray(t, float) - at
+    a = np.column_stack([np.ones_like(dt), dt])
+    coef, *_ = np.linalg.lstsq(a, np.asarray(xy, float), rcond=None)
+    return coef[0], coef[1]
+
+
+def touching_spans(close: np.ndarray) -> list[tuple[int, int]]:
+    """(first, last) index of every run of consecutive True in ``close``."""
+    spans, start = [], None
+    for i, c in enumerate(close):
+        if c and start is None:
+            start = i
+        elif not c and start is not None:
+            spans.append((start, i - 1))
+            start = None
+    if start is not None:
+        spans.append((start, len(close) - 1))
+    return spans
+
+
+def measure_contacts(puck_t: np.ndarray, puck_xy: np.ndarray, mallet_t: np.ndarray, mallet_xy: np.ndarray,
+                     mallet_v: np.ndarray, g: ContactGeometry) -> list[MeasuredContact]:
+    """Every measurable contact between the puck (positions ``puck_xy`` (n, 2) [m] at ``puck_t`` [s]) and the
+    mallet (positions and velocities (m, 2) [m, m/s] at ``mallet_t`` [s]), all in one frame, times increasing."""
+    puck_t, puck_xy = np.asarray(puck_t, float), np.asarray(puck_xy, float)
+    mallet_t = np.asarray(mallet_t, float)
+    if len(puck_t) < 2 * MIN_POSITIONS or len(mallet_t) < 2:
+        return []
+    at_puck = np.column_stack([np.interp(puck_t, mallet_t, np.asarray(mallet_xy, float)[:, k]) for k in (0, 1)])
+    rel = puck_xy - at_puck
+    step = np.hypot(*np.diff(rel, axis=0).T)
+    moved = np.maximum(np.concatenate([[0.0], step]), np.concatenate([step, [0.0]]))
+    spans = touching_spans(np.hypot(*rel.T) <= g.contact_distance + TOUCH_MARGIN + moved / 2)
+    out = []
+    for k, (i0, i1) in enumerate(spans):
+        t0, t1 = puck_t[i0], puck_t[i1]
+        before = (puck_t >= t0 - FIT_GUARD - FIT_WINDOW) & (puck_t < t0 - FIT_GUARD)
+        after = (puck_t > t1 + FIT_GUARD) & (puck_t <= t1 + FIT_GUARD + FIT_WINDOW)
+        previous_end = puck_t[spans[k - 1][1]] if k else -math.inf
+        next_start = puck_t[spans[k + 1][0]] if k + 1 < len(spans) else math.inf
+        if (previous_end >= t0 - FIT_GUARD - FIT_WINDOW or next_start <= t1 + FIT_GUARD + FIT_WINDOW
+                or before.sum() < MIN_POSITIONS or after.sum() < MIN_POSITIONS
+                or _near_rim(puck_xy[before | after], g)):
+            continue
+        contact = _measured(t0, t1, puck_t, puck_xy, before, after, mallet_t, mallet_xy, mallet_v, g)
+        if contact is not None:
+            out.append(contact)
+    return out
+
+
+def _near_rim(xy: np.ndarray, g: ContactGeometry) -> bool:
+    reach = g.puck_radius + RIM_CLEARANCE
+    return bool(np.any(np.abs(xy[:, 0]) > g.half_length - reach) or np.any(np.abs(xy[:, 1]) > g.half_width - reach))
+
+
+def _measured(t0, t1, puck_t, puck_xy, before, after, mallet_t, mallet_xy, mallet_v,
+              g: ContactGeometry) -> MeasuredContact | None:
+    """The contact first seen at ``t0`` and last at ``t1`` [s], from the fits on either side; None when the
+    puck was not closing on the mallet (the law then leaves it alone). It began where the puck's line before it
+    and the mallet, carried along its velocity, first came within the contact distance (:func:`meeting`): the
+    first frame seen touching lies up to a frame (25 mm at 3 m/s) past that, which would turn the normal."""
+    p_in, v_in = line_fit(puck_t[before], puck_xy[before], t0)
+    _, v_out = line_fit(puck_t[after], puck_xy[after], t1)
+    mallet = np.array([np.interp(t0, mallet_t, np.asarray(mallet_xy, float)[:, k]) for k in (0, 1)])
+    velocity = np.array([np.interp(t0, mallet_t, np.asarray(mallet_v, float)[:, k]) for k in (0, 1)])
+    s = meeting(p_in - mallet, v_in - velocity, g.contact_distance)
+    if s is None or not -FIT_GUARD <= s <= t1 - t0 + FIT_GUARD:  # not between the windows: not this contact
+        return None
+    p_in, mallet = p_in + s * v_in, mallet + s * velocity
+    normal = (p_in - mallet) / g.contact_distance
+    puck = np.array([*p_in, *v_in])
+    law = law_exit(puck, velocity, normal, g.restitution, g.friction, g.puck_radius)
+    return MeasuredContact(float(t0 + s), puck, mallet, velocity, normal, v_out, law)
+
+
+def meeting(rel: np.ndarray, closing: np.ndarray, distance: float) -> float | None:
+    """When [s, from now] a puck at ``rel`` [m] from the mallet, moving at ``closing`` [m/s] relative to it along
+    a straight line, enters the disc of ``distance`` [m] around it (negative: that long ago); None when the line
+    passes outside."""
+    a, b = float(closing @ closing), float(rel @ closing)
+    c = float(rel @ rel) - distance ** 2
+    disc = b * b - a * c
+    if a <= 0.0 or disc < 0.0:
+        return None
+    return (-b - math.sqrt(disc)) / a
+
+
+def law_exit(puck: np.ndarray, mallet_velocity: np.ndarray, normal: np.ndarray, restitution: float,
+             friction: float, radius: float) -> np.ndarray:
+    """The law's exit velocity [m/s] for a puck state (x, y, vx, vy) without spin."""
+    return puck_after_contact(np.array([*puck[:4], 0.0, 0.0]), mallet_velocity, normal, restitution, friction,
+                              radius)[2:4]
+
+
+def fit_law(contacts: list[MeasuredContact], radius: float) -> tuple[float, float, float]:
+    """The restitution and friction [-] (each within [0, 1]) whose exits come nearest the measured ones (least
+    squares over the velocity components), and the median error [m/s] they leave."""
+    from scipy.optimize import least_squares
+
+    def residuals(x: np.ndarray) -> np.ndarray:
+        return np.concatenate([law_exit(c.puck, c.mallet_velocity, c.normal, x[0], x[1], radius) - c.exit_measured
+                               for c in contacts])
+    fit = least_squares(residuals, np.array([0.8, 0.1]), bounds=([0.0, 0.0], [1.0, 1.0]))
+    left = np.hypot(*residuals(fit.x).reshape(-1, 2).T)
+    return float(fit.x[0]), float(fit.x[1]), float(np.median(left))
+
+
+def summary(contacts: list[MeasuredContact], g: ContactGeometry) -> dict:
+    """The report of one robot's contacts: how many, the law's error [m/s] (median, p90; the exit along the
+    law's own direction, median: negative is slower than predicted) over all and by the mallet's speed
+    (parked, moving, fast), and the law's constants fitted to them (with at least 5 contacts)."""
+    def stats(group: list[MeasuredContact]) -> dict:
+        if not group:
+            return {"n": 0}
+        errors = [c.error for c in group]
+        return {"n": len(group), "error_median": float(np.median(errors)),
+                "error_p90": float(np.percentile(errors, 90)), "along_median": float(np.median([c.along for c in group]))}
+    speeds = [c.mallet_speed for c in contacts]
+    out = {"configured": {"restitution": g.restitution, "friction": g.friction}, "all": stats(contacts),
+           "parked": stats([c for c, s in zip(contacts, speeds) if s < PARKED_SPEED]),
+           "moving": stats([c for c, s in zip(contacts, speeds) if PARKED_SPEED <= s <= FAST_SPEED]),
+           "fast": stats([c for c, s in zip(contacts, speeds) if s > FAST_SPEED])}
+    if len(contacts) >= 5:
+        e, mu, left = fit_law(contacts, g.puck_radius)
+        out["fitted"] = {"restitution": e, "friction": mu, "error_median": left}
+    return out

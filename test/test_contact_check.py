@@ -1,0 +1,129 @@
+"""The contact check (core/game/contact_check.py): contacts measured from positions alone, against contacts made
+with a known law, and the law's constants fitted back."""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from air_hockey_agent.core.game.contact_check import (ContactGeometry, fit_law, law_exit, line_fit, measure_contacts,
+                                                      meeting, summary, touching_spans)
+
+RATE = 120.0  # [Hz] the mocap's
+GEOMETRY = ContactGeometry(contact_distance=0.0798, puck_radius=0.03165, half_length=0.978, half_width=0.521,
+                           restitution=0.8, friction=0.1)
+
+
+def _contact(t_contact: float, at: np.ndarray, v_in: np.ndarray, normal_angle: float, v_mallet: np.ndarray,
+             e: float, mu: float, rng: np.random.Generator, noise: float = 0.0002):
+    """Positions of a puck (120 Hz, 0.2 s either side) meeting a mallet moving at ``v_mallet`` at ``t_contact``
+    with the normal at ``normal_angle`` (mallet to puck), the puck leaving by the law with ``e``, ``mu``; the
+    mallet's positions and velocities at 500 Hz. The frames are not aligned with the contact's time."""
+    n = np.array([math.cos(normal_angle), math.sin(normal_angle)])
+    mallet_at = at - n * GEOMETRY.contact_distance
+    v_out = law_exit(np.array([*at, *v_in]), v_mallet, n, e, mu, GEOMETRY.puck_radius)
+    t = np.arange(t_contact - 0.2, t_contact + 0.2, 1.0 / RATE) + 0.3 / RATE
+    ds = (t - t_contact)[:, None]
+    puck = np.where(ds < 0.0, at + ds * v_in, at + ds * v_out) + rng.normal(0.0, noise, (len(t), 2))
+    tm = np.arange(t_contact - 0.25, t_contact + 0.25, 0.002)
+    mallet = mallet_at + (tm - t_contact)[:, None] * v_mallet
+    return t, puck, tm, mallet, np.repeat(v_mallet[None], len(tm), axis=0), v_out
+
+
+def test_line_fit_and_spans_against_hand_values():
+    t = np.array([0.0, 0.1, 0.2, 0.3])
+    xy = np.column_stack([1.0 + 2.0 * t, -0.5 * t])
+    p, v = line_fit(t, xy, 0.2)
+    assert p == pytest.approx([1.4, -0.1]) and v == pytest.approx([2.0, -0.5])
+    assert touching_spans(np.array([0.2, 0.05, 0.06, 0.3, 0.01]) <= 0.07) == [(1, 2), (4, 4)]
+    assert touching_spans(np.array([0.2, 0.3]) <= 0.07) == []
+
+
+def test_meeting_finds_the_first_time_within_the_distance():
+    # a puck 0.3 m out on x, closing at 1 m/s straight in: within 0.08 m after 0.22 s
+    assert meeting(np.array([0.3, 0.0]), np.array([-1.0, 0.0]), 0.08) == pytest.approx(0.22)
+    # already inside 0.05 m: it entered 0.03 s ago
+    assert meeting(np.array([0.05, 0.0]), np.array([-1.0, 0.0]), 0.08) == pytest.approx(-0.03)
+    assert meeting(np.array([0.3, 0.2]), np.array([-1.0, 0.0]), 0.08) is None  # passes 0.2 m off
+    assert meeting(np.array([0.3, 0.0]), np.array([1.0, 0.0]), 0.08) == pytest.approx(-0.38)  # the line's entry
+
+
+@pytest.mark.parametrize("angle, v_mallet", [(0.0, (0.0, 0.0)), (0.5, (-0.6, 0.2)), (-0.4, (0.8, 0.0))])
+def test_a_contact_made_with_the_configured_law_is_measured_as_the_law(angle, v_mallet):
+    rng = np.random.default_rng(3)
+    t, puck, tm, mallet, mv, v_out = _contact(1.0, np.array([-0.4, 0.05]), np.array([-1.8, 0.3]), angle,
+                                              np.array(v_mallet), GEOMETRY.restitution, GEOMETRY.friction, rng)
+    contacts = measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)
+    assert len(contacts) == 1
+    c = contacts[0]
+    assert c.time == pytest.approx(1.0, abs=0.002)
+    assert abs(math.remainder(math.atan2(c.normal[1], c.normal[0]) - angle, 2 * math.pi)) < 0.02
+    assert c.exit_measured == pytest.approx(v_out, abs=0.02)
+    assert c.error < 0.04  # the fits' noise (0.2 mm positions: about 6 mm/s each side), through the law
+
+
+def test_the_laws_constants_are_fitted_back_from_contacts_made_with_others():
+    """Contacts made with e 0.6, mu 0.25 (not the configured 0.8, 0.1): the configured law errs, the fit finds
+    the constants that made them."""
+    rng = np.random.default_rng(7)
+    contacts = []
+    for k in range(12):
+        angle, v_mallet, v_in = 0.0, np.zeros(2), np.zeros(2)
+        while (v_in - v_mallet) @ [math.cos(angle), math.sin(angle)] > -0.3:  # closing at 0.3 m/s or more
+            angle = rng.uniform(-0.8, 0.8)
+            v_mallet = rng.uniform(-0.8, 0.8, 2)
+            v_in = np.array([-rng.uniform(1.0, 3.0), rng.uniform(-0.8, 0.8)])
+        t, puck, tm, mallet, mv, _ = _contact(1.0 + k, np.array([-0.4, rng.uniform(-0.2, 0.2)]), v_in, angle,
+                                              v_mallet, 0.6, 0.25, rng)
+        contacts += measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)
+    assert len(contacts) >= 10
+    e, mu, left = fit_law(contacts, GEOMETRY.puck_radius)
+    assert e == pytest.approx(0.6, abs=0.03) and mu == pytest.approx(0.25, abs=0.05)
+    assert left < 0.02 < np.median([c.error for c in contacts])
+    report = summary(contacts, GEOMETRY)
+    assert report["fitted"]["restitution"] == pytest.approx(e)
+    assert report["all"]["n"] == len(contacts) == sum(report[k]["n"] for k in ("parked", "moving", "fast"))
+
+
+def test_contacts_near_a_rim_or_each_other_are_left_out():
+    rng = np.random.default_rng(5)
+    near_rim = _contact(1.0, np.array([-0.4, 0.482]), np.array([-1.5, 0.0]), 0.0, np.zeros(2), 0.8, 0.1, rng)
+    assert measure_contacts(*near_rim[:5], GEOMETRY) == []
+    # a second touch 0.04 s after the first: neither has a clean window on both sides
+    t, puck, tm, mallet, mv, _ = _contact(1.0, np.array([-0.4, 0.0]), np.array([-1.5, 0.0]), 0.0, np.zeros(2),
+                                          0.8, 0.1, rng)
+    later = (t > 1.04) & (t < 1.05)
+    puck[later] = np.interp(t[later], tm, mallet[:, 0])[:, None] * [1, 0] + [GEOMETRY.contact_distance, 0]
+    assert len(measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)) == 0
+
+
+@pytest.mark.slow  # in-process: no ROS node
+def test_a_recorded_games_contacts_measured_from_the_truth_and_from_the_mocap_agree(tmp_path, monkeypatch):
+    """game-check's contact report on a recorded in-process game (pybullet's contact solver, not the law):
+    contacts of both robots, the same ones whether the puck comes from the true states or, as on a real
+    table, from the mocap's noisy poses with their lost frames."""
+    from air_hockey_agent.motion_params import build_planner, load_motion_params
+    from air_hockey_agent.sim.game_loop import JOINT_NAMES, InProcessGame
+    from air_hockey_agent.sim.game_record import GameRecorder
+    from air_hockey_agent.tools import game_check
+    game = InProcessGame(31)
+    try:
+        with GameRecorder(tmp_path / "game", JOINT_NAMES) as game.recorder:
+            result = game.run(15.0)
+    finally:
+        game.close()
+    motion = load_motion_params()
+    planners = {r: build_planner(motion, r) for r in ("iiwa_front", "iiwa_back")}
+    geometry = game_check._contact_geometry()
+    truth = game_check.check_bag(tmp_path / "game", planners, None, geometry)
+    topics = game_check.bag_topics
+    monkeypatch.setattr(game_check, "bag_topics",
+                        lambda bag: {k: v for k, v in topics(bag).items() if k != game_check.PUCK_TRUTH})
+    mocap = game_check.check_bag(tmp_path / "game", planners, None, geometry)
+    for robot in ("iiwa_front", "iiwa_back"):
+        a, b = truth[robot]["contacts"], mocap[robot]["contacts"]
+        assert (a["puck"], b["puck"]) == ("/sim/puck_true_state", "/optitrack/puck")
+        assert 3 <= a["all"]["n"] <= result["hits"][robot] + 2 and abs(a["all"]["n"] - b["all"]["n"]) <= 2, (a, b)
+        assert a["all"]["error_median"] < 0.3 and abs(a["all"]["error_median"] - b["all"]["error_median"]) < 0.05
+        assert abs(a["fitted"]["restitution"] - b["fitted"]["restitution"]) < 0.05, (a, b)
