@@ -84,6 +84,8 @@ def test_the_laws_constants_are_fitted_back_from_contacts_made_with_others():
     report = summary(contacts, GEOMETRY)
     assert report["fitted"]["restitution"] == pytest.approx(e)
     assert report["all"]["n"] == len(contacts) == sum(report[k]["n"] for k in ("parked", "moving", "fast"))
+    assert [c["exit_measured"] for c in report["each"]] == [c.exit_measured.tolist() for c in contacts]
+    assert all(c["closing"] >= 0.25 for c in report["each"])  # made closing at 0.3 m/s or more (fits: +-1 cm/s)
 
 
 def test_contacts_near_a_rim_or_each_other_are_left_out():

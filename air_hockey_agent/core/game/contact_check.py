@@ -68,6 +68,11 @@ class MeasuredContact:
         return float(np.hypot(*self.mallet_velocity))
 
     @property
+    def closing(self) -> float:
+        """The puck's speed toward the mallet along the normal before the contact [m/s]."""
+        return float((self.mallet_velocity - self.puck[2:4]) @ self.normal)
+
+    @property
     def error(self) -> float:
         """|measured - law| [m/s]."""
         return float(np.hypot(*(self.exit_measured - self.exit_law)))
@@ -192,7 +197,9 @@ def fit_law(contacts: list[MeasuredContact], radius: float) -> tuple[float, floa
 def summary(contacts: list[MeasuredContact], g: ContactGeometry) -> dict:
     """The report of one robot's contacts: how many, the law's error [m/s] (median, p90; the exit along the
     law's own direction, median: negative is slower than predicted) over all and by the mallet's speed
-    (parked, moving, fast), and the law's constants fitted to them (with at least 5 contacts)."""
+    (parked, moving, fast), the law's constants fitted to them (with at least 5 contacts), and each contact
+    (``each``: its time [s], the mallet's speed and the closing speed along the normal [m/s], the exit
+    measured and by the law [m/s], own frame)."""
     def stats(group: list[MeasuredContact]) -> dict:
         if not group:
             return {"n": 0}
@@ -207,4 +214,6 @@ def summary(contacts: list[MeasuredContact], g: ContactGeometry) -> dict:
     if len(contacts) >= 5:
         e, mu, left = fit_law(contacts, g.puck_radius)
         out["fitted"] = {"restitution": e, "friction": mu, "error_median": left}
+    out["each"] = [{"time": c.time, "mallet_speed": c.mallet_speed, "closing": c.closing,
+                    "exit_measured": c.exit_measured.tolist(), "exit_law": c.exit_law.tolist()} for c in contacts]
     return out
