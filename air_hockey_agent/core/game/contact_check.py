@@ -203,9 +203,9 @@ def summary(contacts: list[MeasuredContact], g: ContactGeometry) -> dict:
     def stats(group: list[MeasuredContact]) -> dict:
         if not group:
             return {"n": 0}
-        errors = [c.error for c in group]
+        errors, along = [c.error for c in group], [c.along for c in group]
         return {"n": len(group), "error_median": float(np.median(errors)),
-                "error_p90": float(np.percentile(errors, 90)), "along_median": float(np.median([c.along for c in group]))}
+                "error_p90": float(np.percentile(errors, 90)), "along_median": float(np.median(along))}
     speeds = [c.mallet_speed for c in contacts]
     out = {"configured": {"restitution": g.restitution, "friction": g.friction}, "all": stats(contacts),
            "parked": stats([c for c, s in zip(contacts, speeds) if s < PARKED_SPEED]),
