@@ -129,6 +129,9 @@ def test_a_recorded_games_contacts_measured_from_the_truth_and_from_the_mocap_ag
         assert 3 <= a["all"]["n"] <= result["hits"][robot] + 2 and abs(a["all"]["n"] - b["all"]["n"]) <= 2, (a, b)
         assert a["all"]["error_median"] < 0.3 and abs(a["all"]["error_median"] - b["all"]["error_median"]) < 0.05
         assert abs(a["fitted"]["restitution"] - b["fitted"]["restitution"]) < 0.05, (a, b)
+    from air_hockey_agent.tools.game_check_plot import plot_contacts  # game-check --plot's second figure
+    drawn = plot_contacts({r: truth[r]["contacts"] for r in truth}, tmp_path / "game_contacts.png")
+    assert drawn.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
 
     def unreadable(bag):
         raise game_check.BagError(bag, "no messages on /optitrack/puck")

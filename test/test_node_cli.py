@@ -122,6 +122,9 @@ def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_pat
         assert arms[robot]["joint_states"] > 1000 and arms[robot]["trajectories"] >= 1, arms
         assert arms[robot]["worst_outside_m"] < 0.005 and arms[robot]["trajectories_outside"] == 0, arms
         assert arms[robot]["contacts"]["puck"] == "/sim/puck_true_state", arms  # the contact law's report
+    contacts = plots / f"{Path(game['recording']).name}_contacts.png"  # drawn where contacts were measured
+    measured = any(arms[robot]["contacts"]["each"] for robot in ("iiwa_front", "iiwa_back"))
+    assert contacts.is_file() == measured and (f"wrote {contacts}" in checked.stderr) == measured, checked.stderr
     spans, shown = _marker_stamps(game["recording"])
     from air_hockey_agent.bags.reader import iter_raw  # latched topics recorded from before the recorder joined
     latched = [topic for topic, _, _ in iter_raw(game["recording"], ["/iiwa_front/puck/physics", "/iiwa_back/puck/physics"])]

@@ -9,8 +9,9 @@ predicted the puck's exit at its mallet contacts (:mod:`air_hockey_agent.core.ga
 from ``/sim/puck_true_state`` if recorded, else from ``/optitrack/puck``). ``--plot DIR`` also draws each bag as
 ``DIR/<bag>_arms.png``: the table seen from above with both regions, the mallets' paths and the puck's
 (``/sim/puck_true_state``, if recorded), the worst excursion marked; below, each arm's largest joint
-velocity against its limit over time. A bag that cannot be used gives a one-line error on stderr and
-exit code 2; the other bags are still checked.
+velocity against its limit over time; and, where contacts were measured, ``DIR/<bag>_contacts.png``: the
+puck's exit speed measured against the law's, and the law's error against the mallet's speed. A bag that
+cannot be used gives a one-line error on stderr and exit code 2; the other bags are still checked.
 """
 from __future__ import annotations
 
@@ -46,7 +47,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="rosbag2 bags (directory, or its .mcap/.db3 file) or ROS 1 .bag files")
     parser.add_argument("--json", action="store_true", help="print exactly one JSON object")
     parser.add_argument("--plot", type=Path, default=None, metavar="DIR",
-                        help="also write DIR/<bag>_arms.png: paths over the table, joint velocity over time")
+                        help="also write DIR/<bag>_arms.png (paths over the table, joint velocity over time) and "
+                             "DIR/<bag>_contacts.png (the contact law against the measured exits)")
     parser.set_defaults(run=run)
 
 
@@ -199,9 +201,13 @@ def run(args: argparse.Namespace) -> int:
         if not args.json:
             _print(bag, results[str(bag)])
         if checks is not None:
-            from air_hockey_agent.tools.game_check_plot import plot_arms
-            written = plot_arms(checks, args.plot / f"{bag_directory(bag).name}_arms.png")
-            print(f"wrote {written}", file=sys.stderr if args.json else sys.stdout)
+            from air_hockey_agent.tools.game_check_plot import plot_arms, plot_contacts
+            written = [plot_arms(checks, args.plot / f"{bag_directory(bag).name}_arms.png")]
+            contacts = {r: v["contacts"] for r, v in results[str(bag)].items() if v.get("contacts", {}).get("each")}
+            if contacts:
+                written.append(plot_contacts(contacts, args.plot / f"{bag_directory(bag).name}_contacts.png"))
+            for path in written:
+                print(f"wrote {path}", file=sys.stderr if args.json else sys.stdout)
     if args.json:
         print(json_text(results))
     return 2 if failed else 0

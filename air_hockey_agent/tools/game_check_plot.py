@@ -83,3 +83,32 @@ def _broken(points: np.ndarray) -> np.ndarray:
     """``points`` (n, 2) with a NaN row wherever two consecutive ones lie more than JUMP apart."""
     jumps = np.flatnonzero(np.hypot(*np.diff(points, axis=0).T) > JUMP) + 1
     return np.insert(points, jumps, np.nan, axis=0)
+
+
+def plot_contacts(contacts: dict, path: Path) -> Path:
+    """Draw each robot's contact report (robot -> :func:`contact_check.summary`): left, the puck's exit speed
+    measured against the contact law's; right, the law's error against the mallet's speed at the contact."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, (left, right) = plt.subplots(1, 2, figsize=(11, 4.5))
+    top = 0.0
+    for robot, report in contacts.items():
+        each = report["each"]
+        law = np.array([np.hypot(*c["exit_law"]) for c in each])
+        measured = np.array([np.hypot(*c["exit_measured"]) for c in each])
+        error = np.array([np.hypot(*np.subtract(c["exit_measured"], c["exit_law"])) for c in each])
+        label = f"{robot} ({len(each)}, from {report['puck']})"
+        left.scatter(law, measured, s=14, color=COLORS.get(robot), label=label)
+        right.scatter([c["mallet_speed"] for c in each], error, s=14, color=COLORS.get(robot), label=label)
+        top = max(top, float(np.max(law, initial=0.0)), float(np.max(measured, initial=0.0)))
+    left.plot([0.0, top], [0.0, top], color="k", lw=0.8, ls="--", label="measured = law")
+    left.set_xlabel("exit speed by the contact law [m/s]")
+    left.set_ylabel("exit speed measured [m/s]")
+    right.set_xlabel("mallet speed at the contact [m/s]")
+    right.set_ylabel("|measured - law| exit velocity [m/s]")
+    for ax in (left, right):
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize=8)
+    fig.tight_layout()
+    return save_figure(fig, path)
