@@ -112,11 +112,10 @@ def measure_contacts(puck_t: np.ndarray, puck_xy: np.ndarray, mallet_t: np.ndarr
     """Every measurable contact between the puck (positions ``puck_xy`` (n, 2) [m] at ``puck_t`` [s]) and the
     mallet (positions and velocities (m, 2) [m, m/s] at ``mallet_t`` [s]), all in one frame, times increasing."""
     puck_t, puck_xy = np.asarray(puck_t, float), np.asarray(puck_xy, float)
-    mallet_t = np.asarray(mallet_t, float)
+    mallet_t, mallet_xy, mallet_v = (np.asarray(a, float) for a in (mallet_t, mallet_xy, mallet_v))
     if len(puck_t) < 2 * MIN_POSITIONS or len(mallet_t) < 2:
         return []
-    at_puck = np.column_stack([np.interp(puck_t, mallet_t, np.asarray(mallet_xy, float)[:, k]) for k in (0, 1)])
-    rel = puck_xy - at_puck
+    rel = puck_xy - _interpolated(puck_t, mallet_t, mallet_xy)
     step = np.hypot(*np.diff(rel, axis=0).T)
     moved = np.maximum(np.concatenate([[0.0], step]), np.concatenate([step, [0.0]]))
     spans = touching_spans(np.hypot(*rel.T) <= g.contact_distance + TOUCH_MARGIN + moved / 2)
@@ -137,6 +136,12 @@ def measure_contacts(puck_t: np.ndarray, puck_xy: np.ndarray, mallet_t: np.ndarr
     return out
 
 
+def _interpolated(t, times: np.ndarray, values: np.ndarray) -> np.ndarray:
+    """``values`` (m, 2) sampled at ``times`` (m,), linearly interpolated at ``t`` (a time [s]: (2,); times:
+    (n, 2))."""
+    return np.stack([np.interp(t, times, values[:, k]) for k in (0, 1)], axis=-1)
+
+
 def _near_rim(xy: np.ndarray, g: ContactGeometry) -> bool:
     reach = g.puck_radius + RIM_CLEARANCE
     return bool(np.any(np.abs(xy[:, 0]) > g.half_length - reach) or np.any(np.abs(xy[:, 1]) > g.half_width - reach))
@@ -150,8 +155,7 @@ def _measured(t0, t1, puck_t, puck_xy, before, after, mallet_t, mallet_xy, malle
     first frame seen touching lies up to a frame (25 mm at 3 m/s) past that, which would turn the normal."""
     p_in, v_in = line_fit(puck_t[before], puck_xy[before], t0)
     _, v_out = line_fit(puck_t[after], puck_xy[after], t1)
-    mallet = np.array([np.interp(t0, mallet_t, np.asarray(mallet_xy, float)[:, k]) for k in (0, 1)])
-    velocity = np.array([np.interp(t0, mallet_t, np.asarray(mallet_v, float)[:, k]) for k in (0, 1)])
+    mallet, velocity = _interpolated(t0, mallet_t, mallet_xy), _interpolated(t0, mallet_t, mallet_v)
     s = meeting(p_in - mallet, v_in - velocity, g.contact_distance)
     if s is None or not -FIT_GUARD <= s <= t1 - t0 + FIT_GUARD:  # not between the windows: not this contact
         return None
