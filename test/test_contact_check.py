@@ -16,19 +16,32 @@ GEOMETRY = ContactGeometry(contact_distance=0.0798, puck_radius=0.03165, half_le
 
 
 def _contact(t_contact: float, at: np.ndarray, v_in: np.ndarray, normal_angle: float, v_mallet: np.ndarray,
-             e: float, mu: float, rng: np.random.Generator, noise: float = 0.0002):
+             e: float, mu: float, rng: np.random.Generator, noise: float = 0.0002, spin: float = 0.0,
+             damping: float = 0.0, speeding_up: float = 0.0, mallet_rate: float = 500.0):
     """Positions of a puck (120 Hz, 0.2 s either side) meeting a mallet moving at ``v_mallet`` at ``t_contact``
     with the normal at ``normal_angle`` (mallet to puck), the puck leaving by the law with ``e``, ``mu``; the
-    mallet's positions and velocities at 500 Hz. The frames are not aligned with the contact's time."""
+    mallet's positions and velocities at ``mallet_rate`` [Hz]. The frames are not aligned with the contact's
+    time. With ``spin`` [rad/s] the puck turns so before the contact (``_contact_yaw``); with ``damping``
+    [1/s] it slides under eq. 3.1's viscous term alone; with ``speeding_up`` [m/s^2] the mallet accelerates
+    along its way until the contact and holds ``v_mallet`` from then on (a hit's approach ending at it)."""
     n = np.array([math.cos(normal_angle), math.sin(normal_angle)])
     mallet_at = at - n * GEOMETRY.contact_distance
-    v_out = law_exit(np.array([*at, *v_in]), v_mallet, n, e, mu, GEOMETRY.puck_radius)
+    v_out = law_exit(np.array([*at, *v_in]), v_mallet, n, e, mu, GEOMETRY.puck_radius, spin)
     t = np.arange(t_contact - 0.2, t_contact + 0.2, 1.0 / RATE) + 0.3 / RATE
     ds = (t - t_contact)[:, None]
-    puck = np.where(ds < 0.0, at + ds * v_in, at + ds * v_out) + rng.normal(0.0, noise, (len(t), 2))
-    tm = np.arange(t_contact - 0.25, t_contact + 0.25, 0.002)
-    mallet = mallet_at + (tm - t_contact)[:, None] * v_mallet
-    return t, puck, tm, mallet, np.repeat(v_mallet[None], len(tm), axis=0), v_out
+    slid = ds if damping == 0.0 else (1.0 - np.exp(-damping * ds)) / damping  # eq. 3.1's v e^{-d t}, integrated
+    puck = np.where(ds < 0.0, at + slid * v_in, at + slid * v_out) + rng.normal(0.0, noise, (len(t), 2))
+    tm = np.arange(t_contact - 0.25, t_contact + 0.25, 1.0 / mallet_rate) + 0.37 / mallet_rate
+    tau = (tm - t_contact)[:, None]
+    way, early = v_mallet / max(float(np.hypot(*v_mallet)), 1e-12), np.minimum(tau, 0.0)
+    mallet = mallet_at + tau * v_mallet + way * speeding_up * early ** 2 / 2.0
+    return t, puck, tm, mallet, v_mallet + way * speeding_up * early, v_out
+
+
+def _contact_yaw(t: np.ndarray, t_contact: float, spin: float) -> np.ndarray:
+    """The puck's yaw [rad] wrapped to (-pi, pi], turning at ``spin`` before the contact and -spin after."""
+    ds = t - t_contact
+    return np.angle(np.exp(1j * (1.0 + np.where(ds < 0.0, spin * ds, -spin * ds))))
 
 
 def test_line_fit_and_spans_against_hand_values():
@@ -61,6 +74,32 @@ def test_a_contact_made_with_the_configured_law_is_measured_as_the_law(angle, v_
     assert abs(math.remainder(math.atan2(c.normal[1], c.normal[0]) - angle, 2 * math.pi)) < 0.02
     assert c.exit_measured == pytest.approx(v_out, abs=0.02)
     assert c.error < 0.04  # the fits' noise (0.2 mm positions: about 6 mm/s each side), through the law
+
+
+def test_the_inputs_the_law_needs_besides_positions_spin_deceleration_and_the_mallets_speed_now():
+    """A spinning puck (its spin measured from its yaw), a damped table (its lines carried to the contact under
+    the flight law) and a mallet speeding up between 100 Hz joint states (read from the Hermite curve through
+    their positions and velocities): each left out, the law seems to miss a contact it made exactly."""
+    rng = np.random.default_rng(11)
+    at, v_in, v_mallet = np.array([-0.4, 0.05]), np.array([-1.8, 0.3]), np.array([1.2, 0.1])
+    t, puck, tm, mallet, mv, v_out = _contact(1.0, at, v_in, 0.3, v_mallet, 0.8, 0.1, rng, noise=0.0, spin=25.0)
+    yaw = _contact_yaw(t, 1.0, 25.0)
+    spun = measure_contacts(t, puck, tm, mallet, mv, GEOMETRY, yaw)[0]
+    assert spun.spin == pytest.approx(25.0, abs=0.05) and spun.error < 0.01
+    assert measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)[0].error > 0.1  # spin taken as 0
+    d = 0.5  # [1/s] the thesis's table's damping
+    t, puck, tm, mallet, mv, v_out = _contact(1.0, at, v_in, 0.3, v_mallet, 0.8, 0.1, rng, noise=0.0, damping=d)
+    carried = measure_contacts(t, puck, tm, mallet, mv, GEOMETRY, flight=lambda now: lambda v: -d * v)[0]
+    assert carried.puck[2:4] == pytest.approx(v_in, abs=0.002) and carried.exit_measured == pytest.approx(v_out,
+                                                                                                        abs=0.002)
+    straight = measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)[0]
+    assert np.hypot(*(straight.exit_measured - v_out)) > 0.03  # read 35 ms after the contact: slower
+    t, puck, tm, mallet, mv, v_out = _contact(1.0, at, v_in, 0.3, v_mallet, 0.8, 0.1, rng, noise=0.0,
+                                              speeding_up=20.0, mallet_rate=100.0)
+    fast = measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)[0]
+    assert np.hypot(*(fast.mallet_velocity - v_mallet)) < 0.02 and fast.error < 0.04
+    between = [np.interp(fast.time, tm, mv[:, k]) for k in (0, 1)]
+    assert np.hypot(*(between - v_mallet)) > 0.04  # a straight line between the samples' velocities
 
 
 def test_the_laws_constants_are_fitted_back_from_contacts_made_with_others():
@@ -104,7 +143,9 @@ def test_contacts_near_a_rim_or_each_other_are_left_out():
 def test_a_recorded_games_contacts_measured_from_the_truth_and_from_the_mocap_agree(tmp_path, monkeypatch):
     """game-check's contact report on a recorded in-process game (pybullet's contact solver, not the law):
     contacts of both robots, the same ones whether the puck comes from the true states or, as on a real
-    table, from the mocap's noisy poses with their lost frames."""
+    table, from the mocap's noisy poses with their lost frames; the constants fitted to them are the ones the
+    simulation gives pybullet (measured with the spin, the tracker's flight law and the mallet's Hermite curve;
+    without the three, e 0.75 was fitted to the same solver's contacts)."""
     from air_hockey_agent.motion_params import build_planner, load_motion_params
     from air_hockey_agent.sim.game_loop import JOINT_NAMES, InProcessGame
     from air_hockey_agent.sim.game_record import GameRecorder
@@ -117,6 +158,8 @@ def test_a_recorded_games_contacts_measured_from_the_truth_and_from_the_mocap_ag
         game.close()
     motion = load_motion_params()
     planners = {r: build_planner(motion, r) for r in ("iiwa_front", "iiwa_back")}
+    from air_hockey_agent.sim.params import load_sim_params
+    sim = load_sim_params()
     geometry = game_check._contact_geometry()
     truth = game_check.check_bag(tmp_path / "game", planners, None, geometry)
     topics = game_check.bag_topics
@@ -127,8 +170,11 @@ def test_a_recorded_games_contacts_measured_from_the_truth_and_from_the_mocap_ag
         a, b = truth[robot]["contacts"], mocap[robot]["contacts"]
         assert (a["puck"], b["puck"]) == ("/sim/puck_true_state", "/optitrack/puck")
         assert 3 <= a["all"]["n"] <= result["hits"][robot] + 2 and abs(a["all"]["n"] - b["all"]["n"]) <= 2, (a, b)
-        assert a["all"]["error_median"] < 0.3 and abs(a["all"]["error_median"] - b["all"]["error_median"]) < 0.05
-        assert abs(a["fitted"]["restitution"] - b["fitted"]["restitution"]) < 0.05, (a, b)
+        assert a["all"]["error_median"] < 0.07 and abs(a["all"]["error_median"] - b["all"]["error_median"]) < 0.05
+        assert a["flight"] == f"/{robot}/puck/physics"
+        for fitted in (a["fitted"], b["fitted"]):
+            assert fitted["restitution"] == pytest.approx(sim["mallet_restitution"], abs=0.03), (a, b)
+            assert fitted["friction"] == pytest.approx(sim["mallet_friction"], abs=0.03), (a, b)
     from air_hockey_agent.tools.game_check_plot import plot_contacts  # game-check --plot's second figure
     drawn = plot_contacts({r: truth[r]["contacts"] for r in truth}, tmp_path / "game_contacts.png")
     assert drawn.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"

@@ -6,7 +6,8 @@ went beyond the motion layer's allowed region (the referee stops play 2 cm into 
 velocity against the real limits, and how many received trajectories had a planned knot outside the
 region (:mod:`air_hockey_agent.core.motion.execution_check`), and how well the tactics' contact law
 predicted the puck's exit at its mallet contacts (:mod:`air_hockey_agent.core.game.contact_check`; the puck
-from ``/sim/puck_true_state`` if recorded, else from ``/optitrack/puck``). ``--plot DIR`` also draws each bag as
+and its yaw from ``/sim/puck_true_state`` if recorded, else from ``/optitrack/puck``; the table's flight law from
+the tracker's ``/<robot>/puck/physics`` where recorded). ``--plot DIR`` also draws each bag as
 ``DIR/<bag>_arms.png``: the table seen from above with both regions, the mallets' paths and the puck's
 (``/sim/puck_true_state``, if recorded), the worst excursion marked; below, each arm's largest joint
 velocity against its limit over time; and, where contacts were measured, ``DIR/<bag>_contacts.png``: the
@@ -34,6 +35,7 @@ JOINT_STATE = "sensor_msgs/msg/JointState"
 TRAJECTORY = "trajectory_msgs/msg/JointTrajectory"
 PUCK_TRUTH, PUCK_STATE = "/sim/puck_true_state", "air_hockey_msgs/msg/PuckState"
 MOCAP, POSE = "/optitrack/puck", "geometry_msgs/msg/PoseStamped"
+PHYSICS = "air_hockey_msgs/msg/PuckPhysics"  # on /<robot>/puck/physics: the tracker's flight law as it went
 # [m] a planned knot this far outside the region counts: the planner's own path check allows 1 mm between
 # its samples (core/motion/planner.py PATH_TOLERANCE), so more is a plan that left the region
 PLANNED_TOLERANCE = 0.002
@@ -63,6 +65,7 @@ def check_bag(bag: Path, planners: dict, checks_out: dict | None = None,
     from air_hockey_agent.bags.types import typestore
     from air_hockey_agent.core.motion.execution_check import ExecutionCheck
     from air_hockey_agent.core.motion.kinematics import in_order
+    from air_hockey_agent.core.puck.model import PuckParams
     topics = bag_topics(bag)
     robots = [r for r in ROBOTS if topics.get(f"/{r}/joint_states") == JOINT_STATE]
     if not robots:
@@ -72,15 +75,21 @@ def check_bag(bag: Path, planners: dict, checks_out: dict | None = None,
     checks = {r: ExecutionCheck(planners[r], PLANNED_TOLERANCE, keep_trace=keep) for r in robots}
     wanted = {f"/{r}/joint_states": r for r in robots}
     wanted.update({f"/{r}/joint_trajectory": r for r in robots if topics.get(f"/{r}/joint_trajectory") == TRAJECTORY})
-    puck: list[tuple[float, float, float]] = []  # (stamp [s], x, y [m]) table frame
+    puck: list[tuple[float, float, float, float]] = []  # (stamp [s], x, y [m], yaw [rad]) table frame
     mallets: dict[str, list] = {r: [] for r in robots}  # (stamp [s], x, y [m], vx, vy [m/s]) own frame
     if (keep or geometry is not None) and topics.get(PUCK_TRUTH) == PUCK_STATE:
         wanted[PUCK_TRUTH] = ""
+    physics: dict[str, list] = {r: [] for r in robots}  # (stamp [s], PuckParams) table frame
+    if geometry is not None:
+        wanted.update({f"/{r}/puck/physics": r for r in robots if topics.get(f"/{r}/puck/physics") == PHYSICS})
     store = typestore()
     for topic, _, raw in iter_raw(bag, wanted):
         robot, msg = wanted[topic], store.deserialize_cdr(raw, topics[topic])
         if topic == PUCK_TRUTH:
-            puck.append((_stamp(msg), msg.x, msg.y))
+            puck.append((_stamp(msg), msg.x, msg.y, msg.theta))
+            continue
+        if topic.endswith("physics"):
+            physics[robot].append((msg.stamp.sec + msg.stamp.nanosec * 1e-9, PuckParams.from_attributes(msg)))
             continue
         names = planners[robot].kin.joint_names
         if topic.endswith("joint_states"):
@@ -93,7 +102,7 @@ def check_bag(bag: Path, planners: dict, checks_out: dict | None = None,
             knots = (in_order(msg.joint_names, point.positions, names) for point in msg.points)
             checks[robot].trajectory([q for q in knots if q is not None])
     if keep:
-        checks_out.update(checks, puck=[(x, y) for _, x, y in puck])
+        checks_out.update(checks, puck=[(x, y) for _, x, y, _ in puck])
     result = {r: c.result.as_dict() for r, c in checks.items()}
     if geometry is None:
         return result
@@ -105,31 +114,52 @@ def check_bag(bag: Path, planners: dict, checks_out: dict | None = None,
             puck = []  # unreadable poses: the arms' checks still stand, without the contacts
     for robot in robots:
         if puck:
-            result[robot]["contacts"] = {"puck": source, **robot_contacts(
-                np.array(puck), np.array(mallets[robot]).reshape(-1, 5), robot, geometry)}
+            flight = FlightLaws(physics[robot], robot) if physics[robot] else None
+            result[robot]["contacts"] = {"puck": source, "flight": f"/{robot}/puck/physics" if flight else None,
+                                         **robot_contacts(np.array(puck), np.array(mallets[robot]).reshape(-1, 5),
+                                                          robot, geometry, flight)}
     return result
 
 
-def mocap_positions(bag: Path) -> list[tuple[float, float, float]]:
-    """(stamp [s], x, y [m]) of the puck's usable poses on ``/optitrack/puck``, in the table frame of the
-    tracker's ``mocap_table_pose`` (as ``eval-prediction`` reads them)."""
+class FlightLaws:
+    """The tracker's flight law (eq. 3.1 with the table's acceleration, :func:`~air_hockey_agent.core.puck.model.
+    flight_acceleration`) in ``robot``'s frame as it was at a time: ``physics`` the (stamp [s], PuckParams) of its
+    recorded ``puck/physics`` messages, in their order."""
+
+    def __init__(self, physics: list, robot: str) -> None:
+        from air_hockey_agent.core.game.situation import own_frame_physics
+        from air_hockey_agent.core.puck.model import flight_acceleration
+        self.stamps = np.array([t for t, _ in physics])
+        self.laws = [flight_acceleration(p.damping, p.friction_surface, p.table_acceleration)
+                     for p in (own_frame_physics(q, robot) for _, q in physics)]
+
+    def __call__(self, t: float):
+        return self.laws[max(0, int(np.searchsorted(self.stamps, t, side="right")) - 1)]
+
+
+def mocap_positions(bag: Path) -> list[tuple[float, float, float, float]]:
+    """(stamp [s], x, y [m], yaw [rad]) of the puck's usable poses on ``/optitrack/puck``, in the table frame of
+    the tracker's ``mocap_table_pose`` (as ``eval-prediction`` reads them)."""
     from air_hockey_agent.bags.reader import PUCK_FRAME
     from air_hockey_agent.bags.trajectories import bag_measurements
     from air_hockey_agent.tracker_params import load_tracker_params
     records, measurements, _, _ = bag_measurements(bag, MOCAP, PUCK_FRAME, "", load_tracker_params())
-    return [(r.stamp, m[0], m[1]) for r, m in zip(records, measurements) if m is not None]
+    return [(r.stamp, m[0], m[1], m[2]) for r, m in zip(records, measurements) if m is not None]
 
 
-def robot_contacts(puck: np.ndarray, mallet: np.ndarray, robot: str, geometry: ContactGeometry) -> dict:
-    """:func:`contact_check.summary` of ``robot``'s contacts: ``puck`` (n, 3) stamps [s] and table-frame
-    positions [m], ``mallet`` (m, 5) stamps, own-frame positions [m] and velocities [m/s]."""
+def robot_contacts(puck: np.ndarray, mallet: np.ndarray, robot: str, geometry: ContactGeometry,
+                   flight: FlightLaws | None = None) -> dict:
+    """:func:`contact_check.summary` of ``robot``'s contacts: ``puck`` (n, 4) stamps [s], table-frame
+    positions [m] and yaws [rad], ``mallet`` (m, 5) stamps, own-frame positions [m] and velocities [m/s];
+    ``flight``: the table's flight law as the tracker had it (None: the puck's lines not decelerated)."""
     from air_hockey_agent.core.game.contact_check import measure_contacts, summary
     from air_hockey_agent.core.game.situation import to_own_frame
     puck, mallet = puck[np.argsort(puck[:, 0], kind="stable")], mallet[np.argsort(mallet[:, 0], kind="stable")]
     states = np.zeros((len(puck), 6))
-    states[:, :2] = puck[:, 1:3]
-    own = to_own_frame(states, robot)[:, :2]
-    return summary(measure_contacts(puck[:, 0], own, mallet[:, 0], mallet[:, 1:3], mallet[:, 3:5], geometry), geometry)
+    states[:, :2], states[:, 4] = puck[:, 1:3], puck[:, 3]
+    own = to_own_frame(states, robot)
+    return summary(measure_contacts(puck[:, 0], own[:, :2], mallet[:, 0], mallet[:, 1:3], mallet[:, 3:5], geometry,
+                                    own[:, 4], flight), geometry)
 
 
 def _stamp(msg) -> float:

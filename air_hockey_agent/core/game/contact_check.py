@@ -7,18 +7,26 @@ The tactics aim every Cut, Prepare and Smash with :func:`~air_hockey_agent.core.
 positions alone: a straight line fitted to the positions in a window before the contact and another after it
 (the table's deceleration changes the speed by about 1 mm/s over such a window) give the velocities in and
 out, the mallet's position and velocity come from the arm's joint states (the motion layer's kinematics), and
-the law's exit from the same inputs is compared with the one measured. Contacts whose windows hold a rim
+the law's exit from the same inputs is compared with the one measured. A line's velocity is the puck's at the
+mean time of its window, 35 ms from the contact, carried to the contact under the flight law (eq. 3.1; on the
+thesis's table a puck at 3 m/s slows by 0.05 m/s in that time) where the table's physics are known. Contacts whose windows hold a rim
 impact, another contact or too few positions are left out. A least-squares fit of the law's two constants to
-the measured exits says what they would have to be (on a real robot: what to configure). On the simulated
-table, where the law was already measured by hand (README "Tactics and the game"), a moving mallet's contact
-is where it errs.
+the measured exits says what they would have to be (on a real robot: what to configure). Two inputs matter as
+much as the law: the puck's spin (Routh's impact turns it into tangential speed; a line fitted to the puck's
+yaw before the contact, where the recording has it) and the mallet's velocity at the contact's very moment (the
+joint states come at 100 Hz and a hitting mallet changes its speed by 0.1 m/s in 5 ms: a cubic Hermite curve
+through the samples' positions and velocities, not a straight line between the velocities). Without them, on
+pybullet's table, the law seemed to miss a moving mallet's contacts by a median 0.07 m/s where, given the true
+state 1 ms before each contact, it misses by 0.03 m/s (README "The game").
 """
 from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
+from scipy.interpolate import CubicHermiteSpline
 
 from air_hockey_agent.core.game.shots import puck_after_contact
 
@@ -33,6 +41,9 @@ MIN_POSITIONS = 4      # a side with fewer positions in its window is not measur
 RIM_CLEARANCE = 0.01   # [m] a window whose puck comes this near a rim (beyond its radius) is not measured
 PARKED_SPEED = 0.05    # [m/s] a mallet slower than this counts as parked
 FAST_SPEED = 0.6       # [m/s] ... faster than this as fast (the report's three classes)
+
+Acceleration = Callable[[np.ndarray], np.ndarray]  # the flight law: velocity [m/s] -> acceleration [m/s^2]
+FlightAt = Callable[[float], Acceleration]          # the flight law in effect at a time [s]
 
 
 @dataclass(frozen=True)
@@ -53,7 +64,8 @@ class ContactGeometry:
 class MeasuredContact:
     """One contact (own frame of the robot): when it began [s], the puck's state (x, y, vx, vy) [m, m/s] at
     that time from the fit before, the mallet's position [m] and velocity [m/s] then, the unit normal (mallet
-    to puck), and the puck's velocity after it, measured and by the law [m/s]."""
+    to puck), the puck's velocity after it, measured and by the law [m/s], and the puck's spin before it
+    [rad/s] (0 where the recording has no yaw)."""
 
     time: float
     puck: np.ndarray
@@ -62,6 +74,7 @@ class MeasuredContact:
     normal: np.ndarray
     exit_measured: np.ndarray
     exit_law: np.ndarray
+    spin: float = 0.0
 
     @property
     def mallet_speed(self) -> float:
@@ -108,14 +121,18 @@ def touching_spans(close: np.ndarray) -> list[tuple[int, int]]:
 
 
 def measure_contacts(puck_t: np.ndarray, puck_xy: np.ndarray, mallet_t: np.ndarray, mallet_xy: np.ndarray,
-                     mallet_v: np.ndarray, g: ContactGeometry) -> list[MeasuredContact]:
-    """Every measurable contact between the puck (positions ``puck_xy`` (n, 2) [m] at ``puck_t`` [s]) and the
-    mallet (positions and velocities (m, 2) [m, m/s] at ``mallet_t`` [s]), all in one frame, times increasing."""
+                     mallet_v: np.ndarray, g: ContactGeometry, puck_yaw: np.ndarray | None = None,
+                     flight: FlightAt | None = None) -> list[MeasuredContact]:
+    """Every measurable contact between the puck (positions ``puck_xy`` (n, 2) [m] at ``puck_t`` [s], and its
+    yaw ``puck_yaw`` (n,) [rad] where known) and the mallet (positions and velocities (m, 2) [m, m/s] at
+    ``mallet_t`` [s]), all in one frame, times increasing; ``flight``: the table's flight law in effect at a
+    time, in that frame (None: straight lines, no deceleration)."""
     puck_t, puck_xy = np.asarray(puck_t, float), np.asarray(puck_xy, float)
-    mallet_t, mallet_xy, mallet_v = (np.asarray(a, float) for a in (mallet_t, mallet_xy, mallet_v))
-    if len(puck_t) < 2 * MIN_POSITIONS or len(mallet_t) < 2:
+    mallet = MalletPath(mallet_t, mallet_xy, mallet_v)
+    if len(puck_t) < 2 * MIN_POSITIONS or mallet.path is None:
         return []
-    rel = puck_xy - _interpolated(puck_t, mallet_t, mallet_xy)
+    yaw = None if puck_yaw is None else np.unwrap(np.asarray(puck_yaw, float))
+    rel = puck_xy - mallet.position(puck_t)
     step = np.hypot(*np.diff(rel, axis=0).T)
     moved = np.maximum(np.concatenate([[0.0], step]), np.concatenate([step, [0.0]]))
     spans = touching_spans(np.hypot(*rel.T) <= g.contact_distance + TOUCH_MARGIN + moved / 2)
@@ -130,16 +147,34 @@ def measure_contacts(puck_t: np.ndarray, puck_xy: np.ndarray, mallet_t: np.ndarr
                 or before.sum() < MIN_POSITIONS or after.sum() < MIN_POSITIONS
                 or _near_rim(puck_xy[before | after], g)):
             continue
-        contact = _measured(t0, t1, puck_t, puck_xy, before, after, mallet_t, mallet_xy, mallet_v, g)
+        spin = 0.0 if yaw is None else float(line_fit(puck_t[before], yaw[before, None], t0)[1][0])
+        law = None if flight is None else flight(t0)
+        contact = _measured(t0, t1, (puck_t[before], puck_xy[before]), (puck_t[after], puck_xy[after]), mallet, spin,
+                            law, g)
         if contact is not None:
             out.append(contact)
     return out
 
 
-def _interpolated(t, times: np.ndarray, values: np.ndarray) -> np.ndarray:
-    """``values`` (m, 2) sampled at ``times`` (m,), linearly interpolated at ``t`` (a time [s]: (2,); times:
-    (n, 2))."""
-    return np.stack([np.interp(t, times, values[:, k]) for k in (0, 1)], axis=-1)
+class MalletPath:
+    """The mallet between its samples (positions (m, 2) [m] and velocities (m, 2) [m/s] at times (m,) [s]): the
+    cubic Hermite curve through both (scipy's), so a mallet that speeds up between two joint states is not read
+    at the mean of their velocities; held at the first and last sample outside them. ``path`` is None with fewer
+    than two distinct times."""
+
+    def __init__(self, times: np.ndarray, positions: np.ndarray, velocities: np.ndarray) -> None:
+        times, keep = np.unique(np.asarray(times, float), return_index=True)  # sorted; a repeated stamp once
+        positions, velocities = np.asarray(positions, float)[keep], np.asarray(velocities, float)[keep]
+        self.span = (times[0], times[-1]) if len(times) else (0.0, 0.0)
+        self.path = CubicHermiteSpline(times, positions, velocities, axis=0) if len(times) >= 2 else None
+
+    def position(self, t) -> np.ndarray:
+        """[m] at ``t`` [s] (a time: (2,); times (n,): (n, 2))."""
+        return self.path(np.clip(t, *self.span))
+
+    def velocity(self, t) -> np.ndarray:
+        """[m/s] at ``t`` [s]."""
+        return self.path(np.clip(t, *self.span), 1)
 
 
 def _near_rim(xy: np.ndarray, g: ContactGeometry) -> bool:
@@ -147,23 +182,37 @@ def _near_rim(xy: np.ndarray, g: ContactGeometry) -> bool:
     return bool(np.any(np.abs(xy[:, 0]) > g.half_length - reach) or np.any(np.abs(xy[:, 1]) > g.half_width - reach))
 
 
-def _measured(t0, t1, puck_t, puck_xy, before, after, mallet_t, mallet_xy, mallet_v,
-              g: ContactGeometry) -> MeasuredContact | None:
-    """The contact first seen at ``t0`` and last at ``t1`` [s], from the fits on either side; None when the
-    puck was not closing on the mallet (the law then leaves it alone). It began where the puck's line before it
-    and the mallet, carried along its velocity, first came within the contact distance (:func:`meeting`): the
-    first frame seen touching lies up to a frame (25 mm at 3 m/s) past that, which would turn the normal."""
-    p_in, v_in = line_fit(puck_t[before], puck_xy[before], t0)
-    _, v_out = line_fit(puck_t[after], puck_xy[after], t1)
-    mallet, velocity = _interpolated(t0, mallet_t, mallet_xy), _interpolated(t0, mallet_t, mallet_v)
+def carried_fit(t: np.ndarray, xy: np.ndarray, at: float, acceleration: Acceleration | None) -> tuple[np.ndarray,
+                                                                                                       np.ndarray]:
+    """Position [m] and velocity [m/s] at ``at`` [s] of a puck seen at ``xy`` (n, 2) at times ``t`` (n,): the
+    line fitted to them holds the velocity at their mean time, carried to ``at`` under ``acceleration`` (the
+    flight law ``v -> a`` [m/s^2]; None: none)."""
+    mean = float(np.mean(t))
+    p, v = line_fit(t, xy, mean)
+    a = np.zeros(2) if acceleration is None else acceleration(v)
+    dt = at - mean
+    return p + v * dt + a * (dt * dt / 2), v + a * dt
+
+
+def _measured(t0, t1, before: tuple, after: tuple, mallet_path: MalletPath, spin: float,
+              acceleration: Acceleration | None, g: ContactGeometry) -> MeasuredContact | None:
+    """The contact first seen at ``t0`` and last at ``t1`` [s], from the fits to the (times, positions) on
+    either side; None when the puck was not closing on the mallet (the law then leaves it alone). It began where
+    the puck's line before it and the mallet, carried along its velocity, first came within the contact distance
+    (:func:`meeting`): the first frame seen touching lies up to a frame (25 mm at 3 m/s) past that, which would
+    turn the normal. The exit is the puck's velocity after it, carried back to that start."""
+    p_in, v_in = carried_fit(*before, t0, acceleration)
+    mallet, velocity = mallet_path.position(t0), mallet_path.velocity(t0)
     s = meeting(p_in - mallet, v_in - velocity, g.contact_distance)
     if s is None or not -FIT_GUARD <= s <= t1 - t0 + FIT_GUARD:  # not between the windows: not this contact
         return None
-    p_in, mallet = p_in + s * v_in, mallet + s * velocity
-    normal = (p_in - mallet) / g.contact_distance
+    p_in, v_in = carried_fit(*before, t0 + s, acceleration)
+    mallet, velocity = mallet_path.position(t0 + s), mallet_path.velocity(t0 + s)
+    normal = (p_in - mallet) / np.linalg.norm(p_in - mallet)
+    _, v_out = carried_fit(*after, t0 + s, acceleration)
     puck = np.array([*p_in, *v_in])
-    law = law_exit(puck, velocity, normal, g.restitution, g.friction, g.puck_radius)
-    return MeasuredContact(float(t0 + s), puck, mallet, velocity, normal, v_out, law)
+    law = law_exit(puck, velocity, normal, g.restitution, g.friction, g.puck_radius, spin)
+    return MeasuredContact(float(t0 + s), puck, mallet, velocity, normal, v_out, law, spin)
 
 
 def meeting(rel: np.ndarray, closing: np.ndarray, distance: float) -> float | None:
@@ -179,9 +228,9 @@ def meeting(rel: np.ndarray, closing: np.ndarray, distance: float) -> float | No
 
 
 def law_exit(puck: np.ndarray, mallet_velocity: np.ndarray, normal: np.ndarray, restitution: float,
-             friction: float, radius: float) -> np.ndarray:
-    """The law's exit velocity [m/s] for a puck state (x, y, vx, vy) without spin."""
-    return puck_after_contact(np.array([*puck[:4], 0.0, 0.0]), mallet_velocity, normal, restitution, friction,
+             friction: float, radius: float, spin: float = 0.0) -> np.ndarray:
+    """The law's exit velocity [m/s] for a puck state (x, y, vx, vy) spinning at ``spin`` [rad/s]."""
+    return puck_after_contact(np.array([*puck[:4], 0.0, spin]), mallet_velocity, normal, restitution, friction,
                               radius)[2:4]
 
 
@@ -191,8 +240,8 @@ def fit_law(contacts: list[MeasuredContact], radius: float) -> tuple[float, floa
     from scipy.optimize import least_squares
 
     def residuals(x: np.ndarray) -> np.ndarray:
-        return np.concatenate([law_exit(c.puck, c.mallet_velocity, c.normal, x[0], x[1], radius) - c.exit_measured
-                               for c in contacts])
+        return np.concatenate([law_exit(c.puck, c.mallet_velocity, c.normal, x[0], x[1], radius, c.spin)
+                               - c.exit_measured for c in contacts])
     fit = least_squares(residuals, np.array([0.8, 0.1]), bounds=([0.0, 0.0], [1.0, 1.0]))
     left = np.hypot(*residuals(fit.x).reshape(-1, 2).T)
     return float(fit.x[0]), float(fit.x[1]), float(np.median(left))
@@ -202,8 +251,8 @@ def summary(contacts: list[MeasuredContact], g: ContactGeometry) -> dict:
     """The report of one robot's contacts: how many, the law's error [m/s] (median, p90; the exit along the
     law's own direction, median: negative is slower than predicted) over all and by the mallet's speed
     (parked, moving, fast), the law's constants fitted to them (with at least 5 contacts), and each contact
-    (``each``: its time [s], the mallet's speed and the closing speed along the normal [m/s], the exit
-    measured and by the law [m/s], own frame)."""
+    (``each``: its time [s], the mallet's speed and the closing speed along the normal [m/s], the puck's spin
+    before it [rad/s], the exit measured and by the law [m/s], own frame)."""
     def stats(group: list[MeasuredContact]) -> dict:
         if not group:
             return {"n": 0}
@@ -218,6 +267,6 @@ def summary(contacts: list[MeasuredContact], g: ContactGeometry) -> dict:
     if len(contacts) >= 5:
         e, mu, left = fit_law(contacts, g.puck_radius)
         out["fitted"] = {"restitution": e, "friction": mu, "error_median": left}
-    out["each"] = [{"time": c.time, "mallet_speed": c.mallet_speed, "closing": c.closing,
+    out["each"] = [{"time": c.time, "mallet_speed": c.mallet_speed, "closing": c.closing, "spin": c.spin,
                     "exit_measured": c.exit_measured.tolist(), "exit_law": c.exit_law.tolist()} for c in contacts]
     return out
