@@ -5,19 +5,19 @@ The tactics aim every Cut, Prepare and Smash with :func:`~air_hockey_agent.core.
 (Routh's impact with the mallet as a moving wall, ``mallet_restitution`` and ``mallet_friction`` of
 ``config/agent.yaml``, neither measured on a real table). Here each contact is measured from the puck's
 positions alone: a straight line fitted to the positions in a window before the contact and another after it
-(the table's deceleration changes the speed by about 1 mm/s over such a window) give the velocities in and
-out, the mallet's position and velocity come from the arm's joint states (the motion layer's kinematics), and
-the law's exit from the same inputs is compared with the one measured. A line's velocity is the puck's at the
-mean time of its window, 35 ms from the contact, carried to the contact under the flight law (eq. 3.1; on the
-thesis's table a puck at 3 m/s slows by 0.05 m/s in that time) where the table's physics are known. Contacts whose windows hold a rim
-impact, another contact or too few positions are left out. A least-squares fit of the law's two constants to
-the measured exits says what they would have to be (on a real robot: what to configure). Two inputs matter as
-much as the law: the puck's spin (Routh's impact turns it into tangential speed; a line fitted to the puck's
-yaw before the contact, where the recording has it) and the mallet's velocity at the contact's very moment (the
-joint states come at 100 Hz and a hitting mallet changes its speed by 0.1 m/s in 5 ms: a cubic Hermite curve
-through the samples' positions and velocities, not a straight line between the velocities). Without them, on
-pybullet's table, the law seemed to miss a moving mallet's contacts by a median 0.07 m/s where, given the true
-state 1 ms before each contact, it misses by 0.03 m/s (README "The game").
+give the velocities in and out (a line's velocity is the puck's at the mean time of its window, 35 ms from the
+contact, carried to the contact under the flight law, eq. 3.1, where the table's physics are known: on the
+thesis's table a puck at 3 m/s slows by 0.05 m/s in that time), the mallet's position and velocity come from
+the arm's joint states (the motion layer's kinematics), and the law's exit from the same inputs is compared
+with the one measured. Contacts whose windows hold a rim impact, another contact or too few positions are left
+out. A least-squares fit of the law's two constants to the measured exits says what they would have to be (on
+a real robot: what to configure). Two more inputs matter as much as the law: the puck's spin (Routh's impact
+turns it into tangential speed; a line fitted to the puck's yaw before the contact, where the recording has
+it) and the mallet's velocity at the contact's very moment (the joint states come at 100 Hz and a hitting
+mallet changes its speed by 0.1 m/s in 5 ms: a cubic Hermite curve through the samples' positions and
+velocities, not a straight line between the velocities). Without the three, on pybullet's table, the law
+seemed to miss a game's contacts by a median 0.16 m/s where, given pybullet's states 1 ms before each
+contact, it misses by 0.04 m/s, as measured with them (README "The game").
 """
 from __future__ import annotations
 
