@@ -102,6 +102,21 @@ def test_the_inputs_the_law_needs_besides_positions_spin_deceleration_and_the_ma
     assert np.hypot(*(between - v_mallet)) > 0.04  # a straight line between the samples' velocities
 
 
+def test_the_flight_law_in_effect_and_malformed_physics_left_out():
+    """game-check's flight laws from recorded puck/physics: the one in effect at a time (the first before its
+    stamp), in the robot's own frame (the back robot's table acceleration turned by pi), a physically invalid
+    message (a NaN damping) left out, none valid: straight lines."""
+    from air_hockey_agent.core.puck.model import PuckParams
+    from air_hockey_agent.tools.game_check import FlightLaws
+    base = PuckParams(0.0, 0.1, 0.8, 0.1, table_acceleration=(0.02, 0.0))
+    recorded = [(0.0, base), (5.0, base.with_values(damping=math.nan)), (9.0, base.with_values(damping=0.3))]
+    laws = FlightLaws.of(recorded, "iiwa_back")
+    v = np.array([1.0, 0.0])
+    assert laws(3.0)(v) == pytest.approx([-0.02 - 0.1, 0.0]) and laws(7.0)(v) == pytest.approx([-0.12, 0.0])
+    assert laws(9.5)(v) == pytest.approx([-0.32, 0.0]) and laws(-1.0)(v) == pytest.approx([-0.12, 0.0])
+    assert FlightLaws.of(recorded[1:2], "iiwa_front") is None and FlightLaws.of([], "iiwa_front") is None
+
+
 def test_the_laws_constants_are_fitted_back_from_contacts_made_with_others():
     """Contacts made with e 0.6, mu 0.25 (not the configured 0.8, 0.1): the configured law errs, the fit finds
     the constants that made them."""

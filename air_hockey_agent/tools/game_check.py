@@ -114,7 +114,7 @@ def check_bag(bag: Path, planners: dict, checks_out: dict | None = None,
             puck = []  # unreadable poses: the arms' checks still stand, without the contacts
     for robot in robots:
         if puck:
-            flight = FlightLaws(physics[robot], robot) if physics[robot] else None
+            flight = FlightLaws.of(physics[robot], robot)
             result[robot]["contacts"] = {"puck": source, "flight": f"/{robot}/puck/physics" if flight else None,
                                          **robot_contacts(np.array(puck), np.array(mallets[robot]).reshape(-1, 5),
                                                           robot, geometry, flight)}
@@ -125,6 +125,19 @@ class FlightLaws:
     """The tracker's flight law (eq. 3.1 with the table's acceleration, :func:`~air_hockey_agent.core.puck.model.
     flight_acceleration`) in ``robot``'s frame as it was at a time: ``physics`` the (stamp [s], PuckParams) of its
     recorded ``puck/physics`` messages, in their order."""
+
+    @classmethod
+    def of(cls, physics: list, robot: str) -> "FlightLaws | None":
+        """The laws of the physically valid ones (:meth:`PuckParams.validate`: a malformed message is left
+        out); None when none is."""
+        valid = []
+        for stamp, params in physics:
+            try:
+                params.validate()
+            except ValueError:
+                continue
+            valid.append((stamp, params))
+        return cls(valid, robot) if valid else None
 
     def __init__(self, physics: list, robot: str) -> None:
         from air_hockey_agent.core.game.situation import own_frame_physics

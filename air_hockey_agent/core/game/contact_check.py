@@ -148,6 +148,7 @@ def measure_contacts(puck_t: np.ndarray, puck_xy: np.ndarray, mallet_t: np.ndarr
                 or _near_rim(puck_xy[before | after], g)):
             continue
         spin = 0.0 if yaw is None else float(line_fit(puck_t[before], yaw[before, None], t0)[1][0])
+        spin = spin if math.isfinite(spin) else 0.0  # a yaw the recording lacks in that window
         law = None if flight is None else flight(t0)
         contact = _measured(t0, t1, (puck_t[before], puck_xy[before]), (puck_t[after], puck_xy[after]), mallet, spin,
                             law, g)
