@@ -183,8 +183,8 @@ def _near_rim(xy: np.ndarray, g: ContactGeometry) -> bool:
     return bool(np.any(np.abs(xy[:, 0]) > g.half_length - reach) or np.any(np.abs(xy[:, 1]) > g.half_width - reach))
 
 
-def carried_fit(t: np.ndarray, xy: np.ndarray, at: float, acceleration: Acceleration | None) -> tuple[np.ndarray,
-                                                                                                       np.ndarray]:
+def carried_fit(t: np.ndarray, xy: np.ndarray, at: float,
+                acceleration: Acceleration | None) -> tuple[np.ndarray, np.ndarray]:
     """Position [m] and velocity [m/s] at ``at`` [s] of a puck seen at ``xy`` (n, 2) at times ``t`` (n,): the
     line fitted to them holds the velocity at their mean time, carried to ``at`` under ``acceleration`` (the
     flight law ``v -> a`` [m/s^2]; None: none)."""
