@@ -7,41 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.game.contact_check import (ContactGeometry, fit_law, law_exit, line_fit, measure_contacts,
-                                                      meeting, summary, touching_spans)
-
-RATE = 120.0  # [Hz] the mocap's
-GEOMETRY = ContactGeometry(contact_distance=0.0798, puck_radius=0.03165, half_length=0.978, half_width=0.521,
-                           restitution=0.8, friction=0.1)
-
-
-def _contact(t_contact: float, at: np.ndarray, v_in: np.ndarray, normal_angle: float, v_mallet: np.ndarray,
-             e: float, mu: float, rng: np.random.Generator, noise: float = 0.0002, spin: float = 0.0,
-             damping: float = 0.0, speeding_up: float = 0.0, mallet_rate: float = 500.0):
-    """Positions of a puck (120 Hz, 0.2 s either side) meeting a mallet moving at ``v_mallet`` at ``t_contact``
-    with the normal at ``normal_angle`` (mallet to puck), the puck leaving by the law with ``e``, ``mu``; the
-    mallet's positions and velocities at ``mallet_rate`` [Hz]. The frames are not aligned with the contact's
-    time. With ``spin`` [rad/s] the puck turns so before the contact (``_contact_yaw``); with ``damping``
-    [1/s] it slides under eq. 3.1's viscous term alone; with ``speeding_up`` [m/s^2] the mallet accelerates
-    along its way until the contact and holds ``v_mallet`` from then on (a hit's approach ending at it)."""
-    n = np.array([math.cos(normal_angle), math.sin(normal_angle)])
-    mallet_at = at - n * GEOMETRY.contact_distance
-    v_out = law_exit(np.array([*at, *v_in]), v_mallet, n, e, mu, GEOMETRY.puck_radius, spin)
-    t = np.arange(t_contact - 0.2, t_contact + 0.2, 1.0 / RATE) + 0.3 / RATE
-    ds = (t - t_contact)[:, None]
-    slid = ds if damping == 0.0 else (1.0 - np.exp(-damping * ds)) / damping  # eq. 3.1's v e^{-d t}, integrated
-    puck = np.where(ds < 0.0, at + slid * v_in, at + slid * v_out) + rng.normal(0.0, noise, (len(t), 2))
-    tm = np.arange(t_contact - 0.25, t_contact + 0.25, 1.0 / mallet_rate) + 0.37 / mallet_rate
-    tau = (tm - t_contact)[:, None]
-    way, early = v_mallet / max(float(np.hypot(*v_mallet)), 1e-12), np.minimum(tau, 0.0)
-    mallet = mallet_at + tau * v_mallet + way * speeding_up * early ** 2 / 2.0
-    return t, puck, tm, mallet, v_mallet + way * speeding_up * early, v_out
-
-
-def _contact_yaw(t: np.ndarray, t_contact: float, spin: float) -> np.ndarray:
-    """The puck's yaw [rad] wrapped to (-pi, pi], turning at ``spin`` before the contact and -spin after."""
-    ds = t - t_contact
-    return np.angle(np.exp(1j * (1.0 + np.where(ds < 0.0, spin * ds, -spin * ds))))
+from air_hockey_agent.core.game.contact_check import fit_law, line_fit, measure_contacts, meeting, summary, touching_spans
+from contact_fixtures import GEOMETRY, contact_yaw, made_contact
 
 
 def test_line_fit_and_spans_against_hand_values():
@@ -65,7 +32,7 @@ def test_meeting_finds_the_first_time_within_the_distance():
 @pytest.mark.parametrize("angle, v_mallet", [(0.0, (0.0, 0.0)), (0.5, (-0.6, 0.2)), (-0.4, (0.8, 0.0))])
 def test_a_contact_made_with_the_configured_law_is_measured_as_the_law(angle, v_mallet):
     rng = np.random.default_rng(3)
-    t, puck, tm, mallet, mv, v_out = _contact(1.0, np.array([-0.4, 0.05]), np.array([-1.8, 0.3]), angle,
+    t, puck, tm, mallet, mv, v_out = made_contact(1.0, np.array([-0.4, 0.05]), np.array([-1.8, 0.3]), angle,
                                               np.array(v_mallet), GEOMETRY.restitution, GEOMETRY.friction, rng)
     contacts = measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)
     assert len(contacts) == 1
@@ -82,19 +49,19 @@ def test_the_inputs_the_law_needs_besides_positions_spin_deceleration_and_the_ma
     their positions and velocities): each left out, the law seems to miss a contact it made exactly."""
     rng = np.random.default_rng(11)
     at, v_in, v_mallet = np.array([-0.4, 0.05]), np.array([-1.8, 0.3]), np.array([1.2, 0.1])
-    t, puck, tm, mallet, mv, v_out = _contact(1.0, at, v_in, 0.3, v_mallet, 0.8, 0.1, rng, noise=0.0, spin=25.0)
-    yaw = _contact_yaw(t, 1.0, 25.0)
+    t, puck, tm, mallet, mv, v_out = made_contact(1.0, at, v_in, 0.3, v_mallet, 0.8, 0.1, rng, noise=0.0, spin=25.0)
+    yaw = contact_yaw(t, 1.0, 25.0)
     spun = measure_contacts(t, puck, tm, mallet, mv, GEOMETRY, yaw)[0]
     assert spun.spin == pytest.approx(25.0, abs=0.05) and spun.error < 0.01
     assert measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)[0].error > 0.1  # spin taken as 0
     d = 0.5  # [1/s] the thesis's table's damping
-    t, puck, tm, mallet, mv, v_out = _contact(1.0, at, v_in, 0.3, v_mallet, 0.8, 0.1, rng, noise=0.0, damping=d)
+    t, puck, tm, mallet, mv, v_out = made_contact(1.0, at, v_in, 0.3, v_mallet, 0.8, 0.1, rng, noise=0.0, damping=d)
     carried = measure_contacts(t, puck, tm, mallet, mv, GEOMETRY, flight=lambda now: lambda v: -d * v)[0]
     assert carried.puck[2:4] == pytest.approx(v_in, abs=0.002) and carried.exit_measured == pytest.approx(v_out,
                                                                                                         abs=0.002)
     straight = measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)[0]
     assert np.hypot(*(straight.exit_measured - v_out)) > 0.03  # read 35 ms after the contact: slower
-    t, puck, tm, mallet, mv, v_out = _contact(1.0, at, v_in, 0.3, v_mallet, 0.8, 0.1, rng, noise=0.0,
+    t, puck, tm, mallet, mv, v_out = made_contact(1.0, at, v_in, 0.3, v_mallet, 0.8, 0.1, rng, noise=0.0,
                                               speeding_up=20.0, mallet_rate=100.0)
     fast = measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)[0]
     assert np.hypot(*(fast.mallet_velocity - v_mallet)) < 0.02 and fast.error < 0.04
@@ -128,7 +95,7 @@ def test_the_laws_constants_are_fitted_back_from_contacts_made_with_others():
             angle = rng.uniform(-0.8, 0.8)
             v_mallet = rng.uniform(-0.8, 0.8, 2)
             v_in = np.array([-rng.uniform(1.0, 3.0), rng.uniform(-0.8, 0.8)])
-        t, puck, tm, mallet, mv, _ = _contact(1.0 + k, np.array([-0.4, rng.uniform(-0.2, 0.2)]), v_in, angle,
+        t, puck, tm, mallet, mv, _ = made_contact(1.0 + k, np.array([-0.4, rng.uniform(-0.2, 0.2)]), v_in, angle,
                                               v_mallet, 0.6, 0.25, rng)
         contacts += measure_contacts(t, puck, tm, mallet, mv, GEOMETRY)
     assert len(contacts) >= 10
@@ -144,10 +111,10 @@ def test_the_laws_constants_are_fitted_back_from_contacts_made_with_others():
 
 def test_contacts_near_a_rim_or_each_other_are_left_out():
     rng = np.random.default_rng(5)
-    near_rim = _contact(1.0, np.array([-0.4, 0.482]), np.array([-1.5, 0.0]), 0.0, np.zeros(2), 0.8, 0.1, rng)
+    near_rim = made_contact(1.0, np.array([-0.4, 0.482]), np.array([-1.5, 0.0]), 0.0, np.zeros(2), 0.8, 0.1, rng)
     assert measure_contacts(*near_rim[:5], GEOMETRY) == []
     # a second touch 0.04 s after the first: neither has a clean window on both sides
-    t, puck, tm, mallet, mv, _ = _contact(1.0, np.array([-0.4, 0.0]), np.array([-1.5, 0.0]), 0.0, np.zeros(2),
+    t, puck, tm, mallet, mv, _ = made_contact(1.0, np.array([-0.4, 0.0]), np.array([-1.5, 0.0]), 0.0, np.zeros(2),
                                           0.8, 0.1, rng)
     later = (t > 1.04) & (t < 1.05)
     puck[later] = np.interp(t[later], tm, mallet[:, 0])[:, None] * [1, 0] + [GEOMETRY.contact_distance, 0]
