@@ -114,6 +114,11 @@ AGENT_PARAMS = TABLE_PARAMS + (
               "contact, on the current prediction, does not send the puck into the own goal"),
     ParamSpec("speed_map_grid", list, "points along depth, along y, hit directions of the fastest-hit table",
               2, 100, 3),
+    ParamSpec("contact_learning", bool, "the mallet's restitution and friction learned from the robot's own contacts"),
+    ParamSpec("contact_learning_min", int, "contacts measured before the mallet's law is first fitted", 2, 1000),
+    ParamSpec("contact_learning_max", int, "the newest this many contacts are fitted", 2, 10000),
+    ParamSpec("contact_restitution_bounds", list, "[-] lowest and highest mallet restitution learned", 0.0, 1.0, 2),
+    ParamSpec("contact_friction_bounds", list, "[-] lowest and highest mallet friction learned", 0.0, 2.0, 2),
 ) + ROBOT_BASE_PARAMS
 
 
@@ -190,4 +195,6 @@ def build_selector(params: dict[str, Any], robot: str, log=None, motion: dict[st
     model = _puck_model(tracker)  # table frame; the shots are aimed in the robot's own
     model = model.with_params(own_frame_physics(model.params, robot))
     shots = ShotPredictor(model, settings, 1.0 / tracker["frequency"], reach.max_speed)
-    return TacticsSelector(settings, reach, shots), planner.kin
+    selector = TacticsSelector(settings, reach, shots)
+    selector.log = log
+    return selector, planner.kin

@@ -7,7 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from air_hockey_agent.core.game.contact_check import fit_law, line_fit, measure_contacts, meeting, summary, touching_spans
+from air_hockey_agent.core.game.contact_check import (fit_law, line_fit, measure_contacts, meeting, summary,
+                                                      touching_spans)
 from contact_fixtures import GEOMETRY, contact_yaw, made_contact
 
 

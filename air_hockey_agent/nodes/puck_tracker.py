@@ -70,7 +70,7 @@ class PuckTrackerNode(AirHockeyNode):
                 self.publish_physics(t)
             if self.ekf.initialised:
                 self.state_pub.publish(state_msg(self.ekf.x, self.ekf.P, self.ekf.stamp, flags))
-                self.publish_prediction()
+                self.publish_prediction(flags)
         except Exception as exc:  # a malformed message must never stop the tracker
             if not self.context.ok():
                 return  # shut down while publishing: not the frame's fault
@@ -91,14 +91,16 @@ class PuckTrackerNode(AirHockeyNode):
         self.physics_learned = self.ekf.learned
         self.physics_pub.publish(physics_msg(self.ekf.model.params, seconds, *self.physics_learned))
 
-    def publish_prediction(self) -> None:
+    def publish_prediction(self, flags: int = 0) -> None:
+        """``puck/prediction`` from the estimate now; ``flags`` (PuckState.FLAG_*) are its frame's, carried by
+        ``initial`` (the tactics learn the mallet's law from the fused frames)."""
         p = self.params
         out = predict_for_agents(self.ekf, p["prediction_horizon"], p["prediction_sample_period"],
                                  p["defend_line_offset"])
         pred, t0 = out.prediction, out.stamp
         msg = PuckPrediction(sample_period=out.sample_period)
         msg.header.stamp, msg.header.frame_id = to_stamp(t0), "table"
-        msg.initial = state_msg(self.ekf.x, self.ekf.P, t0)
+        msg.initial = state_msg(self.ekf.x, self.ekf.P, t0, flags)
         msg.states = [state_msg(s, c, t0 + t, PuckState.FLAG_PREDICTED) for t, s, c in pred.samples]
         msg.impacts = [WallImpact(time_from_start=t, wall=w, x=x, y=y, sliding=sl) for t, w, x, y, sl in pred.impacts]
         for robot, line in out.defend_lines.items():

@@ -28,7 +28,7 @@ from air_hockey_msgs.msg import (GameStatus, HitCommand, PuckPhysics, PuckPredic
                                  TrajectoryStatus)
 from air_hockey_msgs.srv import ForceTactic
 from air_hockey_agent.agent_params import AGENT_PARAMS, PARAM_FILES, build_selector
-from air_hockey_agent.core.game.situation import build_situation, own_frame_physics
+from air_hockey_agent.core.game.situation import build_situation, own_frame_physics, to_own_frame
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.game.tactics.selector import STOPPED
 from air_hockey_agent.core.motion.kinematics import in_order
@@ -87,6 +87,8 @@ class TacticsNode(AirHockeyNode):
             impacts = [(t0 + i.time_from_start, i.x, i.y) for i in msg.impacts]
             self.situation = build_situation(self.robot, t0, _state(msg.initial), times, samples, impacts,
                                              msg.initial.covariance)
+            if msg.initial.flags & PuckState.FLAG_MEASUREMENT_USED:  # a fused frame: for the mallet's law
+                self.selector.observe_puck(t0, to_own_frame(np.array(_state(msg.initial)), self.robot))
             self.last_estimate = t0
         except (ValueError, TypeError) as exc:
             self.get_logger().error(f"puck/prediction: message ignored ({exc})", throttle_duration_sec=1.0)
@@ -113,6 +115,7 @@ class TacticsNode(AirHockeyNode):
                 dq = in_order(msg.name, msg.velocity, self.kin.joint_names)  # None when velocities are missing
                 if dq is not None and np.all(np.isfinite(dq)):
                     self.mallet, self.mallet_velocity = self.kin.planar_motion(q, dq)
+                    self.selector.observe_mallet(to_seconds(msg.header.stamp), self.mallet, self.mallet_velocity)
                 else:
                     self.mallet, self.mallet_velocity = self.kin.position(q)[:2], None
         except (TypeError, ValueError) as exc:

@@ -28,12 +28,13 @@ from typing import Callable
 import numpy as np
 
 from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
-from air_hockey_agent.core.estimation.ekf import PuckEKF
+from air_hockey_agent.core.estimation.ekf import FLAG_MEASUREMENT_USED, PuckEKF
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.core.frames import pose_to_measurement, quaternion_from_yaw
 from air_hockey_agent.core.game.referee import RUNNING, Decision, Referee, RefereeSettings
 from air_hockey_agent.core.game.scoreboard import Scoreboard
-from air_hockey_agent.core.game.situation import Situation, own_frame_physics, situation_from_prediction
+from air_hockey_agent.core.game.situation import (Situation, own_frame_physics, situation_from_prediction,
+                                                  to_own_frame)
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.motion.arm_commander import ArmCommander
 from air_hockey_agent.core.motion.kinematics import ArmKinematics, in_order
@@ -98,7 +99,8 @@ class Player:
         from air_hockey_agent.motion_params import build_planner
         self.robot = robot
         self.agent, m = config.agent_for(robot)
-        self.selector, self.kin = build_selector({**self.agent, "robot": robot}, robot, log=log, motion=m)
+        said = None if log is None else (lambda line: log(f"{robot}: {line}"))
+        self.selector, self.kin = build_selector({**self.agent, "robot": robot}, robot, log=said, motion=m)
         self.arm = ArmCommander(build_planner(m, robot), m["planning_delay"], m["max_tracking_error"])
         self.stale_estimate = self.agent["stale_estimate"]
         self.tick = Every(self.agent["rate"])
@@ -111,6 +113,7 @@ class Player:
         q = in_order(JOINT_NAMES, values, self.kin.joint_names)
         dq = in_order(JOINT_NAMES, velocities, self.kin.joint_names)
         self.mallet, self.mallet_velocity = self.kin.planar_motion(q, dq)
+        self.selector.observe_mallet(t, self.mallet, self.mallet_velocity)
         joints = self.arm.planner.kin.joint_names
         self.arm.measure(t, in_order(JOINT_NAMES, values, joints), in_order(JOINT_NAMES, velocities, joints))
 
@@ -286,6 +289,8 @@ class InProcessGame:
             self.recorder.on_estimate(self.ekf, flags, prediction)
         for robot, player in self.players.items():
             player.situation = situation_from_prediction(robot, self.ekf.x, prediction, self.ekf.P)
+            if flags & FLAG_MEASUREMENT_USED:
+                player.selector.observe_puck(stamp, to_own_frame(self.ekf.x, robot))
 
     def _act(self, decision: Decision) -> None:
         """What table_sim does for the referee: robots home, the puck put down at rest."""
@@ -304,7 +309,7 @@ def play_game(seed: int, duration: float, goals: int = 0, gui: bool = False, rea
     the result's ``"recording"``); with ``versus`` (robot, parameter YAML), that robot plays the file's agent
     variant; with ``table`` (a table file), on that simulated table. A module-level function, so worker
     processes can run it."""
-    game = InProcessGame(seed, gui=gui, versus=versus, table=table)
+    game = InProcessGame(seed, gui=gui, versus=versus, table=table, log=progress)
     try:
         if record is None:
             return game.run(duration, goals, progress, progress_period, real_time_factor)

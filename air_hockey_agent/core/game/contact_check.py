@@ -41,6 +41,11 @@ MIN_POSITIONS = 4      # a side with fewer positions in its window is not measur
 RIM_CLEARANCE = 0.01   # [m] a window whose puck comes this near a rim (beyond its radius) is not measured
 PARKED_SPEED = 0.05    # [m/s] a mallet slower than this counts as parked
 FAST_SPEED = 0.6       # [m/s] ... faster than this as fast (the report's three classes)
+FIT_SCALE = 0.05       # [m/s] the fit's soft-L1 scale: about the error a well-measured contact leaves (0.03-0.05)
+JUMP = 0.01            # [m] two mallet samples whose positions differ by this much more than their velocities
+#                        carry it (the trapezoid rule; over a 10 ms joint-state interval in which the mallet's
+#                        acceleration changes by 50 m/s^2 it errs by 0.4 mm) were not one motion: a reset, or
+#                        the arm put somewhere by hand
 
 Acceleration = Callable[[np.ndarray], np.ndarray]  # the flight law: velocity [m/s] -> acceleration [m/s^2]
 FlightAt = Callable[[float], Acceleration]          # the flight law in effect at a time [s]
@@ -160,22 +165,31 @@ def measure_contacts(puck_t: np.ndarray, puck_xy: np.ndarray, mallet_t: np.ndarr
 class MalletPath:
     """The mallet between its samples (positions (m, 2) [m] and velocities (m, 2) [m/s] at times (m,) [s]): the
     cubic Hermite curve through both (scipy's), so a mallet that speeds up between two joint states is not read
-    at the mean of their velocities; held at the first and last sample outside them. ``path`` is None with fewer
-    than two distinct times."""
+    at the mean of their velocities; held at the first and last sample outside them. Between two samples whose
+    positions and velocities disagree by more than ``JUMP`` (the arm put somewhere by hand, a reset) the curve
+    would swing at tens of m/s: there it is NaN, and no contact is measured. ``path`` is None with fewer than
+    two distinct times."""
 
     def __init__(self, times: np.ndarray, positions: np.ndarray, velocities: np.ndarray) -> None:
         times, keep = np.unique(np.asarray(times, float), return_index=True)  # sorted; a repeated stamp once
         positions, velocities = np.asarray(positions, float)[keep], np.asarray(velocities, float)[keep]
         self.span = (times[0], times[-1]) if len(times) else (0.0, 0.0)
         self.path = CubicHermiteSpline(times, positions, velocities, axis=0) if len(times) >= 2 else None
+        if self.path is not None:
+            moved = np.diff(positions, axis=0) - np.diff(times)[:, None] * (velocities[1:] + velocities[:-1]) / 2
+            self.times, self.broken = times, np.hypot(*moved.T) > JUMP  # per interval between samples
 
     def position(self, t) -> np.ndarray:
         """[m] at ``t`` [s] (a time: (2,); times (n,): (n, 2))."""
-        return self.path(np.clip(t, *self.span))
+        return self._trusted(t, self.path(np.clip(t, *self.span)))
 
     def velocity(self, t) -> np.ndarray:
         """[m/s] at ``t`` [s]."""
-        return self.path(np.clip(t, *self.span), 1)
+        return self._trusted(t, self.path(np.clip(t, *self.span), 1))
+
+    def _trusted(self, t, values: np.ndarray) -> np.ndarray:
+        interval = np.clip(np.searchsorted(self.times, t) - 1, 0, len(self.broken) - 1)
+        return np.where(self.broken[interval][..., None], np.nan, values)
 
 
 def _near_rim(xy: np.ndarray, g: ContactGeometry) -> bool:
@@ -209,6 +223,8 @@ def _measured(t0, t1, before: tuple, after: tuple, mallet_path: MalletPath, spin
         return None
     p_in, v_in = carried_fit(*before, t0 + s, acceleration)
     mallet, velocity = mallet_path.position(t0 + s), mallet_path.velocity(t0 + s)
+    if not (np.all(np.isfinite(mallet)) and np.all(np.isfinite(velocity))):
+        return None  # the mallet's samples broken there (:class:`MalletPath`)
     normal = (p_in - mallet) / np.linalg.norm(p_in - mallet)
     _, v_out = carried_fit(*after, t0 + s, acceleration)
     puck = np.array([*p_in, *v_in])
@@ -235,15 +251,21 @@ def law_exit(puck: np.ndarray, mallet_velocity: np.ndarray, normal: np.ndarray, 
                               radius)[2:4]
 
 
-def fit_law(contacts: list[MeasuredContact], radius: float) -> tuple[float, float, float]:
-    """The restitution and friction [-] (each within [0, 1]) whose exits come nearest the measured ones (least
-    squares over the velocity components), and the median error [m/s] they leave."""
+Bounds = tuple[tuple[float, float], tuple[float, float]]  # (lower e, lower mu), (upper e, upper mu)
+
+
+def fit_law(contacts: list[MeasuredContact], radius: float,
+            bounds: Bounds = ((0.0, 0.0), (1.0, 1.0))) -> tuple[float, float, float]:
+    """The restitution and friction [-] (within ``bounds``: (lower e, lower mu), (upper e, upper mu)) whose exits
+    come nearest the measured ones (robust least squares over the velocity components: an error beyond
+    ``FIT_SCALE`` counts about linearly, so one odd contact does not swing the fit), and the median error [m/s]
+    they leave."""
     from scipy.optimize import least_squares
 
     def residuals(x: np.ndarray) -> np.ndarray:
         return np.concatenate([law_exit(c.puck, c.mallet_velocity, c.normal, x[0], x[1], radius, c.spin)
                                - c.exit_measured for c in contacts])
-    fit = least_squares(residuals, np.array([0.8, 0.1]), bounds=([0.0, 0.0], [1.0, 1.0]))
+    fit = least_squares(residuals, np.clip([0.8, 0.1], *bounds), bounds=bounds, loss="soft_l1", f_scale=FIT_SCALE)
     left = np.hypot(*residuals(fit.x).reshape(-1, 2).T)
     return float(fit.x[0]), float(fit.x[1]), float(np.median(left))
 

@@ -120,6 +120,12 @@ class ShotPredictor:
         self.guard_y = -settings.ready_point[1]  # where the opponent's mallet waits (the same agent's ready point)
         prepare_prediction()  # not in the first decision
 
+    def use_contact_law(self, settings: TacticsSettings) -> None:
+        """Aim with these settings' mallet restitution and friction from now on (learned online,
+        :mod:`~air_hockey_agent.core.game.contact_learning`): shots aimed before are stale."""
+        self.s = settings
+        self.physics_version += 1
+
     def use_physics(self, params: PuckParams) -> None:
         """Predict shots with these puck physics from now on (the robot's own frame), e.g. what the
         robot's tracker has learned online of the table."""

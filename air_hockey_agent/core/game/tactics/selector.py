@@ -26,11 +26,13 @@ Every decision period the selector looks at the referee's status and the tracker
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Callable
 
 import numpy as np
 
 from air_hockey_agent.core.game.arm_reach import ArmReach
+from air_hockey_agent.core.game.contact_learning import LearnedLaw, contact_learner
 from air_hockey_agent.core.game.shots import VARIANTS, ShotPredictor
 from air_hockey_agent.core.game.situation import Situation
 from air_hockey_agent.core.game.tactics.base import (CUT, HOME, INIT, NAMES, PREPARE, READY, REPEL, SMASH, Context,
@@ -43,6 +45,7 @@ from air_hockey_agent.core.game.tactics.ready import Ready
 from air_hockey_agent.core.game.tactics.repel import Repel
 from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 from air_hockey_agent.core.game.tactics.smash import Smash
+from air_hockey_agent.core.puck.model import flight_acceleration
 
 STOPPED, PAUSED, RUNNING = 0, 1, 2           # air_hockey_msgs/GameStatus.STATUS_*
 ACCEPTED, TOO_LATE, TOO_FAST, LIMITS = 0, 3, 5, 6  # air_hockey_msgs/TrajectoryStatus.OUTCOME_*
@@ -85,6 +88,35 @@ class TacticsSelector:
         self.blocked: dict[int, float] = {}
         self.lead_extra, self.speed_cap = 0.0, math.inf
         self.own_half_since: float | None = None  # [s] when the puck last came onto the own half
+        self.learner = contact_learner(settings) if settings.contact_learning else None
+        self.learned: LearnedLaw | None = None  # the mallet's law the shots are aimed with, once learned
+        self.log: Callable[[str], None] | None = None
+        self._log_at = 0  # the next log of the learned law when this many contacts were measured in all
+
+    # --- inputs ------------------------------------------------------------------------------------
+    def observe_puck(self, t: float, state: np.ndarray) -> None:
+        """A fused estimate of the tracker at ``t`` [s] (own frame, 6) for the mallet's law learned online."""
+        if self.learner is not None:
+            self.learner.puck(t, float(state[0]), float(state[1]), float(state[4]))
+
+    def observe_mallet(self, t: float, position: np.ndarray, velocity: np.ndarray) -> None:
+        """The mallet at ``t`` [s] (own frame) from a joint state, for the mallet's law learned online."""
+        if self.learner is not None:
+            self.learner.mallet(t, position, velocity)
+
+    def _learn(self, now: float) -> None:
+        """Aim with the mallet's law as the robot's own contacts have it, when a new contact refitted it."""
+        p = self.shots.model.params
+        law = self.learner.update(now, flight_acceleration(p.damping, p.friction_surface, p.table_acceleration))
+        if law is None:
+            return
+        self.learned = law
+        self.s = replace(self.s, mallet_restitution=law.restitution, mallet_friction=law.friction)
+        self.shots.use_contact_law(self.s)
+        if self.log is not None and law.seen >= self._log_at:  # at the first fit, then each doubling
+            self._log_at = 2 * law.seen
+            self.log(f"mallet contact law learned from {law.contacts} contacts: restitution {law.restitution:.3f}, "
+                     f"friction {law.friction:.3f} (median exit error {law.error_median:.3f} m/s)")
 
     # --- inputs ------------------------------------------------------------------------------------
     def force(self, tactic: int | None, variant: str = "") -> str:
@@ -134,6 +166,8 @@ class TacticsSelector:
         """The decision at ``now`` [s] for the referee's ``status``, the puck's ``situation`` and the mallet's
         position [m] and velocity [m/s] (own frame; None when unknown)."""
         self._track_possession(now, status, situation)
+        if self.learner is not None:
+            self._learn(now)
         if status == STOPPED:
             self.sent, self.executing, self.blocked = None, None, {}
             return self._decide(INIT, "game stopped: holding", None)

@@ -88,6 +88,11 @@ class TacticsSettings:
     stale_estimate: float
     settle_time: float
     keep_checks_outcome: bool
+    contact_learning: bool
+    contact_learning_min: int
+    contact_learning_max: int
+    contact_restitution_bounds: tuple[float, float]
+    contact_friction_bounds: tuple[float, float]
 
     @classmethod
     def from_params(cls, p: Mapping[str, Any]) -> "TacticsSettings":
