@@ -93,7 +93,7 @@ class TacticsSelector:
         self.log: Callable[[str], None] | None = None
         self._log_at = 0  # the next log of the learned law when this many contacts were measured in all
 
-    # --- inputs ------------------------------------------------------------------------------------
+    # --- the mallet's contact law, learned online -------------------------------------------------
     def observe_puck(self, t: float, state: np.ndarray) -> None:
         """A fused estimate of the tracker at ``t`` [s] (own frame, 6) for the mallet's law learned online."""
         if self.learner is not None:
