@@ -216,9 +216,7 @@ def _contact_geometry() -> ContactGeometry:
     from air_hockey_agent.agent_params import load_agent_params
     from air_hockey_agent.core.game.contact_check import ContactGeometry
     from air_hockey_agent.core.game.tactics.settings import TacticsSettings
-    st = TacticsSettings.from_params(load_agent_params())
-    return ContactGeometry(st.contact_distance, st.table.puck_radius, st.table.length / 2, st.table.width / 2,
-                           st.mallet_restitution, st.mallet_friction)
+    return ContactGeometry.from_settings(TacticsSettings.from_params(load_agent_params()))
 
 
 def run(args: argparse.Namespace) -> int:

@@ -64,6 +64,13 @@ class ContactGeometry:
     restitution: float
     friction: float
 
+    @classmethod
+    def from_settings(cls, st) -> "ContactGeometry":
+        """A robot's tactics settings' (:class:`~air_hockey_agent.core.game.tactics.settings.TacticsSettings`:
+        table, contact distance, the configured law)."""
+        return cls(st.contact_distance, st.table.puck_radius, st.table.length / 2, st.table.width / 2,
+                   st.mallet_restitution, st.mallet_friction)
+
 
 @dataclass(frozen=True)
 class MeasuredContact:
@@ -197,16 +204,19 @@ def _near_rim(xy: np.ndarray, g: ContactGeometry) -> bool:
     return bool(np.any(np.abs(xy[:, 0]) > g.half_length - reach) or np.any(np.abs(xy[:, 1]) > g.half_width - reach))
 
 
-def carried_fit(t: np.ndarray, xy: np.ndarray, at: float,
-                acceleration: Acceleration | None) -> tuple[np.ndarray, np.ndarray]:
-    """Position [m] and velocity [m/s] at ``at`` [s] of a puck seen at ``xy`` (n, 2) at times ``t`` (n,): the
-    line fitted to them holds the velocity at their mean time, carried to ``at`` under ``acceleration`` (the
-    flight law ``v -> a`` [m/s^2]; None: none)."""
+def carried_line(t: np.ndarray, xy: np.ndarray,
+                 acceleration: Acceleration | None) -> Callable[[float], tuple[np.ndarray, np.ndarray]]:
+    """A puck seen at ``xy`` (n, 2) at times ``t`` (n,): its position [m] and velocity [m/s] as functions of a
+    time [s]. The line fitted to them (once) holds the velocity at their mean time, carried from there under
+    ``acceleration`` (the flight law ``v -> a`` [m/s^2]; None: none)."""
     mean = float(np.mean(t))
     p, v = line_fit(t, xy, mean)
     a = np.zeros(2) if acceleration is None else acceleration(v)
-    dt = at - mean
-    return p + v * dt + a * (dt * dt / 2), v + a * dt
+
+    def at(time: float) -> tuple[np.ndarray, np.ndarray]:
+        dt = time - mean
+        return p + v * dt + a * (dt * dt / 2), v + a * dt
+    return at
 
 
 def _measured(t0, t1, before: tuple, after: tuple, mallet_path: MalletPath, spin: float,
@@ -216,17 +226,18 @@ def _measured(t0, t1, before: tuple, after: tuple, mallet_path: MalletPath, spin
     the puck's line before it and the mallet, carried along its velocity, first came within the contact distance
     (:func:`meeting`): the first frame seen touching lies up to a frame (25 mm at 3 m/s) past that, which would
     turn the normal. The exit is the puck's velocity after it, carried back to that start."""
-    p_in, v_in = carried_fit(*before, t0, acceleration)
+    incoming = carried_line(*before, acceleration)
+    p_in, v_in = incoming(t0)
     mallet, velocity = mallet_path.position(t0), mallet_path.velocity(t0)
     s = meeting(p_in - mallet, v_in - velocity, g.contact_distance)
     if s is None or not -FIT_GUARD <= s <= t1 - t0 + FIT_GUARD:  # not between the windows: not this contact
         return None
-    p_in, v_in = carried_fit(*before, t0 + s, acceleration)
+    p_in, v_in = incoming(t0 + s)
     mallet, velocity = mallet_path.position(t0 + s), mallet_path.velocity(t0 + s)
     if not (np.all(np.isfinite(mallet)) and np.all(np.isfinite(velocity))):
         return None  # the mallet's samples broken there (:class:`MalletPath`)
     normal = (p_in - mallet) / np.linalg.norm(p_in - mallet)
-    _, v_out = carried_fit(*after, t0 + s, acceleration)
+    _, v_out = carried_line(*after, acceleration)(t0 + s)
     puck = np.array([*p_in, *v_in])
     law = law_exit(puck, velocity, normal, g.restitution, g.friction, g.puck_radius, spin)
     return MeasuredContact(float(t0 + s), puck, mallet, velocity, normal, v_out, law, spin)

@@ -89,10 +89,8 @@ class ContactLearner:
 def contact_learner(st) -> ContactLearner:
     """The learner of a robot's tactics settings (:class:`~air_hockey_agent.core.game.tactics.settings.
     TacticsSettings`: table, contact distance, the configured law, ``contact_learning_*``)."""
-    g = ContactGeometry(st.contact_distance, st.table.puck_radius, st.table.length / 2, st.table.width / 2,
-                        st.mallet_restitution, st.mallet_friction)
-    return ContactLearner(g, st.contact_learning_min, st.contact_learning_max, st.contact_restitution_bounds,
-                          st.contact_friction_bounds)
+    return ContactLearner(ContactGeometry.from_settings(st), st.contact_learning_min, st.contact_learning_max,
+                          st.contact_restitution_bounds, st.contact_friction_bounds)
 
 
 def _forget(samples: deque, now: float) -> None:
