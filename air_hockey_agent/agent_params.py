@@ -96,6 +96,10 @@ AGENT_PARAMS = TABLE_PARAMS + (
     ParamSpec("resend_distance", float, "[m] command change that is sent again", 0.0, 1.0),
     ParamSpec("resend_time", float, "[s] hit time change that is sent again", 0.0, 1.0),
     ParamSpec("hit_replan_distance", float, "[m] puck displacement that re-plans an accepted hit", 0.0, 1.0),
+    ParamSpec("hit_correction_distance", float, "[m] puck displacement that moves an accepted hit with the puck "
+              "(0: off)", 0.0, 1.0),
+    ParamSpec("hit_correction_time", float, "[s] an accepted hit is moved with the puck until this long before "
+              "its time", 0.0, 1.0),
     ParamSpec("resend_speed", float, "[m/s] hit velocity change that is sent again", 0.0, 5.0),
     ParamSpec("retry_delay", float, "[s] wait after a refused command", 0.0, 5.0),
     ParamSpec("max_lead_extra", float, "[s] largest lead time added after 'too late'", 0.0, 10.0),

@@ -1228,6 +1228,69 @@ def test_a_running_cut_is_kept_when_its_re_plan_is_refused(selector, model, sett
     assert selector.step(0.06, RUNNING, far).tactic == READY
 
 
+CROSSING = [0.3, 0.2, -1.5, 0.9, 0, 0]  # a puck crossing the table toward the front robot's goal
+
+
+def _accepted_cut(selector, model):
+    """A Cut on the CROSSING puck (a moving contact), accepted at t = 0."""
+    selector.force(CUT)
+    first = selector.step(0.0, RUNNING, situation(model, CROSSING, horizon=1.5)).command
+    assert first is not None and first.is_hit
+    selector.on_status(0.0, ACCEPTED, math.nan, 0.0)
+    return first
+
+
+def _nudged(model, dy, t0):
+    """The CROSSING puck seen at ``t0`` [s] where its prediction puts it, ``dy`` [m] to the side."""
+    state = situation(model, CROSSING, horizon=1.5).at(t0) + np.array([0.0, dy, 0, 0, 0, 0])
+    return situation(model, state, t0=t0, horizon=1.5)
+
+
+def test_an_accepted_hit_is_moved_with_the_puck_keeping_its_contact_normal(selector, model, settings):
+    """Below hit_replan_distance, the puck predicted at the hit time moved hit_correction_distance or more:
+    the same command (time, velocity), shifted by exactly that displacement, is sent, so the contact normal
+    stays the planned one; the shifted command becomes the one under way; a smaller move sends nothing."""
+    first = _accepted_cut(selector, model)
+    nudged = _nudged(model, 0.003, 0.02)
+    shift = nudged.expected(first.time, settings.drift_speed, settings.drift_significance)[:2] - first.puck
+    assert settings.hit_correction_distance <= np.hypot(*shift) <= settings.hit_replan_distance  # the premise
+    d = selector.step(0.02, RUNNING, nudged)
+    moved = d.command
+    assert d.tactic == CUT and moved is not None and moved.time == first.time
+    np.testing.assert_allclose(moved.velocity, first.velocity)
+    np.testing.assert_allclose(moved.point - first.point, shift, atol=1e-12)
+    np.testing.assert_allclose(moved.puck - moved.point, first.puck - first.point, atol=1e-12)  # the normal
+    selector.on_status(0.02, ACCEPTED, math.nan, 0.02)
+    assert selector.executing is moved
+    assert selector.step(0.04, RUNNING, _nudged(model, 0.003, 0.04)).command is None
+    assert selector.step(0.06, RUNNING, _nudged(model, 0.0035, 0.06)).command is None  # 0.5 mm more
+
+
+def test_a_refused_shift_with_the_puck_leaves_the_hit_under_way_as_it_was(selector, model, settings):
+    """The planner refuses the shifted command (here "too late"): the command under way stays the accepted
+    one and committed (no re-plan, no later contact asked for), and it is not shifted again."""
+    first = _accepted_cut(selector, model)
+    assert selector.step(0.02, RUNNING, _nudged(model, 0.003, 0.02)).command is not None
+    selector.on_status(0.02, TOO_LATE, math.nan, 0.02)
+    assert selector.executing is first and selector.lead_extra == 0.0
+    for k, dy in enumerate((0.003, 0.004), start=2):
+        d = selector.step(0.02 * k, RUNNING, _nudged(model, dy, 0.02 * k))
+        assert d.tactic == CUT and d.command is None, d.reason
+    assert selector.sent.proposal is first and selector.sent.accepted
+
+
+def test_a_hit_moves_with_the_puck_only_when_asked_and_not_close_to_its_time(model, settings):
+    selector = selector_with(model, settings, hit_correction_distance=0.0)
+    _accepted_cut(selector, model)
+    assert selector.step(0.02, RUNNING, _nudged(model, 0.003, 0.02)).command is None
+    for correction_time, moves in ((settings.hit_correction_time, False), (0.0, True)):
+        selector = selector_with(model, settings, hit_correction_time=correction_time)
+        first = _accepted_cut(selector, model)
+        late = first.time - settings.hit_correction_time + 0.01
+        d = selector.step(late, RUNNING, _nudged(model, 0.003, late))
+        assert d.tactic == CUT and (d.command is not None) == moves, d.reason
+
+
 PARKED = np.array([-0.82, -0.09])  # [m] own frame: a Cut's mallet parked beside the goal mouth (a game's)
 
 

@@ -75,6 +75,8 @@ class TacticsSettings:
     resend_time: float
     resend_speed: float
     hit_replan_distance: float
+    hit_correction_distance: float
+    hit_correction_time: float
     retry_delay: float
     max_lead_extra: float
     limits_slowdown: float
