@@ -1279,6 +1279,27 @@ def test_a_refused_shift_with_the_puck_leaves_the_hit_under_way_as_it_was(select
     assert selector.sent.proposal is first and selector.sent.accepted
 
 
+@pytest.mark.parametrize("dy, corrects, moves", [(0.02, True, True), (0.02, False, False), (0.12, True, False)])
+def test_too_late_to_plan_anew_a_cut_moves_with_the_puck_up_to_a_contact_distance(model, settings, dy, corrects,
+                                                                                   moves):
+    """Within min_plan_time of a Cut's contact no Cut is planned anew: a puck moved there by more than
+    hit_replan_distance but at most a contact distance is followed by the command under way (shifted as
+    below the re-plan's tolerance), with hit_correction_distance on; farther, or with it off, no shift."""
+    selector = selector_with(model, settings, hit_correction_distance=settings.hit_correction_distance if corrects
+                             else 0.0)
+    first = _accepted_cut(selector, model)
+    t0 = first.time - (settings.min_plan_time + settings.hit_correction_time) / 2
+    nudged = _nudged(model, dy, t0)
+    shift = nudged.expected(first.time, settings.drift_speed, settings.drift_significance)[:2] - first.puck
+    assert settings.hit_replan_distance < np.hypot(*shift)  # the premise
+    assert (np.hypot(*shift) <= settings.contact_distance) == (dy < settings.contact_distance)
+    d = selector.step(t0, RUNNING, nudged)
+    shifted = (d.command is not None and d.command.time == first.time
+               and np.allclose(d.command.velocity, first.velocity)
+               and np.allclose(d.command.point - first.point, shift, atol=1e-12))
+    assert shifted == moves, d.reason
+
+
 def test_a_hit_moves_with_the_puck_only_when_asked_and_not_close_to_its_time(model, settings):
     selector = selector_with(model, settings, hit_correction_distance=0.0)
     _accepted_cut(selector, model)

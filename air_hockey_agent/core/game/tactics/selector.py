@@ -21,7 +21,9 @@ Every decision period the selector looks at the referee's status and the tracker
 * Below that re-plan's tolerance, an accepted hit is moved with the puck (``hit_correction_distance``): the
   same command, shifted by how far the puck predicted at the hit time moved from where the command expects
   it, so the contact normal stays the planned one while the prediction grows more accurate, up to
-  ``hit_correction_time`` before the hit (a refused shift leaves the command under way as it was).
+  ``hit_correction_time`` before the hit (a refused shift leaves the command under way as it was); within
+  ``min_plan_time`` of a Cut's or Repel's hit, where neither plans it anew, also a shift up to a contact
+  distance.
 * When a re-plan of a hit or cut under way finds nothing the planner accepts, the command under way is
   kept while the prediction still brings the puck to it (rather than falling back to Ready) and, with
   ``keep_checks_outcome``, while the contact it then makes does not send the puck into the own goal.
@@ -248,8 +250,23 @@ class TacticsSelector:
             return False
         if now > p.time or p.puck is None or situation is None:
             return True
-        tolerance = self.s.hit_replan_distance if p.is_hit else self.s.resend_distance
-        return float(np.hypot(*self._puck_moved(p, situation))) <= tolerance
+        moved = float(np.hypot(*self._puck_moved(p, situation)))
+        if not p.is_hit:
+            return moved <= self.s.resend_distance
+        if moved <= self.s.hit_replan_distance:
+            return True
+        return moved <= self.s.contact_distance and self._past_replanning(now, p)
+
+    def _past_replanning(self, now: float, p: Proposal) -> bool:
+        """Hit ``p``, timed by the puck (a Cut's or Repel's, not ``flexible_time``), is within ``min_plan_time``
+        [s] of its time, where neither plans it anew (a Cut plans its contacts that far ahead at least, Repel
+        ``repel_time``'s 0.4 s), and can still be moved with the puck (``hit_correction_*``; no shift of it
+        refused). A lab Cut whose puck moved there more than ``hit_replan_distance`` met it up to centimetres off
+        (a forced Cut, with nothing else to play, ran the old command on). A self-timed Smash or Prepare is
+        planned again from now instead, aimed anew."""
+        st = self.s
+        return (st.hit_correction_distance > 0.0 and not p.flexible_time and p is not self.uncorrectable
+                and st.hit_correction_time <= p.time - now < st.min_plan_time)
 
     def _puck_moved(self, p: Proposal, situation: Situation) -> np.ndarray:
         """How far [m] (own frame x, y) the puck predicted now at command ``p``'s time lies from where ``p``
@@ -262,7 +279,8 @@ class TacticsSelector:
     def _corrected(self, now: float, situation: Situation | None) -> Proposal | None:
         """The accepted hit under way moved with the puck, to send now: when the puck predicted at the hit time
         lies ``hit_correction_distance`` [m] or more from where the command expects it (and, by
-        :meth:`_committed`, within ``hit_replan_distance``), the same command (time, velocity) shifted by that
+        :meth:`_committed`, within ``hit_replan_distance``, or within a contact distance once it is too late to
+        plan the hit anew: :meth:`_past_replanning`), the same command (time, velocity) shifted by that
         displacement, while ``hit_correction_time`` [s] or more is left before the hit; else None. A contact
         point off by d turns the contact normal by about d / contact distance (1 mm: 0.7 deg). A lab-table
         Cut's last plan was made a median 0.65 s before its contact, and the puck arrived a median 4.2 mm
