@@ -24,6 +24,25 @@ def test_contact_is_reported_once_when_it_ends_with_the_puck_velocity_then():
     assert c.speed == pytest.approx(np.hypot(2.0, 0.5))
 
 
+def test_a_contact_is_open_from_its_first_step_until_it_ends():
+    log = ContactLog(merge_steps=2)
+    assert log.open_robots() == ()
+    log.step(0.001, {"iiwa_front": True, "iiwa_back": False}, [0.1, 0.2, 0.0, 0.0])
+    assert log.open_robots() == ("iiwa_front",)
+    log.step(0.002, {"iiwa_front": False, "iiwa_back": False}, [0.1, 0.2, 0.0, 0.0])
+    assert log.open_robots() == ("iiwa_front",)  # apart for fewer than merge_steps: the same contact
+    assert len(log.step(0.003, {"iiwa_front": False, "iiwa_back": False}, [0.1, 0.2, 0.0, 0.0])) == 1
+    assert log.open_robots() == ()
+
+
+def test_the_true_states_touched_flags_are_the_messages():
+    from air_hockey_msgs.msg import PuckState
+    from air_hockey_agent.sim.contacts import TOUCHED_FLAGS
+    assert TOUCHED_FLAGS == {"iiwa_front": PuckState.FLAG_TOUCHED_FRONT, "iiwa_back": PuckState.FLAG_TOUCHED_BACK}
+    assert not set(TOUCHED_FLAGS.values()) & {PuckState.FLAG_PREDICTED, PuckState.FLAG_MEASUREMENT_USED,
+                                              PuckState.FLAG_OUTLIER_REJECTED, PuckState.FLAG_REINITIALISED}
+
+
 def test_world_reports_a_mallet_hitting_the_puck():
     """The pybullet table: a robot's mallet driven into the puck gives one contact event for that robot."""
     from air_hockey_agent.sim.params import load_sim_params
@@ -37,7 +56,11 @@ def test_world_reports_a_mallet_hitting_the_puck():
         mallet = world.mallet_position("iiwa_front")
         world.move_puck([mallet[0] + 0.085, mallet[1], -1.0, 0.0, 0.0, 0.0])  # 5 mm away, sliding into it
         world.take_contacts()
-        world.step(300)
+        in_contact = set()
+        for _ in range(300):
+            world.step()
+            in_contact.update(world.in_contact())
+        assert in_contact == {"iiwa_front"} and world.in_contact() == ()  # while it lasted, then ended
         contacts = world.take_contacts()
         assert [c.robot for c in contacts] == ["iiwa_front"]
         assert contacts[0].vx > 0.3  # bounced back off the (held) mallet

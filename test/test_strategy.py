@@ -124,6 +124,26 @@ def test_cut_success_needs_rest_in_the_smash_area(s):
     assert not not_hit.success and not not_hit.partial
 
 
+def test_a_cut_that_stops_the_puck_dead_against_the_mallet_is_a_hit(s):
+    """The simulation reports a contact when it ends; a Cut whose mallet stopped the puck dead (at rest while
+    their contact lasts) was scored "at rest" without a hit. At rest while touching is a hit, and only for the
+    touching robot's rest: a puck at rest on its own, untouched, is still no hit."""
+    trial = make_trial("cut", 0, 0, s)
+    start = (0.0, trial.state[:4])
+    caught = TrialWatcher(trial, s)
+    for t, st in (start, (0.01, (-0.5, 0.0, 0.0, 0.0))):
+        caught.state(t, *st, touching=t > 0.0)
+    r = caught.result()
+    assert caught.done and r.hit and r.success and r.reason == "at rest against the mallet"
+    alone = play(trial, s, [start, (0.01, (-0.5, 0.0, 0.0, 0.0))]).result()
+    assert not alone.hit and not alone.success and alone.reason == "at rest"
+    pushed = TrialWatcher(make_trial("prepare", 0, 0, s), s)  # a push begins on a puck at rest: no end there
+    x0, y0 = pushed.trial.state[:2]
+    pushed.state(0.0, x0, y0, 0.0, 0.0)
+    pushed.state(0.01, x0, y0, 0.0, 0.0, touching=True)
+    assert not pushed.done and not pushed.hit
+
+
 def test_prepare_partial_on_the_own_half_and_failure_across_the_centre(s):
     trial = make_trial("prepare", 0, 0, s)
     assert play(trial, s, [(0.0, trial.state[:4]), (0.01, (-0.1, 0.4, 0.0, 0.0))], hits=[0.0]).result().partial

@@ -34,6 +34,7 @@ from air_hockey_agent.core.game.strategy.trials import OPPONENT, PARK, ROBOT, ma
 from air_hockey_agent.core.game.tactics.base import TACTIC_IDS
 from air_hockey_agent.nodes.messages import to_seconds
 from air_hockey_agent.nodes.runtime import AirHockeyNode, NodeStartupError, run
+from air_hockey_agent.sim.contacts import TOUCHED_FLAGS
 from air_hockey_agent.strategy_params import PARAM_FILES, STRATEGY_PARAMS, trial_settings
 
 WALL_CHECK_PERIOD = 0.05  # [s] wall time between checks for the services at start and for wall_timeout
@@ -84,7 +85,8 @@ class StrategyTestNode(AirHockeyNode):
     def on_truth(self, msg: PuckState) -> None:
         self.sim_time = to_seconds(msg.header.stamp)
         if self.watcher is not None and self.phase == "run":
-            self.watcher.state(self.sim_time, msg.x, msg.y, msg.vx, msg.vy)
+            self.watcher.state(self.sim_time, msg.x, msg.y, msg.vx, msg.vy,
+                               touching=bool(msg.flags & TOUCHED_FLAGS[ROBOT]))
         self.advance()
 
     def on_tactic(self, msg: TacticState) -> None:

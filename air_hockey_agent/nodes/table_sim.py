@@ -140,7 +140,7 @@ class TableSimNode(AirHockeyNode):
             msg.header.stamp, msg.header.frame_id = to_stamp(c.time), "table"
             self.contact_pub.publish(msg)
         if out.true_state is not None:
-            self.truth_pub.publish(state_msg(out.true_state, np.zeros((6, 6)), out.time))
+            self.truth_pub.publish(state_msg(out.true_state, np.zeros((6, 6)), out.time, out.truth_flags))
         if out.mocap is not None:
             mocap_stamp, (x, y, z, yaw) = out.mocap
             msg = PoseStamped()

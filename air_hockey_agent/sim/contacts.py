@@ -11,6 +11,9 @@ import math
 from dataclasses import dataclass
 from typing import Sequence
 
+# the true puck state's flags saying whose mallet is in a contact (air_hockey_msgs/PuckState.FLAG_TOUCHED_*)
+TOUCHED_FLAGS = {"iiwa_front": 16, "iiwa_back": 32}
+
 
 @dataclass(frozen=True)
 class MalletContact:
@@ -64,6 +67,10 @@ class ContactLog:
                     ended.append(MalletContact(robot, contact.start, contact.last - contact.start, contact.x,
                                                contact.y, float(puck[2]), float(puck[3])))
         return ended
+
+    def open_robots(self) -> tuple[str, ...]:
+        """The robots with a contact begun and not yet ended."""
+        return tuple(self._open)
 
     def reset(self) -> None:
         """Forget open contacts (the puck was moved by hand)."""

@@ -82,7 +82,7 @@ class GameRecorder:
                                              "duration": c.duration, "x": c.x, "y": c.y, "vx": c.vx, "vy": c.vy,
                                              "speed": math.hypot(c.vx, c.vy)})
         if out.true_state is not None:
-            self._write("/sim/puck_true_state", t, puck_state_fields(t, out.true_state))
+            self._write("/sim/puck_true_state", t, puck_state_fields(t, out.true_state, flags=out.truth_flags))
         if out.mocap is not None:
             stamp, (x, y, z, yaw) = out.mocap
             self._write("/optitrack/puck", t, pose_fields(stamp, "optitrack", x, y, z, yaw))

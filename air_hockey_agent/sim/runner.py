@@ -14,6 +14,7 @@ import numpy as np
 
 from air_hockey_agent.core.frames import table_to_mocap
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections, MocapSampler
+from air_hockey_agent.sim.contacts import TOUCHED_FLAGS
 from air_hockey_agent.sim.world import TableWorld
 
 
@@ -43,6 +44,12 @@ class StepOutput:
     true_state: np.ndarray | None = None          # with every mocap tick, lost frames included
     mocap: tuple | None = None                    # (stamp [s], (x, y, z, yaw) in the mocap frame)
     contacts: list = field(default_factory=list)  # mallet-puck contacts that ended at this step
+    in_contact: tuple[str, ...] = ()              # with the true state: robots whose mallet is in a contact now
+
+    @property
+    def truth_flags(self) -> int:
+        """The true state's air_hockey_msgs/PuckState flags: which mallets are in contact with the puck."""
+        return sum(TOUCHED_FLAGS[robot] for robot in self.in_contact)
 
 
 class SimRunner:
@@ -62,7 +69,7 @@ class SimRunner:
                          contacts=self.world.take_contacts())
         if self._mocap.due(t) is not None:  # the frame is taken now; its stamp carries the jitter
             truth = self.world.puck_state()
-            out.true_state = truth
+            out.true_state, out.in_contact = truth, self.world.in_contact()
             pose = (truth[0], truth[1], truth[4], math.hypot(truth[2], truth[3]))
             frame = self.sampler.sample(t, lambda _stamp: pose)
             if frame is not None and frame[1] is not None:

@@ -86,7 +86,8 @@ def play_trial(game, trial: Trial, settings: TrialSettings) -> dict:
             else:
                 watcher.opponent_contact(contact.time)
         if out.true_state is not None:
-            watcher.state(out.time, *(float(v) for v in out.true_state[:4]))  # as the message carries them
+            watcher.state(out.time, *(float(v) for v in out.true_state[:4]),  # as the message carries them
+                          touching=ROBOT in out.in_contact)
     tactic = f"{NAMES[selector.current]}: {selector.reason}"
     for waiting in filter(None, (selector, opponent)):
         waiting.force(TACTIC_IDS["ready"])

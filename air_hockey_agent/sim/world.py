@@ -215,6 +215,11 @@ class TableWorld:
         out, self.contacts = self.contacts, []
         return out
 
+    def in_contact(self) -> tuple[str, ...]:
+        """The robots whose mallet is in a contact with the puck now: begun and not yet ended (a contact ends,
+        and is reported by :meth:`take_contacts`, once the two have been apart for a few steps)."""
+        return self.contact_log.open_robots()
+
     def _track_contacts(self) -> None:
         touching = {name: bool(pybullet.getContactPoints(self.puck, robot.body, -1, robot.mallet,
                                                          physicsClientId=self.cid))

@@ -4,7 +4,9 @@ the goal at x = -L/2.
 
 * Smash (straight, left, right): success = a goal; the offset is the puck's y where it reaches the
   opponent's goal line (its short rim when it misses).
-* Cut: success = hit, then at rest in the smash area; partial = hit and no goal conceded.
+* Cut: success = hit, then at rest in the smash area; partial = hit and no goal conceded. A puck the
+  mallet stopped dead (at rest while their contact lasts, which the simulation reports only once it ends)
+  was hit: before, such a caught Cut ended "at rest" without a hit (9 of 200 lab-table Cuts, seed 0).
 * Prepare: success = at rest in the smash area; partial = at rest on the own half (success included);
   crossing the centre line is a failure.
 * Repel: success = hit; also the puck's speed where it crosses the opponent's defend line, and goals.
@@ -83,7 +85,9 @@ class TrialWatcher:
         if not self.done and self._result.hit and t >= self._last_hit:
             self._result.defended = True
 
-    def state(self, t: float, x: float, y: float, vx: float, vy: float) -> None:
+    def state(self, t: float, x: float, y: float, vx: float, vy: float, touching: bool = False) -> None:
+        """The true puck state at ``t`` [s] (table frame); ``touching``: the tested robot's mallet is in a contact
+        with the puck now (begun, not yet ended and reported)."""
         if self.done:
             return
         if self.t0 is None:
@@ -110,6 +114,9 @@ class TrialWatcher:
         after_hit = r.hit and t > self._last_hit
         speed = math.hypot(vx, vy)
         if speed < s.rest_speed and (after_hit or (not r.hit and self.trial.strategy in ("cut", "repel"))):
+            if touching and not r.hit:  # caught: the contact that stopped the puck has not ended yet
+                r.hit, self._last_hit = True, t
+                return self._end("at rest against the mallet", rest=(x, y))
             return self._end("at rest", rest=(x, y))
         if after_hit and self.trial.strategy in ("cut", "prepare") and self._decided(x, y, speed):
             return self._end("decided: stops within its remaining travel", rest=(x, y))
