@@ -264,9 +264,14 @@ class TacticsSelector:
         refused). A lab Cut whose puck moved there more than ``hit_replan_distance`` met it up to centimetres off
         (a forced Cut, with nothing else to play, ran the old command on). A self-timed Smash or Prepare is
         planned again from now instead, aimed anew."""
+        return not p.flexible_time and p.time - now < self.s.min_plan_time and self._correctable(now, p)
+
+    def _correctable(self, now: float, p: Proposal) -> bool:
+        """Command ``p`` may be moved with the puck now: a hit, with ``hit_correction_distance`` on, at least
+        ``hit_correction_time`` [s] before its time, and no shift of it refused."""
         st = self.s
-        return (st.hit_correction_distance > 0.0 and not p.flexible_time and p is not self.uncorrectable
-                and st.hit_correction_time <= p.time - now < st.min_plan_time)
+        return (st.hit_correction_distance > 0.0 and p.is_hit and p is not self.uncorrectable
+                and p.time - now >= st.hit_correction_time)
 
     def _puck_moved(self, p: Proposal, situation: Situation) -> np.ndarray:
         """How far [m] (own frame x, y) the puck predicted now at command ``p``'s time lies from where ``p``
@@ -287,8 +292,7 @@ class TacticsSelector:
         (p90 16 mm) from where it had been predicted (README "Strategy test")."""
         st, sent = self.s, self.sent
         p = sent.proposal
-        if (st.hit_correction_distance <= 0.0 or not sent.accepted or not p.is_hit or p.puck is None
-                or situation is None or now > p.time - st.hit_correction_time or p is self.uncorrectable):
+        if not sent.accepted or p.puck is None or situation is None or not self._correctable(now, p):
             return None
         shift = self._puck_moved(p, situation)
         if float(np.hypot(*shift)) < st.hit_correction_distance:
