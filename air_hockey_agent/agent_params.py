@@ -43,6 +43,9 @@ AGENT_PARAMS = TABLE_PARAMS + (
               "(not chosen anew at every decision)"),
     ParamSpec("ready_block_choice", str, "which block is tried first: 'first' the puck meets on its path, or "
               "'margin' the one the mallet reaches longest before the puck", choices=BLOCK_CHOICES),
+    ParamSpec("ready_switch_time", float, "[s] a new waiting point must stay for this long before the mallet leaves "
+                                          "the one it is reaching, while that one's way is harmless (0: at once)",
+              0.0, 1.0),
     ParamSpec("ready_unseen_time", float, "[s] with no puck frame for this long the mallet waits at "
                                           "ready_unseen_point instead of the ready point (0: off)", 0.0, 60.0),
     ParamSpec("ready_unseen_point", list, "[m] depth, y of the waiting point while the puck is unseen", -1.0, 1.0, 2),

@@ -836,14 +836,15 @@ def test_ready_keeps_the_block_it_runs_while_it_holds(model, settings):
     """With ``ready_block_keep``, 10 ms later on the same path of a 3 m/s puck into the goal, the block the
     arm was sent (and accepted) is kept: nothing is sent again. Without it the block is chosen anew from
     the prediction's samples, which moved by more than ``resend_distance``: sent again. A kept block
-    that no longer holds (the puck now passes beside the goal) is dropped."""
+    that no longer holds (the puck now passes beside the goal) is dropped. (``ready_switch_time`` 0: the
+    block's own rule alone.)"""
     from air_hockey_agent.core.game.tactics.ready import block_point
     first = situation(model, _into_the_goal(settings, 0.7, -0.35, 3.0))
     later = situation(model, first.at(0.01), t0=0.01)
     wide = situation(model, [*first.at(0.02)[:2], -3.0, 0.0, 0, 0], t0=0.02)  # toward the own end rim, wide
     ready = settings.point(settings.ready_point)
     for keep in (True, False):
-        selector = selector_with(model, settings, ready_block_keep=keep)
+        selector = selector_with(model, settings, ready_block_keep=keep, ready_switch_time=0.0)
         selector.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}  # only Ready left
         d = selector.step(0.0, RUNNING, first, ready, np.zeros(2))
         assert d.reason.startswith("blocking") and d.command is not None, d.reason
@@ -861,6 +862,54 @@ def test_ready_keeps_the_block_it_runs_while_it_holds(model, settings):
             assert not dropped.reason.startswith("blocking"), dropped.reason
         else:
             assert np.linalg.norm(again.command.point - d.command.point) > settings.resend_distance
+
+
+def _ready_only(model, settings, **changes) -> TacticsSelector:
+    selector = selector_with(model, settings, **changes)
+    selector.blocked = {tactic: math.inf for tactic in (SMASH, REPEL, CUT, PREPARE)}  # only Ready left
+    return selector
+
+
+def test_ready_takes_a_new_waiting_point_once_it_has_stayed_ready_switch_time(model, settings):
+    """The arm reaching the ready point (accepted) when a slow puck comes to lie behind the ready line beside
+    the goal: Ready's new point, the guard, is sent only once it has been chosen for ``ready_switch_time``;
+    until then the point under way is kept (its way misses a puck that does not go in) and nothing is sent.
+    With 0 the guard is sent at once."""
+    ready, x0, step = settings.point(settings.ready_point), -settings.table.length / 2, 1.0 / 64.0
+    assert settings.ready_switch_time > 0.0  # on by default
+    for hold in (settings.ready_switch_time, 0.0):
+        selector = _ready_only(model, settings, ready_switch_time=hold)
+        d = selector.step(0.0, RUNNING, situation(model, [0.4, 0.0, 1.0, 0.2, 0, 0]), ready, np.zeros(2))
+        assert d.reason == "waiting at the ready point" and d.command is not None
+        selector.on_status(0.0, ACCEPTED, 3.0, 0.01)
+        for k in range(1, 10):
+            t = k * step
+            d = selector.step(t, RUNNING, situation(model, [x0 + 0.12, -0.30, 0.0, 0.05, 0, 0], t0=t), ready,
+                              np.zeros(2))
+            if d.command is not None:
+                break
+            assert d.reason.startswith("keeping to") and "guarding" in d.reason and "not yet steady" in d.reason
+        assert d.reason.startswith("guarding") and d.command is not None
+        assert t == step + math.ceil(hold / step) * step, (hold, t)
+
+
+def test_ready_leaves_at_once_a_point_whose_way_lets_the_puck_in(model, settings):
+    """The arm reaching a guard point beside the goal (accepted) when a 3 m/s puck heads into the goal's
+    centre from the other side: the point under way misses it (not :func:`harmless`), so Ready's own choice
+    (the ready point on the puck's path: from the guard no block is reached in time) is sent at the first
+    decision."""
+    from air_hockey_agent.core.game.tactics.ready import harmless
+    x0 = -settings.table.length / 2
+    selector = _ready_only(model, settings)
+    d = selector.step(0.0, RUNNING, situation(model, [x0 + 0.12, -0.30, 0.0, 0.05, 0, 0]),
+                      settings.point(settings.ready_point), np.zeros(2))
+    assert d.reason.startswith("guarding") and d.command is not None
+    selector.on_status(0.0, ACCEPTED, 3.0, 0.01)
+    guard = d.command.point
+    shot = situation(model, _into_the_goal(settings, 0.7, 0.35, 3.0), t0=0.01)
+    assert not harmless(guard, shot, _ctx(selector, guard, 0.01))
+    d = selector.step(0.01, RUNNING, shot, guard, np.zeros(2))
+    assert d.reason == "waiting at the ready point" and d.command is not None, d.reason
 
 
 def test_ready_block_choice_margin_takes_the_block_reached_longest_before_the_puck(model, settings):

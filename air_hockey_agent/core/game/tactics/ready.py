@@ -15,7 +15,10 @@ with ``ready_block_in_way``, when none is found in time, awaited in its way (:fu
 :func:`block_point`); ``ready_block_choice`` says which passing position is tried first
 (:func:`by_margin`). With ``ready_checks_way`` the waiting point is judged by its outcome: when the
 mallet's way to it meets the predicted puck so that the contact sends the puck into the own goal, the
-mallet waits at the nearest other point whose way does not (:func:`off_the_way`).
+mallet waits at the nearest other point whose way does not (:func:`off_the_way`). With
+``ready_switch_time`` a new waiting point is taken only once it has stayed that long, while the point the arm
+is reaching is :func:`harmless` (a choice that flickered from one decision to the next re-planned the arm
+every 10-20 ms, and it barely moved).
 """
 from __future__ import annotations
 
@@ -209,6 +212,15 @@ def in_the_way(situation, ctx: Context) -> np.ndarray | None:
     return point if ctx.reach.region.contains(point) else None
 
 
+def harmless(point: np.ndarray, situation, ctx: Context) -> bool:
+    """The mallet's way to ``point`` [m] (own frame; :func:`way_meeting`) meets the puck without turning it into
+    the own goal, or misses a puck that does not go in by itself (:func:`heading_in`)."""
+    meeting = way_meeting(point, situation.samples_from(ctx.now, np.inf), ctx, meeting_distances(ctx.settings))
+    if meeting is not None:
+        return not ctx.shots.turns_in(*meeting)
+    return not heading_in(situation, ctx)
+
+
 def unseen(situation, ctx: Context) -> bool:
     """With ``ready_unseen_time`` > 0: no estimate (none, or one older than ``stale_estimate``), or one on the
     opponent's half whose last frame lies more than ``ready_unseen_time`` [s] back (a mocap dropout, up to
@@ -227,8 +239,36 @@ class Ready(Tactic):
 
     def __init__(self) -> None:
         self._block: np.ndarray | None = None  # [m] the block point last proposed (own frame)
+        self._new: tuple[float, np.ndarray] | None = None  # (since [s], point [m]) a new point not yet taken
 
     def propose(self, situation, ctx: Context) -> Proposal | None:
+        block = self._block
+        proposal = self._choose(situation, ctx)
+        kept = self._steadied(proposal, situation, ctx)
+        if kept is None:
+            return proposal
+        self._block = block  # the kept point stays the block it was (or none)
+        return kept
+
+    def _steadied(self, proposal: Proposal, situation, ctx: Context) -> Proposal | None:
+        """With ``ready_switch_time``, the point the arm is reaching, kept instead of ``proposal`` that moves it
+        by more than ``resend_distance``: while the new point has stayed (within ``resend_distance``) less than
+        ``ready_switch_time`` [s] and the kept one is :func:`harmless`; None: ``proposal`` is taken."""
+        st, running = ctx.settings, ctx.running
+        if (st.ready_switch_time <= 0.0 or running is None or running.tactic != READY or situation is None
+                or ctx.mallet is None or float(np.hypot(*(proposal.point - running.point))) <= st.resend_distance):
+            self._new = None
+            return None
+        if self._new is None or float(np.hypot(*(self._new[1] - proposal.point))) > st.resend_distance:
+            self._new = (ctx.now, proposal.point)
+        if ctx.now - self._new[0] >= st.ready_switch_time or not harmless(running.point, situation, ctx):
+            self._new = None
+            return None
+        x, y = running.point
+        return reach_proposal(READY, running.point, ctx, f"keeping to ({x:.2f}, {y:.2f}): {proposal.reason}, "
+                                                         f"not yet steady")
+
+    def _choose(self, situation, ctx: Context) -> Proposal:
         known = situation is not None and ctx.mallet is not None
         block = self._block_point(situation, ctx) if known and ctx.settings.ready_blocks else None
         self._block = block

@@ -30,6 +30,7 @@ class TacticsSettings:
     ready_block_in_way: bool
     ready_block_keep: bool
     ready_block_choice: str
+    ready_switch_time: float
     ready_unseen_time: float
     ready_unseen_point: tuple[float, float]
     home_point: tuple[float, float]
