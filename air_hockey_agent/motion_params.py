@@ -32,6 +32,7 @@ MOTION_PARAMS = TABLE_PARAMS + (
     ParamSpec("run_up_length", list, "[m] shortest and longest run-up before a hit", 0.01, 1.0, 2),
     ParamSpec("run_up_time", float, "[s] longest duration of a run-up", 0.05, 5.0),
     ParamSpec("follow_through_length", list, "[m] shortest and longest stop after a hit", 0.01, 1.0, 2),
+    ParamSpec("follow_through_time", float, "[s] longest duration of the stop after a hit", 0.05, 100.0),
     ParamSpec("posture_gain", float, "[1/s] rate of null-space convergence to a posture", 0.1, 100.0),
     ParamSpec("posture_tolerance", float, "[rad] a posture counts as reached within this", 1e-5, 0.1),
     ParamSpec("reach_acceleration", float, "[m/s^2] task acceleration of reach-and-stop motions", 0.1, 50.0),

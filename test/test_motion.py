@@ -212,6 +212,30 @@ def test_random_hits_meet_point_time_speed_and_limits(planner):
     assert accepted >= 15
 
 
+def test_a_slow_hit_stops_within_follow_through_time_and_the_reach_knows_how_far_it_runs_on(front):
+    """After a hit with room ahead the mallet runs on at most v * follow_through_time / 2 (the longest stop
+    fitting ahead for a fast hit, ``follow_through_length``'s longest), stopping within follow_through_time of
+    the hit; ``ArmReach.follow_through_length`` (which the tactics use to foresee a puck bouncing back into
+    the mallet) says the same run-on. A 0.2 m/s push had run on 0.3 m for 3 s."""
+    from air_hockey_agent.core.game.arm_reach import ArmReach
+    s, start = front.s, _ready(front)
+    reach = ArmReach(front.region, s.run_up[0], s.run_up[1], s.run_up_time, s.follow_through[0], s.follow_through[1],
+                     s.follow_through_time, s.reach_acceleration, s.height_transition, 1.25, None, s.planning_delay,
+                     s.dt)
+    point, direction = np.array([-0.6, 0.0]), np.array([1.0, 0.0])
+    for speed in (0.2, 0.5, 1.5):
+        plan = front.plan(Command(point, speed * direction, 1.2), start)
+        assert plan.ok, plan.message
+        end, _ = front.kin.position_and_jacobian(plan.q[-1])
+        run_on = float((end[:2] - point) @ direction)
+        room = front.region.distance_along(point, direction)
+        expected = min(room, s.follow_through[1], max(s.follow_through[0], 0.5 * speed * s.follow_through_time))
+        assert run_on == pytest.approx(expected, abs=0.002 + 2 * speed * s.dt), speed  # the stop's whole steps
+        assert reach.follow_through_length(point, direction, speed) == pytest.approx(expected)
+        stopped = plan.times[np.flatnonzero(np.any(plan.dq != 0.0, axis=1))[-1]]
+        assert stopped - plan.hit_time <= 2.0 * expected / speed + 2 * s.dt  # the stop's time law: 2 L / v
+
+
 def test_reach_and_stop_arrives_at_rest_by_its_time(planner):
     rng = np.random.default_rng(7)
     start = _ready(planner)

@@ -9,7 +9,7 @@ import numpy as np
 
 from air_hockey_agent.core.game.speed_map import SpeedMap
 from air_hockey_agent.core.motion.region import Region
-from air_hockey_agent.core.motion.task_motion import hermite_at, run_up_length, shortest_hermite_duration
+from air_hockey_agent.core.motion.task_motion import hermite_at, shortest_hermite_duration, straight_length
 
 
 UNKNOWN_START_DISTANCE = 0.5  # [m] a reach from an unknown mallet position is timed as one this long
@@ -23,6 +23,7 @@ class ArmReach:
     run_up_time: float        # [s] longest time a run-up takes (slow hits get short run-ups)
     follow_through: float     # [m] shortest follow-through it needs ahead of it
     follow_through_max: float  # [m] longest follow-through it takes when there is room
+    follow_through_time: float  # [s] longest time a follow-through takes (slow hits stop sooner)
     reach_acceleration: float  # [m/s^2] task acceleration of reach-and-stop motions
     height_transition: float  # [s] the planner's descent from a raised start to the playing height
     reach_time_margin: float  # [-] multiple of the shortest cubic time given to a reach
@@ -44,15 +45,17 @@ class ArmReach:
 
     def run_up_start(self, point: np.ndarray, direction: np.ndarray, speed: float) -> np.ndarray:
         """Where the planner starts the strike of a hit at ``point`` along ``direction`` at ``speed`` [m/s]
-        (the planner's own rule, :func:`task_motion.run_up_length`)."""
-        behind = run_up_length(self.region.distance_along(point, -direction), speed, (self.run_up, self.run_up_max),
+        (the planner's own rule, :func:`task_motion.straight_length`)."""
+        behind = straight_length(self.region.distance_along(point, -direction), speed, (self.run_up, self.run_up_max),
                                self.run_up_time)
         return np.asarray(point) - behind * np.asarray(direction)
 
-    def follow_through_length(self, point: np.ndarray, direction: np.ndarray) -> float:
-        """How far [m] the mallet runs on after a hit at ``point`` along ``direction`` before it stops (the
-        longest stop that fits ahead, as :meth:`MotionPlanner._stop_steps` chooses)."""
-        return min(self.region.distance_along(point, direction), self.follow_through_max)
+    def follow_through_length(self, point: np.ndarray, direction: np.ndarray, speed: float) -> float:
+        """How far [m] the mallet runs on after a hit at ``point`` along ``direction`` at ``speed`` [m/s] before
+        it stops (the planner's own rule, :meth:`MotionPlanner._stop_steps`)."""
+        ahead = self.region.distance_along(point, direction)
+        lengths = (self.follow_through, self.follow_through_max)
+        return straight_length(ahead, speed, lengths, self.follow_through_time)
 
     def max_speed(self, point: np.ndarray, direction: np.ndarray) -> float:
         """Fastest hit [m/s] at ``point`` along ``direction``; 0 where the arm cannot hit."""

@@ -98,6 +98,7 @@ class MotionSettings:
     run_up: tuple[float, float]
     run_up_time: float
     follow_through: tuple[float, float]
+    follow_through_time: float
     posture_gain: float
     posture_tolerance: float
     reach_acceleration: float
@@ -111,9 +112,10 @@ class MotionSettings:
     @classmethod
     def from_params(cls, p: Mapping[str, Any]) -> "MotionSettings":
         return cls(p["playing_height"], p["sample_period"], tuple(p["run_up_length"]), p["run_up_time"],
-                   tuple(p["follow_through_length"]), p["posture_gain"], p["posture_tolerance"],
-                   p["reach_acceleration"], p["ik_iterations"], p["ik_tolerance"], p["planning_delay"],
-                   p["height_transition"], p["hit_posture_range"], np.asarray(p["reference_posture"], float))
+                   tuple(p["follow_through_length"]), p["follow_through_time"], p["posture_gain"],
+                   p["posture_tolerance"], p["reach_acceleration"], p["ik_iterations"], p["ik_tolerance"],
+                   p["planning_delay"], p["height_transition"], p["hit_posture_range"],
+                   np.asarray(p["reference_posture"], float))
 
 
 def _without_repeats(q: np.ndarray, keep: int) -> np.ndarray:
@@ -231,20 +233,22 @@ class MotionPlanner:
         when even the shortest does not fit."""
         s = self.s
         behind = self.region.distance_along(hit, -direction)
-        steps = max(1, int(2 * tm.run_up_length(behind, speed, s.run_up, s.run_up_time) / speed / s.dt))
+        steps = max(1, int(2 * tm.straight_length(behind, speed, s.run_up, s.run_up_time) / speed / s.dt))
         if behind < s.run_up[0]:
             return steps, refused(LIMITS, f"no room for a run-up: {behind:.3f} m behind the hit point "
                                           f"(at least {s.run_up[0]:.3f} m needed)")
         return steps, None
 
     def _stop_steps(self, hit, direction, speed) -> int | Plan:
-        """Grid steps of the follow-through (the longest stop that fits ahead of the hit point), or a refusal."""
+        """Grid steps of the follow-through (the longest stop that fits ahead of the hit point, at most
+        ``follow_through_time`` long: :func:`task_motion.straight_length`), or a refusal."""
         s = self.s
         ahead = self.region.distance_along(hit, direction)
         if ahead < s.follow_through[0]:
             return refused(LIMITS, f"no room to stop: {ahead:.3f} m ahead of the hit point "
                                    f"(at least {s.follow_through[0]:.3f} m needed)")
-        return max(1, int(2 * min(ahead, s.follow_through[1]) / speed / s.dt))
+        length = tm.straight_length(ahead, speed, s.follow_through, s.follow_through_time)
+        return max(1, int(2 * length / speed / s.dt))
 
     def _strike(self, hit, direction, speed, n_strike, q_hit, dq_hit) -> np.ndarray | Plan:
         """Joint knots of the strike, tracked backward from (q_hit, dq_hit): from the run-up start

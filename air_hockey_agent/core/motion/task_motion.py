@@ -39,12 +39,13 @@ def strike(hit: np.ndarray, direction: np.ndarray, speed: float, steps: int, dt:
     return run_up_start(hit, direction, speed, steps, dt) + s[:, None] * direction, ds[:, None] * direction
 
 
-def run_up_length(behind: float, speed: float, lengths: tuple[float, float], longest_time: float) -> float:
-    """Length [m] of the straight run-up of a hit at ``speed`` [m/s] with ``behind`` [m] of room behind the
-    hit point: the longest that fits, at most ``lengths[1]``, and at most what the strike covers in
-    ``longest_time`` [s] at its mean speed v/2 (a slow push gets a short run-up instead of a long crawl),
-    but never below ``lengths[0]`` (the planner refuses when even that does not fit)."""
-    return min(behind, lengths[1], max(lengths[0], 0.5 * speed * longest_time))
+def straight_length(room: float, speed: float, lengths: tuple[float, float], longest_time: float) -> float:
+    """Length [m] of the straight run-up before, or the stop after, a hit at ``speed`` [m/s] with ``room`` [m]
+    behind the hit point (or ahead of it): the longest that fits, at most ``lengths[1]``, and at most what
+    the mallet covers in ``longest_time`` [s] at its mean speed v/2 (a slow push gets a short run-up and a
+    short stop instead of a long crawl), but never below ``lengths[0]`` (the planner refuses when even that
+    does not fit)."""
+    return min(room, lengths[1], max(lengths[0], 0.5 * speed * longest_time))
 
 
 def stop_fraction(u):

@@ -124,7 +124,6 @@ class Cut(Tactic):
         if not ctx.reach.region.contains(hit):
             return []
         top = ctx.reach.max_speed(hit, -n) * st.hit_speed_fraction
-        run_on = ctx.reach.follow_through_length(hit, -n)
         out = []
         for k in st.cut_catch:
             speed = k * st.mallet_restitution * closing / (1.0 + st.mallet_restitution)
@@ -135,7 +134,7 @@ class Cut(Tactic):
                 aim = math.copysign(min(abs(turn), st.aim_noise), turn)  # normal (off by the aim noise at most)
                 return ctx.shots.contact(puck, _rotate(n, turn), -speed * _rotate(n, aim), st.prepare_end_speed,
                                          st.prepare_horizon)
-            follow = run_on if speed > 0.0 else 0.0
+            follow = ctx.reach.follow_through_length(hit, -n, speed) if speed > 0.0 else 0.0
             candidate = lazy_candidate(st, contact, lambda push: push.enters_goal,
                                        lambda push: margin_steps(st, push),
                                        lambda score, speed=speed: (score, -t, -speed),

@@ -122,8 +122,8 @@ class Prepare(Tactic):
             d = np.array([math.cos(angle), math.sin(angle)])
             hit = puck[:2] - d * st.contact_distance
             top = ctx.reach.max_speed(hit, d) * st.hit_speed_fraction
-            run_on = ctx.reach.follow_through_length(hit, d)
             for v in speeds[speeds <= min(top, ctx.speed_cap)]:
+                run_on = ctx.reach.follow_through_length(hit, d, float(v))
                 yield float(v), run_on, (lambda turn, a=float(angle), v=float(v):
                                          ctx.shots.push(puck, a + turn, v, st.prepare_end_speed, st.prepare_horizon))
 
