@@ -127,8 +127,9 @@ def test_a_recorded_games_contacts_measured_from_the_truth_and_from_the_mocap_ag
     """game-check's contact report on a recorded in-process game (pybullet's contact solver, not the law):
     contacts of both robots, the same ones (most of them: a lost frame can leave a contact without its line)
     whether the puck comes from the true states or, as on a real table, from the mocap's noisy poses with their
-    lost frames; the constants fitted to them are near the ones the simulation gives pybullet (measured with the spin, the tracker's flight law and the mallet's Hermite curve;
-    without the three, e 0.75 was fitted to the same solver's contacts)."""
+    lost frames; the constants fitted to them are near the ones the simulation gives pybullet (measured with
+    the spin, the tracker's flight law and the mallet's Hermite curve; without the three, e 0.75 was fitted to
+    the same solver's contacts)."""
     from air_hockey_agent.motion_params import build_planner, load_motion_params
     from air_hockey_agent.sim.game_loop import JOINT_NAMES, InProcessGame
     from air_hockey_agent.sim.game_record import GameRecorder
