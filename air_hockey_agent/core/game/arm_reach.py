@@ -46,9 +46,9 @@ class ArmReach:
     def run_up_start(self, point: np.ndarray, direction: np.ndarray, speed: float) -> np.ndarray:
         """Where the planner starts the strike of a hit at ``point`` along ``direction`` at ``speed`` [m/s]
         (the planner's own rule, :func:`task_motion.straight_length`)."""
-        behind = straight_length(self.region.distance_along(point, -direction), speed, (self.run_up, self.run_up_max),
-                               self.run_up_time)
-        return np.asarray(point) - behind * np.asarray(direction)
+        behind = self.region.distance_along(point, -direction)
+        length = straight_length(behind, speed, (self.run_up, self.run_up_max), self.run_up_time)
+        return np.asarray(point) - length * np.asarray(direction)
 
     def follow_through_length(self, point: np.ndarray, direction: np.ndarray, speed: float) -> float:
         """How far [m] the mallet runs on after a hit at ``point`` along ``direction`` at ``speed`` [m/s] before

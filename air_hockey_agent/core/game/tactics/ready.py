@@ -242,13 +242,12 @@ class Ready(Tactic):
         self._new: tuple[float, np.ndarray] | None = None  # (since [s], point [m]) a new point not yet taken
 
     def propose(self, situation, ctx: Context) -> Proposal | None:
-        block = self._block
-        proposal = self._choose(situation, ctx)
+        proposal, block = self._choose(situation, ctx)
         kept = self._steadied(proposal, situation, ctx)
-        if kept is None:
-            return proposal
-        self._block = block  # the kept point stays the block it was (or none)
-        return kept
+        if kept is not None:
+            return kept  # the kept point stays the block it was (or none)
+        self._block = block
+        return proposal
 
     def _steadied(self, proposal: Proposal, situation, ctx: Context) -> Proposal | None:
         """With ``ready_switch_time``, the point the arm is reaching, kept instead of ``proposal`` that moves it
@@ -268,24 +267,24 @@ class Ready(Tactic):
         return reach_proposal(READY, running.point, ctx, f"keeping to ({x:.2f}, {y:.2f}): {proposal.reason}, "
                                                          f"not yet steady")
 
-    def _choose(self, situation, ctx: Context) -> Proposal:
+    def _choose(self, situation, ctx: Context) -> tuple[Proposal, np.ndarray | None]:
+        """Ready's waiting point now, and the block it is (None: not a block)."""
         known = situation is not None and ctx.mallet is not None
         block = self._block_point(situation, ctx) if known and ctx.settings.ready_blocks else None
-        self._block = block
         if block is not None:
             return reach_proposal(READY, block, ctx, f"blocking the puck's way into the goal at "
-                                                     f"({block[0]:.2f}, {block[1]:.2f})")
+                                                     f"({block[0]:.2f}, {block[1]:.2f})"), block
         st = ctx.settings
         way = in_the_way(situation, ctx) if known and st.ready_blocks and st.ready_block_in_way else None
         if way is not None:
             return reach_proposal(READY, way, ctx, f"in the way of the puck going into the goal, at "
-                                                   f"({way[0]:.2f}, {way[1]:.2f}) (no block in time)")
+                                                   f"({way[0]:.2f}, {way[1]:.2f}) (no block in time)"), None
         point, reason = self._waiting_point(situation, ctx)
         if st.ready_checks_way and known:
             dodge = off_the_way(ctx.reach.clamp(point), situation, ctx)
             if dodge is not None:
                 point, reason = dodge, reason + "; off the way that would turn the puck into the own goal"
-        return reach_proposal(READY, point, ctx, reason)
+        return reach_proposal(READY, point, ctx, reason), None
 
     def _block_point(self, situation, ctx: Context) -> np.ndarray | None:
         """:func:`block_point`; with ``ready_block_keep``, the block the arm is running first, kept while it
