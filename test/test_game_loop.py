@@ -145,14 +145,18 @@ def test_a_recorded_in_process_game_is_the_same_game_and_holds_the_node_graphs_t
 
 @pytest.mark.slow  # in-process: no ROS node
 def test_in_process_strategy_trials_repeat_exactly_and_score_real_hits():
-    """The strategy test's chunk of trials on a fresh table twice: the same records; the smash and the
-    repel are touched by the robot (contacts from the simulation) and scored; so is the guard trial's puck,
-    which the agent (nothing forced) sends out of its goal's zone."""
+    """The strategy test's chunk of trials on a fresh table twice: the same records, each with the trial's
+    initial state; the smash and the repel are touched by the robot (contacts from the simulation) and
+    scored; so is the guard trial's puck, which the agent (nothing forced) sends out of its goal's zone."""
+    from air_hockey_agent.core.game.strategy.trials import make_trial
     from air_hockey_agent.sim.strategy_loop import chunk_seed, chunks, run_chunk
+    from air_hockey_agent.strategy_params import trial_settings
     trials = [("smash_straight", 0), ("repel", 0), ("prepare", 1), ("guard", 1)]
     first, again = run_chunk(0, 0, trials), run_chunk(0, 0, trials)
     assert first == again
     assert [(r["strategy"], r["index"]) for r in first] == trials
+    settings = trial_settings()
+    assert [r["state"] for r in first] == [list(make_trial(s, i, 0, settings).state) for s, i in trials]
     assert first[0]["hit"] and first[1]["hit"] and not any(r["error"] for r in first), first
     assert first[0]["tactic"].startswith("smash: ") and first[2]["tactic"].startswith("prepare: ")
     assert first[3]["hit"] and first[3]["success"] and first[3]["reason"] == "left the goal's zone", first[3]

@@ -231,6 +231,7 @@ def test_strategy_test_small_run_reports_real_hits(ros_env, tmp_path):
     assert {"success_rate", "touched_rate", "trials"} <= set(report["guard"])
     trials = [json.loads(line) for line in lines_file.read_text().splitlines()]
     assert len(trials) == 5 and not any(t["error"] for t in trials), trials
+    assert all(len(t["state"]) == 6 for t in trials)  # the initial state, to play a trial again
     forced = [t for t in trials if t["strategy"] != "guard"]
     assert all(t["hit"] for t in forced if t["success"])
     assert all(t["tactic"].startswith(("smash: ", "repel: ")) for t in forced)  # the forced tactic and why

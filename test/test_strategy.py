@@ -2,6 +2,7 @@
 hand-made outcome traces, with their boundary cases."""
 from __future__ import annotations
 
+import json
 import math
 
 import numpy as np
@@ -254,14 +255,19 @@ def test_a_slow_slide_is_decided_once_its_remaining_travel_cannot_change_the_out
     assert not undecided.done
 
 
-def test_a_trial_record_is_the_result_with_error_and_tactic():
+def test_a_trial_record_is_the_result_with_error_tactic_and_initial_state():
     """The --results line of a trial (the node's and a failed worker's): every result field as it is,
-    then whether it ended on an error and the tested robot's tactic with its reason."""
+    then whether it ended on an error, the tested robot's tactic with its reason, and the trial's initial
+    puck state (as JSON gives it: a list; None for a trial no worker finished)."""
     result = TrialResult("smash_left", 3, hit=True, reason="timeout after 5 s without a hit", duration=5.0)
-    record = result.record(error=False, tactic="smash: smash forced: waiting until it applies")
-    assert record == {**result.as_dict(), "error": False, "tactic": "smash: smash forced: waiting until it applies"}
+    state = (-0.6, 0.1, 0.0, 0.0, 0.0, 0.0)
+    record = result.record(error=False, tactic="smash: smash forced: waiting until it applies", state=state)
+    assert record == {**result.as_dict(), "error": False, "tactic": "smash: smash forced: waiting until it applies",
+                      "state": list(state)}
+    assert json.loads(json.dumps(record))["state"] == list(state)
     failed = TrialResult("cut", 7, reason="not finished twice (worker failed)").record(error=True, tactic="")
     assert failed["error"] and failed["tactic"] == "" and not failed["success"] and failed["rest"] is None
+    assert failed["state"] is None
 
 
 def test_the_summary_and_its_table_per_strategy():

@@ -165,7 +165,7 @@ class StrategyTestNode(AirHockeyNode):
             result = self.watcher.result()
         else:
             result = TrialResult(self.trial.strategy, self.trial.index, reason=failure)
-        record = result.record(failure is not None, self.tactic)  # the tactic says why no hit, say
+        record = result.record(failure is not None, self.tactic, self.trial.state)  # the tactic says why no hit, say
         print("TRIAL_RESULT " + json.dumps(record), flush=True)
         self.watcher, self.phase = None, "release"
         self.call(self.force_client, ForceTactic.Request(force=True, tactic=TACTIC_IDS["ready"]))

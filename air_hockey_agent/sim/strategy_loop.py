@@ -92,8 +92,8 @@ def play_trial(game, trial: Trial, settings: TrialSettings) -> dict:
     for waiting in filter(None, (selector, opponent)):
         waiting.force(TACTIC_IDS["ready"])
     if failure is not None:
-        return TrialResult(trial.strategy, trial.index, reason=failure).record(True, tactic)
-    return watcher.result().record(False, tactic)
+        return TrialResult(trial.strategy, trial.index, reason=failure).record(True, tactic, trial.state)
+    return watcher.result().record(False, tactic, trial.state)
 
 
 def _advance(game, seconds: float) -> None:

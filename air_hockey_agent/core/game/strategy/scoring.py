@@ -47,10 +47,12 @@ class TrialResult:
     def as_dict(self) -> dict:
         return asdict(self)
 
-    def record(self, error: bool, tactic: str) -> dict:
+    def record(self, error: bool, tactic: str, state: tuple | None = None) -> dict:
         """The trial's line of ``strategy-test --results``: these fields, whether it ended on an error
-        (no outcome), and the tested robot's tactic and its reason when it ended."""
-        return {**self.as_dict(), "error": error, "tactic": tactic}
+        (no outcome), the tested robot's tactic and its reason when it ended, and the trial's initial puck
+        ``state`` (x, y, vx, vy, theta, omega [m, m/s, rad, rad/s], table frame; None: not known, a trial
+        no worker finished)."""
+        return {**self.as_dict(), "error": error, "tactic": tactic, "state": None if state is None else list(state)}
 
 
 @dataclass
