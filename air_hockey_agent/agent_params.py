@@ -193,10 +193,7 @@ def build_selector(params: dict[str, Any], robot: str, log=None, motion: dict[st
     motion = load_motion_params() if motion is None else motion
     planner = build_planner(motion, robot)
     speeds = load_or_build(planner, motion, params["speed_map_grid"], log=log)
-    s = planner.s
-    reach = ArmReach(planner.region, s.run_up[0], s.run_up[1], s.run_up_time, s.follow_through[0],
-                     s.follow_through[1], s.follow_through_time, s.reach_acceleration,
-                     s.height_transition, params["reach_time_margin"], speeds, s.planning_delay, s.dt)
+    reach = ArmReach.of_planner(planner, params["reach_time_margin"], speeds)
     settings = TacticsSettings.from_params(params)
     tracker = _tracker_params(params["puck_params_file"])
     model = _puck_model(tracker)  # table frame; the shots are aimed in the robot's own

@@ -219,9 +219,7 @@ def test_a_slow_hit_stops_within_follow_through_time_and_the_reach_knows_how_far
     the mallet) says the same run-on. A 0.2 m/s push had run on 0.3 m for 3 s."""
     from air_hockey_agent.core.game.arm_reach import ArmReach
     s, start = front.s, _ready(front)
-    reach = ArmReach(front.region, s.run_up[0], s.run_up[1], s.run_up_time, s.follow_through[0], s.follow_through[1],
-                     s.follow_through_time, s.reach_acceleration, s.height_transition, 1.25, None, s.planning_delay,
-                     s.dt)
+    reach = ArmReach.of_planner(front, 1.25, None)
     point, direction = np.array([-0.6, 0.0]), np.array([1.0, 0.0])
     for speed in (0.2, 0.5, 1.5):
         plan = front.plan(Command(point, speed * direction, 1.2), start)

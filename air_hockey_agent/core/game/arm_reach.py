@@ -31,6 +31,16 @@ class ArmReach:
     planning_delay: float     # [s] the planner starts a motion this long after it is asked
     dt: float                 # [s] the planner's step
 
+    @classmethod
+    def of_planner(cls, planner, reach_time_margin: float, speeds: SpeedMap | None) -> "ArmReach":
+        """What the tactics know of ``planner`` (a :class:`~air_hockey_agent.core.motion.planner.MotionPlanner`):
+        its region and the run-up, stop and reach settings it plans with, and ``speeds``, its fastest-hit
+        table."""
+        s = planner.s
+        return cls(planner.region, s.run_up[0], s.run_up[1], s.run_up_time, s.follow_through[0], s.follow_through[1],
+                   s.follow_through_time, s.reach_acceleration, s.height_transition, reach_time_margin, speeds,
+                   s.planning_delay, s.dt)
+
     @property
     def min_reach_time(self) -> float:
         """Shortest time [s] a reach is given: the planner's delay plus its height transition."""
