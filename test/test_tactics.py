@@ -585,6 +585,18 @@ def test_a_push_into_a_rim_the_puck_nearly_touches_is_flagged_too(selector, sett
         assert push.bounces and selector.shots.rebounds_into_mallet(push, 0.02, 1.5) == flagged, gap
 
 
+def test_a_puck_against_a_long_rim_pushed_along_it_is_not_flagged_for_leaving_the_mallet(selector, settings):
+    """A puck at rest against a long rim, pushed at 0.4 m/s 30 deg off the rim (the mallet runs on 8 cm):
+    the rim impact comes at once, before the puck has cleared the mallet, but the puck moves away from it
+    along the rim, and the push is not flagged (every such push was: a puck against a long rim got no push
+    and stayed until the referee's possession limit, lab-table self-play seeds 400 and 410); pushed
+    straight into the rim it comes back into the mallet and is."""
+    puck = np.array([-0.7, settings.table.y_limit, 0.0, 0.0, 0.0, 0.0])
+    for angle, flagged in ((math.radians(30.0), False), (math.pi / 2, True)):
+        push = selector.shots.push(puck, angle, 0.4, 0.005, 8.0)
+        assert push.bounces and selector.shots.rebounds_into_mallet(push, 0.08, 1.5) == flagged, angle
+
+
 def test_puck_straight_at_the_goal_is_repelled_toward_the_opponent(selector, model):
     d = selector.step(0.0, RUNNING, situation(model, [0.6, 0.05, -1.8, -0.05, 0, 0]))
     assert d.tactic == REPEL and d.command is not None and d.command.velocity[0] > 0.5

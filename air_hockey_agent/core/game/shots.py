@@ -194,7 +194,10 @@ class ShotPredictor:
         every ``RECONTACT_STEP`` s (the model lets the puck pass through the mallet, so a meeting lasts
         about 2 (r_puck + r_mallet) / speed), or once it has bounced off a rim (a puck 1 cm from the rim is
         back before it clears the mallet: pushed into the goal-line rim it was squeezed out sideways). A
-        push into a near rim was hit a second time, twice across the centre line."""
+        meeting is a gap below half ``approach_clearance`` that is closing: a puck against a long rim pushed
+        along it bounces off the rim at once but moves away from the mallet (counted as a meeting, every
+        push of such a puck was refused and it stayed until the possession limit). A push into a near rim
+        was hit a second time, twice across the centre line."""
         if not push.bounces:
             return False
         speed = push.mallet_speed
@@ -204,14 +207,14 @@ class ShotPredictor:
         every = max(1, int(round(RECONTACT_STEP / self.dt)))
         pred = predict_fast(self.model, push.after, None, watch, self.dt, NO_Q, sample_every=every)
         bounced = pred.impacts[0][0] if pred.impacts else math.inf  # first rim impact [s]
-        left, contact = False, self.s.contact_distance
+        left, contact, last = False, self.s.contact_distance, math.inf
         for t, s, _ in pred.samples:
             mallet = push.hit_point + d * follow_through * stop_fraction(min(t / stop_time, 1.0))
             gap = float(np.hypot(s[0] - mallet[0], s[1] - mallet[1])) - contact
-            if left and gap < 0.5 * self.s.approach_clearance:
+            if left and gap < 0.5 * self.s.approach_clearance and gap < last:
                 return True
             # a puck next to the rim is back before it has cleared the mallet
-            left = left or gap > self.s.approach_clearance or t > bounced
+            left, last = left or gap > self.s.approach_clearance or t > bounced, gap
         return False
 
     def _first_shot(self, puck: np.ndarray, guess: float, speed: float | None) -> tuple[float, tuple | None]:
