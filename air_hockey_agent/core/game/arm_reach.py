@@ -9,7 +9,8 @@ import numpy as np
 
 from air_hockey_agent.core.game.speed_map import SpeedMap
 from air_hockey_agent.core.motion.region import Region
-from air_hockey_agent.core.motion.task_motion import hermite_at, shortest_hermite_duration, straight_length
+from air_hockey_agent.core.motion.task_motion import (hermite_at, shortest_hermite_duration, stop_length,
+                                                     straight_length)
 
 
 UNKNOWN_START_DISTANCE = 0.5  # [m] a reach from an unknown mallet position is timed as one this long
@@ -23,7 +24,8 @@ class ArmReach:
     run_up_time: float        # [s] longest time a run-up takes (slow hits get short run-ups)
     follow_through: float     # [m] shortest follow-through it needs ahead of it
     follow_through_max: float  # [m] longest follow-through it takes when there is room
-    follow_through_time: float  # [s] longest time a follow-through takes (slow hits stop sooner)
+    follow_through_time: float  # [s] longest time a follow-through takes
+    follow_through_deceleration: float  # [m/s^2] peak deceleration of a follow-through (slow hits stop sooner)
     reach_acceleration: float  # [m/s^2] task acceleration of reach-and-stop motions
     height_transition: float  # [s] the planner's descent from a raised start to the playing height
     reach_time_margin: float  # [-] multiple of the shortest cubic time given to a reach
@@ -38,8 +40,8 @@ class ArmReach:
         table."""
         s = planner.s
         return cls(planner.region, s.run_up[0], s.run_up[1], s.run_up_time, s.follow_through[0], s.follow_through[1],
-                   s.follow_through_time, s.reach_acceleration, s.height_transition, reach_time_margin, speeds,
-                   s.planning_delay, s.dt)
+                   s.follow_through_time, s.follow_through_deceleration, s.reach_acceleration, s.height_transition,
+                   reach_time_margin, speeds, s.planning_delay, s.dt)
 
     @property
     def min_reach_time(self) -> float:
@@ -65,7 +67,7 @@ class ArmReach:
         it stops (the planner's own rule, :meth:`MotionPlanner._stop_steps`)."""
         ahead = self.region.distance_along(point, direction)
         lengths = (self.follow_through, self.follow_through_max)
-        return straight_length(ahead, speed, lengths, self.follow_through_time)
+        return stop_length(ahead, speed, lengths, self.follow_through_time, self.follow_through_deceleration)
 
     def max_speed(self, point: np.ndarray, direction: np.ndarray) -> float:
         """Fastest hit [m/s] at ``point`` along ``direction``; 0 where the arm cannot hit."""

@@ -99,6 +99,7 @@ class MotionSettings:
     run_up_time: float
     follow_through: tuple[float, float]
     follow_through_time: float
+    follow_through_deceleration: float
     posture_gain: float
     posture_tolerance: float
     reach_acceleration: float
@@ -112,7 +113,8 @@ class MotionSettings:
     @classmethod
     def from_params(cls, p: Mapping[str, Any]) -> "MotionSettings":
         return cls(p["playing_height"], p["sample_period"], tuple(p["run_up_length"]), p["run_up_time"],
-                   tuple(p["follow_through_length"]), p["follow_through_time"], p["posture_gain"],
+                   tuple(p["follow_through_length"]), p["follow_through_time"],
+                   p["follow_through_deceleration"], p["posture_gain"],
                    p["posture_tolerance"], p["reach_acceleration"], p["ik_iterations"], p["ik_tolerance"],
                    p["planning_delay"], p["height_transition"], p["hit_posture_range"],
                    np.asarray(p["reference_posture"], float))
@@ -240,14 +242,15 @@ class MotionPlanner:
         return steps, None
 
     def _stop_steps(self, hit, direction, speed) -> int | Plan:
-        """Grid steps of the follow-through (the longest stop that fits ahead of the hit point, at most
-        ``follow_through_time`` long: :func:`task_motion.straight_length`), or a refusal."""
+        """Grid steps of the follow-through (the stop braking at ``follow_through_deceleration`` and lasting
+        at most ``follow_through_time`` that fits ahead of the hit point: :func:`task_motion.stop_length`), or
+        a refusal."""
         s = self.s
         ahead = self.region.distance_along(hit, direction)
         if ahead < s.follow_through[0]:
             return refused(LIMITS, f"no room to stop: {ahead:.3f} m ahead of the hit point "
                                    f"(at least {s.follow_through[0]:.3f} m needed)")
-        length = tm.straight_length(ahead, speed, s.follow_through, s.follow_through_time)
+        length = tm.stop_length(ahead, speed, s.follow_through, s.follow_through_time, s.follow_through_deceleration)
         return max(1, int(2 * length / speed / s.dt))
 
     def _strike(self, hit, direction, speed, n_strike, q_hit, dq_hit) -> np.ndarray | Plan:

@@ -48,6 +48,18 @@ def straight_length(room: float, speed: float, lengths: tuple[float, float], lon
     return min(room, lengths[1], max(lengths[0], 0.5 * speed * longest_time))
 
 
+def stop_length(room: float, speed: float, lengths: tuple[float, float], longest_time: float,
+                deceleration: float) -> float:
+    """Length [m] of the stop after a hit at ``speed`` [m/s] with ``room`` [m] ahead of the hit point: the one
+    whose peak deceleration along the stop's law (:func:`stop_fraction`: 3 v^2 / (4 L)) is ``deceleration``
+    [m/s^2], or the one lasting ``longest_time`` [s] (v T / 2) if that is shorter, at most ``lengths[1]`` and
+    the room, never below ``lengths[0]`` (the planner refuses when even that does not fit). A slow push stops
+    within millimetres, so a puck it sends along a rim or off a near one clears the mallet; a fast hit gets
+    the longest stop."""
+    braking = 0.75 * speed ** 2 / deceleration
+    return min(room, lengths[1], max(lengths[0], min(0.5 * speed * longest_time, braking)))
+
+
 def stop_fraction(u):
     """Fraction of the stopping distance covered at the fraction ``u`` in [0, 1] of the stop's duration
     (quartic: speed 2 L / T at u = 0, zero speed and acceleration at u = 1)."""
