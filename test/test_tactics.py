@@ -42,10 +42,10 @@ def flat_reach(settings) -> ArmReach:
     t = settings.table
     region = Region.for_table(t.length, t.width, settings.mallet_radius, 0.02, BASE, 1.30)
     xs, ys, angles = np.linspace(-1.0, 0.0, 5), np.linspace(-0.6, 0.6, 5), np.linspace(-math.pi, math.pi, 5)
-    # run-up 0.06-0.30 m, at most 0.4 s; follow-through 0.06-0.30 m, at most 0.4 s, braking at 5 m/s^2 (a test arm:
-    # config/motion.yaml's floors are 0.04 and 0.005 m); shortest reach
+    # run-up 0.06-0.30 m, at most 0.4 s; follow-through 0.06-0.30 m, at most 0.4 s, no braking bound (a test arm:
+    # config/motion.yaml's floors are 0.04 and 0.02 m); shortest reach
     # 0.26 s: a planning delay of 0.03 s and a height transition of 0.23 s
-    return ArmReach(region, 0.06, 0.30, 0.4, 0.06, 0.30, 0.4, 5.0, 5.0, 0.23, 1.25,
+    return ArmReach(region, 0.06, 0.30, 0.4, 0.06, 0.30, 0.4, 0.0, 5.0, 0.23, 1.25,
                     SpeedMap(xs, ys, angles, np.full((5, 5, 5), TOP_SPEED)), 0.03, DT)
 
 
@@ -502,19 +502,35 @@ def test_a_puck_no_push_keeps_on_the_own_half_is_cleared_past_the_neutral_zone(s
 
 def test_a_puck_at_rest_by_a_long_rim_beside_the_goal_is_banked_by_a_push_that_stops_soon(model, settings):
     """A puck at rest 13 cm from the own goal line, 6 cm from a long rim: Prepare banks it off the rim. With
-    the follow-through as long as fits (``follow_through_time`` unbounded, braking gently: a 0.2 m/s push ran
-    on 0.3 m for 3 s) every push into the rim bounced back into the running-on mallet, and nothing was played
+    the follow-through as long as fits (``follow_through_time`` unbounded: a 0.2 m/s push ran on 0.3 m for
+    3 s) every push into the rim bounced back into the running-on mallet, and nothing was played
     (lab-table self-play seed 309: the puck stayed until the referee's possession limit)."""
     from dataclasses import replace
     x0, ready = -settings.table.length / 2, settings.point(settings.ready_point)
     puck = situation(model, [x0 + 0.13, -(settings.table.y_limit - 0.06), 0, 0, 0, 0])
     reach = flat_reach(settings)
     for time, deceleration, plays in ((reach.follow_through_time, reach.follow_through_deceleration, True),
-                                      (100.0, 0.01, False)):
+                                      (100.0, 0.0, False)):
         arm = replace(reach, follow_through_time=time, follow_through_deceleration=deceleration)
         selector = TacticsSelector(settings, arm, ShotPredictor(model, settings, DT, arm.max_speed))
         d = selector.step(0.0, RUNNING, puck, ready, np.zeros(2))
         assert (d.tactic == PREPARE and d.command is not None) == plays, (time, d.reason)
+
+
+def test_a_puck_against_a_long_rim_is_pushed_only_with_the_short_stop(model, settings):
+    """A puck at rest against a long rim beside the smash area: with the default stop (at least the floor,
+    running on into the rim or into the puck's way back off it) nothing is played; with the optional short
+    stop (``follow_through_deceleration`` 5 m/s^2, floor 5 mm) Prepare pushes it (README "Tactics and the
+    game": lab-table self-play seed 400 left such a puck to the referee's possession limit)."""
+    from dataclasses import replace
+    ready, reach = settings.point(settings.ready_point), flat_reach(settings)
+    for side in (1.0, -1.0):
+        puck = situation(model, [-0.5, side * settings.table.y_limit, 0, 0, 0, 0])
+        short = replace(reach, follow_through=0.005, follow_through_deceleration=5.0)
+        for arm, plays in ((reach, False), (short, True)):
+            selector = TacticsSelector(settings, arm, ShotPredictor(model, settings, DT, arm.max_speed))
+            d = selector.step(0.0, RUNNING, puck, ready, np.zeros(2))
+            assert (d.tactic == PREPARE and d.command is not None) == plays, (side, arm.follow_through, d.reason)
 
 
 def test_a_puck_on_the_own_half_for_clear_after_is_cleared_and_the_clock_restarts_when_it_crosses(

@@ -51,12 +51,12 @@ def straight_length(room: float, speed: float, lengths: tuple[float, float], lon
 def stop_length(room: float, speed: float, lengths: tuple[float, float], longest_time: float,
                 deceleration: float) -> float:
     """Length [m] of the stop after a hit at ``speed`` [m/s] with ``room`` [m] ahead of the hit point: the one
-    whose peak deceleration along the stop's law (:func:`stop_fraction`: 3 v^2 / (4 L)) is ``deceleration``
-    [m/s^2], or the one lasting ``longest_time`` [s] (v T / 2) if that is shorter, at most ``lengths[1]`` and
-    the room, never below ``lengths[0]`` (the planner refuses when even that does not fit). A slow push stops
-    within millimetres, so a puck it sends along a rim or off a near one clears the mallet; a fast hit gets
-    the longest stop."""
-    braking = 0.75 * speed ** 2 / deceleration
+    lasting ``longest_time`` [s] (v T / 2), or, with a ``deceleration`` [m/s^2] (0: none), the one whose peak
+    deceleration along the stop's law (:func:`stop_fraction`: 3 v^2 / (4 L)) is that if it is shorter; at
+    most ``lengths[1]`` and the room, never below ``lengths[0]`` (the planner refuses when even that does not
+    fit). Braking at 5 m/s^2 a slow push stops within millimetres, so a puck it sends along a rim or off a
+    near one clears the mallet."""
+    braking = 0.75 * speed ** 2 / deceleration if deceleration > 0.0 else math.inf
     return min(room, lengths[1], max(lengths[0], min(0.5 * speed * longest_time, braking)))
 
 
