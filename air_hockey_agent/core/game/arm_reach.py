@@ -25,7 +25,7 @@ class ArmReach:
     follow_through: float     # [m] shortest follow-through it needs ahead of it
     follow_through_max: float  # [m] longest follow-through it takes when there is room
     follow_through_time: float  # [s] longest time a follow-through takes
-    follow_through_deceleration: float  # [m/s^2] peak deceleration of a follow-through (slow hits stop sooner)
+    follow_through_deceleration: float  # [m/s^2] peak deceleration of a follow-through (0: none; slow hits stop sooner)
     reach_acceleration: float  # [m/s^2] task acceleration of reach-and-stop motions
     height_transition: float  # [s] the planner's descent from a raised start to the playing height
     reach_time_margin: float  # [-] multiple of the shortest cubic time given to a reach

@@ -242,9 +242,9 @@ class MotionPlanner:
         return steps, None
 
     def _stop_steps(self, hit, direction, speed) -> int | Plan:
-        """Grid steps of the follow-through (the stop braking at ``follow_through_deceleration`` and lasting
-        at most ``follow_through_time`` that fits ahead of the hit point: :func:`task_motion.stop_length`), or
-        a refusal."""
+        """Grid steps of the follow-through (the longest stop that fits ahead of the hit point, at most
+        ``follow_through_time`` long, shorter where the optional ``follow_through_deceleration`` brakes sooner:
+        :func:`task_motion.stop_length`), or a refusal."""
         s = self.s
         ahead = self.region.distance_along(hit, direction)
         if ahead < s.follow_through[0]:

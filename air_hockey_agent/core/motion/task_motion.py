@@ -56,8 +56,8 @@ def stop_length(room: float, speed: float, lengths: tuple[float, float], longest
     most ``lengths[1]`` and the room, never below ``lengths[0]`` (the planner refuses when even that does not
     fit). Braking at 5 m/s^2 a slow push stops within millimetres, so a puck it sends along a rim or off a
     near one clears the mallet."""
-    braking = 0.75 * speed ** 2 / deceleration if deceleration > 0.0 else math.inf
-    return min(room, lengths[1], max(lengths[0], min(0.5 * speed * longest_time, braking)))
+    timed = straight_length(room, speed, lengths, longest_time)
+    return timed if deceleration <= 0.0 else min(timed, max(lengths[0], 0.75 * speed ** 2 / deceleration))
 
 
 def stop_fraction(u):
