@@ -1,7 +1,10 @@
-"""What a long-running process does once it stands (ROS-free: nodes and benchmarks alike)."""
+"""What a long-running process does once it stands, and what it logs then (ROS-free: nodes, benchmarks and
+the launcher alike)."""
 from __future__ import annotations
 
 import gc
+
+READY_MARKER = "node ready:"  # a node logs it once constructed (nodes/runtime.py); the game launcher waits for it
 
 
 def freeze_start_up() -> None:

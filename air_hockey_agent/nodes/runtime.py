@@ -22,10 +22,9 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from air_hockey_agent.params import (ParameterFileError, ParameterValueError, ParamSpec, check_command_line,
                                      check_parameter_file, load_defaults, ros_param_args)
 from air_hockey_agent.paths import config_file
-from air_hockey_agent.start_up import freeze_start_up
+from air_hockey_agent.start_up import READY_MARKER, freeze_start_up
 
 EXIT_BAD_PARAMETERS = 2
-READY_MARKER = "node ready:"  # logged once a node is constructed; the game launcher waits for it
 
 
 class NodeStartupError(Exception):

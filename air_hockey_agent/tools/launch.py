@@ -15,6 +15,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable, Mapping, Sequence, TextIO
 
+from air_hockey_agent.start_up import READY_MARKER
+
 
 @dataclass
 class ProcessSpec:
@@ -37,8 +39,10 @@ class RunningProcess:
 
     @property
     def ready(self) -> bool:
-        """The node logged that it stands (runtime.READY_MARKER)."""
-        from air_hockey_agent.nodes.runtime import READY_MARKER
+        """The node logged that it stands (``READY_MARKER``). Asked during shutdown, which may follow a SIGTERM
+        that interrupted the game's own import of rclpy (its monitor's): importing the marker from
+        nodes/runtime.py here imported rclpy again over the half-loaded C extension ("type Destroyable is
+        already registered", a traceback and exit 1 instead of 143; CI, 2026-12-05)."""
         return any(READY_MARKER in line for line in list(self.lines))
 
     @property
