@@ -208,6 +208,36 @@ def test_game_stopped_by_sigterm_while_starting_stops_every_node(ros_env):
 
 
 @pytest.mark.integration
+@pytest.mark.parametrize("sig", [signal.SIGTERM, signal.SIGINT])
+def test_strategy_test_stopped_by_a_signal_stops_every_node(ros_env, sig):
+    """SIGTERM or Ctrl-C during a strategy test on nodes: exit 143 / 130 and every node stopped (its workers
+    are threads: before, the tool ended and every node ran on, the simulation as fast as it could)."""
+    proc = subprocess.Popen([str(BIN / "air-hockey"), "strategy-test", "--trials", "20", "--workers", "1",
+                             "--domain-id", ros_env["ROS_DOMAIN_ID"]], env=ros_env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, text=True)
+    nodes: list[int] = []
+    try:
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline and len(nodes) < 5 and proc.poll() is None:
+            time.sleep(0.2)
+            nodes = _children(proc.pid)
+        assert len(nodes) == 5, f"the strategy test started {len(nodes)} nodes"
+        time.sleep(2.0)
+        proc.send_signal(sig)
+        _, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+        left = [pid for pid in nodes if _alive(pid)]
+        for pid in left:  # never leave a node behind, whatever the outcome
+            os.killpg(pid, signal.SIGKILL)
+    assert proc.returncode == 128 + sig, err[-2000:]
+    assert "Traceback" not in err, err[-2000:]
+    assert not left, f"{len(left)} of {len(nodes)} nodes still running after the tool ended"
+
+
+@pytest.mark.integration
 def test_strategy_test_small_run_reports_real_hits(ros_env, tmp_path):
     """The README's small strategy test (README "Strategy test", run here with --json, --results and a
     private domain): one trial each of the three smashes, Repel and Guard, as fast as possible: the report

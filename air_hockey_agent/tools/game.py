@@ -342,6 +342,7 @@ def _wait_for_lineup(launcher: Launcher, timeout: float) -> None:
         if all(p.ready for p in launcher.processes.values()):
             return
         time.sleep(0.1)
+        interrupt.check()
     missing = [label for label, p in launcher.processes.items() if not p.ready]
     raise GameError(f"nodes not ready after {timeout:g} s: {', '.join(missing)}")
 

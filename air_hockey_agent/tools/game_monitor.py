@@ -12,6 +12,7 @@ from typing import Callable, Mapping, Sequence
 
 from air_hockey_agent.core.game.referee import NOT_YET
 from air_hockey_agent.core.game.scoreboard import Scoreboard
+from air_hockey_agent.tools import interrupt
 
 START_RETRY = 0.1  # [s] wall time between start requests while the referee waits for table_sim's reset
 ENV_KEYS = ("ROS_DOMAIN_ID", "FASTRTPS_DEFAULT_PROFILES_FILE", "RMW_IMPLEMENTATION", "ROS_HOME", "ROS_LOG_DIR")
@@ -66,6 +67,7 @@ class GameMonitor:
         deadline = time.monotonic() + timeout
         while not done() and time.monotonic() < deadline:
             self.executor.spin_once(timeout_sec=0.05)
+            interrupt.check()
         return done()
 
     def start_game(self, timeout: float) -> None:
@@ -99,6 +101,7 @@ class GameMonitor:
         try:
             while board.played < duration and not (goals and board.goals >= goals):
                 self.executor.spin_once(timeout_sec=0.05)
+                interrupt.check()
                 ended = launcher.exited()
                 if ended:
                     return ended

@@ -21,6 +21,7 @@ from pathlib import Path
 
 from air_hockey_agent.bags.writer import STORAGES, BagExistsError, BagWriter
 from air_hockey_agent.sim.game_topics import LATCHED_TOPICS
+from air_hockey_agent.tools import interrupt
 from air_hockey_agent.tools.argtypes import count, number
 from air_hockey_agent.tools.files import output_bag_directory
 
@@ -138,6 +139,7 @@ def _spin(executor, duration: float, counts: Counter, shutdown_error: type) -> N
     try:
         while duration <= 0.0 or time.monotonic() - start < duration:
             executor.spin_once(timeout_sec=0.1)
+            interrupt.check()
             if time.monotonic() - last > STATUS_PERIOD:
                 last = time.monotonic()
                 print(f"  {last - start:.0f} s: {sum(counts.values())} messages", flush=True)

@@ -17,6 +17,7 @@ import time
 import yaml
 
 from air_hockey_agent.params import yaml_load
+from air_hockey_agent.tools import interrupt
 from air_hockey_agent.tools.argtypes import count, number
 
 DISCOVERY = 1.5  # [s] wait for the DDS graph before listing (discovery takes about a second here)
@@ -56,6 +57,7 @@ class Probe:
         deadline = time.monotonic() + seconds
         while time.monotonic() < deadline and not until():
             self.executor.spin_once(timeout_sec=min(0.05, max(deadline - time.monotonic(), 0.0)))
+            interrupt.check()
         return until()
 
     def topic_type(self, topic: str, wait: float) -> str:
@@ -131,6 +133,7 @@ def topic_echo(probe: Probe, args) -> int:
     first_by = time.monotonic() + args.timeout
     while not limit or len(received) < limit:
         probe.executor.spin_once(timeout_sec=0.05)
+        interrupt.check()
         if not received and time.monotonic() > first_by:
             raise CliError(f"no message on {args.topic} within {args.timeout:g} s", 1)
     return 0
@@ -142,6 +145,7 @@ def topic_hz(probe: Probe, args) -> int:
     start, last_report = time.monotonic(), time.monotonic()
     while not args.duration or time.monotonic() - start < args.duration:
         probe.executor.spin_once(timeout_sec=0.05)
+        interrupt.check()
         if time.monotonic() - last_report >= 1.0:
             last_report = time.monotonic()
             recent = stamps[-args.window:]

@@ -34,6 +34,7 @@ from air_hockey_agent.core.game.strategy.scoring import TrialResult
 from air_hockey_agent.core.game.strategy.trials import OPPONENT, ROBOT
 from air_hockey_agent.node_graph import agent_nodes
 from air_hockey_agent.sim.table_file import add_table_option, table_problem
+from air_hockey_agent.tools import interrupt
 from air_hockey_agent.tools.files import write_text_atomic
 from air_hockey_agent.tools.game import prepare_for_nodes, process
 from air_hockey_agent.tools.json_output import json_text
@@ -47,6 +48,7 @@ GROUPS = {"smash": ("smash_straight", "smash_left", "smash_right"), "cut": ("cut
 THESIS_GROUPS = ("smash", "cut", "prepare", "repel")  # the default: thesis sec. 4.6 (and issue #12's 15 min)
 RESULT, DONE = "TRIAL_RESULT ", "STRATEGY_DONE"
 WORKER_GRACE = 5.0  # [s] per shutdown signal when a worker's processes are stopped
+WORKER_POLL = 0.5  # [s] wall time between looks at a worker's processes, and the tool's at its interrupts
 
 
 def add_parser(subparsers: argparse._SubParsersAction) -> None:
@@ -110,6 +112,9 @@ class Worker(threading.Thread):
         self.variants = variants  # (params_file, defended, opponent_file, table_file): worker_processes' last four
         self.results, self.lock, self.on_result = results, lock, on_result
         self.error = ""
+        self.stopping = threading.Event()  # set by the tool on Ctrl-C or SIGTERM: stop the processes now
+        self.finished = threading.Event()  # its processes are stopped (Thread.join interrupted by a signal
+        # marks a running thread as ended on Python 3.11, bpo-45274: is_alive() and join() no longer wait)
 
     def on_line(self, label: str, line: str) -> None:
         if self.log is not None:
@@ -122,13 +127,19 @@ class Worker(threading.Thread):
             self.on_result()
 
     def run(self) -> None:
+        try:
+            self._play()
+        finally:
+            self.finished.set()
+
+    def _play(self) -> None:
         with tempfile.TemporaryDirectory(prefix="air_hockey_strategy_") as tmp:
             env = ros_environment(domain_id=self.domain, ros_home=Path(tmp))
             with Launcher(env, echo=None, on_line=self.on_line) as launcher:
                 for spec in worker_processes(self.trials, self.seed, *self.variants):
                     launcher.start(spec)
-                while True:
-                    ended = launcher.wait_any_exit(timeout=1.0)
+                while not self.stopping.is_set():
+                    ended = launcher.wait_any_exit(timeout=WORKER_POLL)
                     if ended:
                         if "strategy_test" not in ended or ended["strategy_test"] != 0:
                             tail = {k: launcher.processes[k].lines[-1:] for k in ended}
@@ -146,8 +157,16 @@ def _run_trials(pending: list[tuple[str, int]], args, results: dict, progress, t
                for k, share in enumerate(shares) if share]
     for w in workers:
         w.start()
-    for w in workers:
-        w.join()
+    try:
+        for w in workers:
+            while not w.finished.wait(WORKER_POLL):
+                interrupt.check()
+    except KeyboardInterrupt:  # the workers are daemon threads: left alone, their nodes would outlive the tool
+        for w in workers:
+            w.stopping.set()
+        for w in workers:
+            w.finished.wait()
+        raise
     return [w.error for w in workers if w.error]
 
 
