@@ -86,6 +86,27 @@ def test_sigterm_stops_in_process_games_and_their_workers_at_once():
     assert not [w for w in workers if os.path.exists(f"/proc/{w}")]
 
 
+@pytest.mark.slow  # in-process: no ROS node
+def test_ctrl_c_stops_a_run_of_games_on_one_worker():
+    """Ctrl-C during the first of several games on one worker ends that game and the run (exit 130); before, the
+    game ended and the next ones were played in full."""
+    proc = subprocess.Popen([str(BIN / "air-hockey"), "game", "--in-process", "--games", "3", "--workers", "1",
+                             "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+    try:
+        assert proc.stdout is not None
+        for line in proc.stdout:  # the first game's first progress line: it is being played
+            if line.startswith("[game] sim"):
+                break
+        proc.send_signal(signal.SIGINT)
+        out, _ = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, out[-2000:]
+    assert "interrupted: ending the game" in out and "game over" not in out and "Traceback" not in out, out[-2000:]
+
+
 @pytest.mark.integration
 def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_path):
     """The README's recorded game and its check (README "The game", run here with --json and a private

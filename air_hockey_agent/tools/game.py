@@ -270,8 +270,11 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
     names = [f"seed_{seed}" + (f"_{v[0]}" if v else "") for seed, v in zip(seeds, variants)]
     bags = _game_bags(args.record, names)
     if args.workers == 1:
-        results = [play_game(seed, *run_args, progress=say, record=bag, versus=variant, table=_table(args))
-                   for seed, bag, variant in zip(seeds, bags, variants)]
+        results = []
+        for seed, bag, variant in zip(seeds, bags, variants):
+            results.append(play_game(seed, *run_args, progress=say, record=bag, versus=variant, table=_table(args)))
+            if args.games > 1:  # an interrupt ended that game: the run stops there, as on several workers
+                interrupt.check()
     else:
         from air_hockey_agent.tools.worker_pool import run_in_processes
 

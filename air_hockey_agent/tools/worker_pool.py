@@ -10,6 +10,10 @@ from __future__ import annotations
 import multiprocessing
 from typing import Any, Callable, Sequence
 
+from air_hockey_agent.tools import interrupt
+
+POLL = 0.5  # [s] wall time between looks at the tool's interrupts while a job runs
+
 
 def run_in_processes(function: Callable[..., Any], jobs: Sequence[tuple], workers: int,
                      on_done: Callable[[int, Any], None] = lambda index, result: None) -> list:
@@ -20,6 +24,9 @@ def run_in_processes(function: Callable[..., Any], jobs: Sequence[tuple], worker
         pending = [pool.apply_async(function, job) for job in jobs]
         results = []
         for index, job in enumerate(pending):
+            while not job.ready():  # not job.get(): a signal whose exception was discarded must end the wait
+                job.wait(POLL)
+                interrupt.check()
             try:
                 result = job.get()
             except Exception as exc:  # a worker's error is the job's result, not the tool's end
