@@ -94,6 +94,22 @@ def test_in_process_game_repeats_exactly_and_both_robots_play():
         assert {"smash", "cut"} & set(first["tactics"][robot]), first
 
 
+def test_check_ends_the_game_where_it_raises():
+    """The tool's interrupt check, called after every step, ends the game there as Ctrl-C does (a signal whose
+    exception Python discarded is raised by it), and the result is the game up to that step."""
+    from air_hockey_agent.sim.game_loop import play_game
+    steps = []
+
+    def check() -> None:
+        steps.append(None)
+        if len(steps) == 300:
+            raise KeyboardInterrupt
+
+    result = play_game(3, 10.0, check=check)
+    assert len(steps) == 300
+    assert 0.0 < result["duration_s"] < 10.0
+
+
 @pytest.mark.slow  # in-process: no ROS node
 def test_a_recorded_in_process_game_is_the_same_game_and_holds_the_node_graphs_topics(tmp_path):
     """Recording changes nothing in the game (the same tally and end state as unrecorded); the bag holds

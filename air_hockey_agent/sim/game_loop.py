@@ -187,15 +187,19 @@ class InProcessGame:
         self.world.close()
 
     def run(self, duration: float, goals: int = 0, progress: Callable[[str], None] | None = None,
-            progress_period: float = 10.0, real_time_factor: float = 0.0) -> dict:
+            progress_period: float = 10.0, real_time_factor: float = 0.0,
+            check: Callable[[], None] = lambda: None) -> dict:
         """Play ``duration`` [s] of simulated time (or until ``goals`` goals, 0: off); ``progress`` gets a
-        line every ``progress_period`` [s] of wall time; ``real_time_factor`` > 0 paces the simulation."""
+        line every ``progress_period`` [s] of wall time; ``real_time_factor`` > 0 paces the simulation.
+        KeyboardInterrupt ends the game there, raised by a signal or by ``check``, called after every step (the
+        tool's :func:`air_hockey_agent.tools.interrupt.check`: a signal whose exception Python discarded)."""
         self._start()
         wall0, sim0 = time.monotonic(), self.world.time
         next_report = wall0 + progress_period
         try:
             while self.board.played < duration and not (goals and self.board.goals >= goals):
                 self.step()
+                check()
                 now = time.monotonic()
                 if real_time_factor > 0.0:
                     ahead = (self.world.time - sim0) / real_time_factor - (now - wall0)
@@ -303,19 +307,20 @@ class InProcessGame:
 
 def play_game(seed: int, duration: float, goals: int = 0, gui: bool = False, real_time_factor: float = 0.0,
               progress_period: float = 10.0, progress: Callable[[str], None] | None = None,
-              record: Path | None = None, versus: tuple[str, str] | None = None, table: str = "") -> dict:
+              record: Path | None = None, versus: tuple[str, str] | None = None, table: str = "",
+              check: Callable[[], None] = lambda: None) -> dict:
     """One game of ``duration`` [s] (or ``goals`` goals) with ``seed``; the scoreboard's result. With
     ``record``, the game is also written to that MCAP bag directory (:mod:`air_hockey_agent.sim.game_record`;
     the result's ``"recording"``); with ``versus`` (robot, parameter YAML), that robot plays the file's agent
-    variant; with ``table`` (a table file), on that simulated table. A module-level function, so worker
-    processes can run it."""
+    variant; with ``table`` (a table file), on that simulated table; ``check`` as in :meth:`InProcessGame.run`.
+    A module-level function, so worker processes can run it."""
     game = InProcessGame(seed, gui=gui, versus=versus, table=table, log=progress)
     try:
         if record is None:
-            return game.run(duration, goals, progress, progress_period, real_time_factor)
+            return game.run(duration, goals, progress, progress_period, real_time_factor, check)
         from air_hockey_agent.sim.game_record import GameRecorder
         with GameRecorder(record, JOINT_NAMES) as game.recorder:
-            result = game.run(duration, goals, progress, progress_period, real_time_factor)
+            result = game.run(duration, goals, progress, progress_period, real_time_factor, check)
         return {**result, "recording": str(record)}
     finally:
         game.close()

@@ -272,7 +272,8 @@ def _play_in_process(args, settings, rtf: float, say) -> dict:
     if args.workers == 1:
         results = []
         for seed, bag, variant in zip(seeds, bags, variants):
-            results.append(play_game(seed, *run_args, progress=say, record=bag, versus=variant, table=_table(args)))
+            results.append(play_game(seed, *run_args, progress=say, record=bag, versus=variant, table=_table(args),
+                                     check=interrupt.check))
             if args.games > 1:  # an interrupt ended that game: the run stops there, as on several workers
                 interrupt.check()
     else:

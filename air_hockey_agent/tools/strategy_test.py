@@ -188,6 +188,7 @@ def _run_in_process(pending: list[tuple[str, int]], args, results: dict, progres
     if args.workers == 1:
         for index, job in enumerate(jobs):
             store(index, run_chunk(*job))
+            interrupt.check()  # a signal whose exception Python discarded: no further chunk
     else:
         run_in_processes(run_chunk, jobs, args.workers, store)
     return errors
