@@ -197,35 +197,46 @@ def _alive(pid: int) -> bool:
     return Path(f"/proc/{pid}").is_dir() and "Z" not in Path(f"/proc/{pid}/stat").read_text().split()[2]
 
 
-@pytest.mark.integration
-def test_game_stopped_by_sigterm_while_starting_stops_every_node(ros_env):
-    """`kill`, `timeout` or a CI runner stop a tool with SIGTERM: the game then stops its nodes as on Ctrl-C
-    (they run in their own process groups, so before, all eight were left running) and exits 143."""
-    proc = subprocess.Popen([str(BIN / "air-hockey"), "game", "--duration", "600", "--domain-id",
-                             ros_env["ROS_DOMAIN_ID"]], env=ros_env, stdout=subprocess.DEVNULL,
+def _signalled_once_its_nodes_run(command: list[str], env: dict, count: int, sig: int,
+                                  settle: float = 0.0) -> tuple[int, str, list[int], list[int]]:
+    """Start an air-hockey tool, wait until it has ``count`` child processes (its nodes), send ``sig`` after
+    ``settle`` s more and wait for the tool: its exit code, stderr, the nodes, and those still running 20 s
+    after (killed: never leave a node behind, whatever the outcome)."""
+    proc = subprocess.Popen([str(BIN / "air-hockey"), *command], env=env, stdout=subprocess.DEVNULL,
                             stderr=subprocess.PIPE, text=True)
     nodes: list[int] = []
+    left: list[int] = []
     try:
         deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and len(nodes) < 8 and proc.poll() is None:
+        while time.monotonic() < deadline and len(nodes) < count and proc.poll() is None:
             time.sleep(0.2)
             nodes = _children(proc.pid)
-        assert len(nodes) == 8, f"the game started {len(nodes)} nodes"
-        proc.send_signal(signal.SIGTERM)
+        assert len(nodes) == count, f"{command[0]} started {len(nodes)} nodes"
+        time.sleep(settle)
+        proc.send_signal(sig)
         _, err = proc.communicate(timeout=120)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-        for pid in nodes:  # never leave a node behind, whatever the outcome
-            if _alive(pid):
-                os.killpg(pid, signal.SIGKILL)
-    assert proc.returncode in (0, 143), err[-2000:]  # 0: the game had begun, ended early and was reported
+        deadline = time.monotonic() + 20
+        while time.monotonic() < deadline and any(_alive(pid) for pid in nodes):
+            time.sleep(0.2)
+        left = [pid for pid in nodes if _alive(pid)]
+        for pid in left:
+            os.killpg(pid, signal.SIGKILL)
+    return proc.returncode, err, nodes, left
+
+
+@pytest.mark.integration
+def test_game_stopped_by_sigterm_while_starting_stops_every_node(ros_env):
+    """`kill`, `timeout` or a CI runner stop a tool with SIGTERM: the game then stops its nodes as on Ctrl-C
+    (they run in their own process groups, so before, all eight were left running) and exits 143."""
+    code, err, nodes, left = _signalled_once_its_nodes_run(
+        ["game", "--duration", "600", "--domain-id", ros_env["ROS_DOMAIN_ID"]], ros_env, 8, signal.SIGTERM)
+    assert code in (0, 143), err[-2000:]  # 0: the game had begun, ended early and was reported
     assert "Traceback" not in err, err[-2000:]
-    deadline = time.monotonic() + 20
-    while time.monotonic() < deadline and any(_alive(pid) for pid in nodes):
-        time.sleep(0.2)
-    assert not any(_alive(pid) for pid in nodes)
+    assert not left, f"{len(left)} of {len(nodes)} nodes still running after the game ended"
 
 
 @pytest.mark.integration
@@ -233,27 +244,10 @@ def test_game_stopped_by_sigterm_while_starting_stops_every_node(ros_env):
 def test_strategy_test_stopped_by_a_signal_stops_every_node(ros_env, sig):
     """SIGTERM or Ctrl-C during a strategy test on nodes: exit 143 / 130 and every node stopped (its workers
     are threads: before, the tool ended and every node ran on, the simulation as fast as it could)."""
-    proc = subprocess.Popen([str(BIN / "air-hockey"), "strategy-test", "--trials", "20", "--workers", "1",
-                             "--domain-id", ros_env["ROS_DOMAIN_ID"]], env=ros_env, stdout=subprocess.DEVNULL,
-                            stderr=subprocess.PIPE, text=True)
-    nodes: list[int] = []
-    try:
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline and len(nodes) < 5 and proc.poll() is None:
-            time.sleep(0.2)
-            nodes = _children(proc.pid)
-        assert len(nodes) == 5, f"the strategy test started {len(nodes)} nodes"
-        time.sleep(2.0)
-        proc.send_signal(sig)
-        _, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-        left = [pid for pid in nodes if _alive(pid)]
-        for pid in left:  # never leave a node behind, whatever the outcome
-            os.killpg(pid, signal.SIGKILL)
-    assert proc.returncode == 128 + sig, err[-2000:]
+    code, err, nodes, left = _signalled_once_its_nodes_run(
+        ["strategy-test", "--trials", "20", "--workers", "1", "--domain-id", ros_env["ROS_DOMAIN_ID"]], ros_env, 5,
+        sig, settle=2.0)
+    assert code == 128 + sig, err[-2000:]
     assert "Traceback" not in err, err[-2000:]
     assert not left, f"{len(left)} of {len(nodes)} nodes still running after the tool ended"
 
