@@ -107,6 +107,35 @@ def test_ctrl_c_stops_a_run_of_games_on_one_worker():
     assert "interrupted: ending the game" in out and "game over" not in out and "Traceback" not in out, out[-2000:]
 
 
+@pytest.mark.slow  # in-process: no ROS node
+def test_an_interrupted_strategy_test_reports_the_trials_it_finished(tmp_path):
+    """Ctrl-C during a long strategy test: the workers stop, the table and --results hold the trials finished
+    so far, and the exit is 130 (before, everything was lost)."""
+    out = tmp_path / "trials.jsonl"
+    proc = subprocess.Popen([str(BIN / "air-hockey"), "strategy-test", "--in-process", "--workers", "2", "--trials",
+                             "100", "--results", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    try:
+        assert proc.stderr is not None
+        for line in proc.stderr:  # a progress line with some trials done
+            if "trials [" in line and not line.split("]")[1].strip().startswith("0/"):
+                break
+        proc.send_signal(signal.SIGINT)
+        table, err = proc.communicate(timeout=60)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+            proc.wait()
+    assert proc.returncode == 130, err[-2000:]
+    finished = int(err.split("interrupted: ")[1].split(" of 600")[0])
+    assert 0 < finished < 600
+    rows = [line.split() for line in table.splitlines()]
+    counts = [int(row[1]) for row in rows if len(row) > 1 and row[0] in ("smash_straight", "smash_left",
+                                                                        "smash_right", "cut", "prepare", "repel")
+              and row[1].isdigit()]
+    assert counts and sum(counts) == finished and "interrupted" in table.splitlines()[-1]
+    assert len(out.read_text().splitlines()) == finished
+
+
 @pytest.mark.integration
 def test_short_game_both_robots_hit_and_nothing_is_left_running(ros_env, tmp_path):
     """The README's recorded game and its check (README "The game", run here with --json and a private

@@ -8,8 +8,9 @@ share of the trials, on its own ``ROS_DOMAIN_ID``; the opponent runs no agent an
 A trial's initial state depends only on the seed, the strategy and the trial's index, not on the
 number of workers. Trials that a crashed or hung worker did not finish are run once more and then
 counted as failures with their reason. Prints a table next to the thesis's fig. 5.7, or with
-``--json`` exactly one JSON object; ``--plot DIR`` writes the bar chart (fig. 5.7) and the smash
-spread (fig. 5.8) as PNG. ``--in-process`` plays the trials without ROS
+``--json`` exactly one JSON object (Ctrl-C or SIGTERM: every process stopped, then the report of the
+trials finished so far, ``"interrupted": true``, and exit 130 / 143); ``--plot DIR`` writes the bar chart
+(fig. 5.7) and the smash spread (fig. 5.8) as PNG. ``--in-process`` plays the trials without ROS
 (:mod:`air_hockey_agent.sim.strategy_loop`; workers are processes of this tool): a run repeats exactly,
 whatever the number of workers. ``--params-file FILE`` gives the agent a variant (its tactics' and
 trajectory generator's parameters, as ``air-hockey game --versus``) on the same trials. ``--defended``: the
@@ -246,19 +247,35 @@ def run(args: argparse.Namespace) -> int:
     log = open(args.log, "w", buffering=1) if args.log is not None else None
     play = (lambda pending: _run_in_process(pending, args, results, progress, len(trials))) if args.in_process else \
         (lambda pending: _run_trials(pending, args, results, progress, len(trials), domain0, log))
+    interrupted: KeyboardInterrupt | None = None
     try:
         errors = play(trials)
         missing = [t for t in trials if t not in results]
         if missing:
             say(f"{len(missing)} trials unfinished ({'; '.join(errors) or 'worker stopped'}); running them once more")
             errors += play(missing)
+    except KeyboardInterrupt as exc:  # Ctrl-C or SIGTERM: the trials finished so far are reported, then its exit code
+        interrupted = exc
     finally:
         if log is not None:
             log.close()
-    for strategy, index in (t for t in trials if t not in results):
-        results[(strategy, index)] = TrialResult(strategy, index, reason="not finished twice (worker failed)").record(
-            error=True, tactic="")
-    seconds = time.monotonic() - start
+    if interrupted is None:
+        for strategy, index in (t for t in trials if t not in results):
+            results[(strategy, index)] = TrialResult(strategy, index, reason="not finished twice (worker failed)"
+                                                     ).record(error=True, tactic="")
+    else:
+        asked, trials = len(trials), [t for t in trials if t in results]
+        say(f"interrupted: {len(trials)} of {asked} trials finished")
+        if not trials:
+            return interrupt.exit_code(interrupted)
+    _report(args, trials, results, time.monotonic() - start, say, interrupted is not None)
+    return 0 if interrupted is None else interrupt.exit_code(interrupted)
+
+
+def _report(args: argparse.Namespace, trials: list[tuple[str, int]], results: dict, seconds: float, say,
+            interrupted: bool) -> None:
+    """The table (or with --json the JSON object), --results and --plot of ``trials``: every trial asked
+    for, or with ``interrupted`` the ones finished before Ctrl-C or SIGTERM (JSON: ``"interrupted": true``)."""
     summary = summarise((results[t] for t in trials), args.defended)
     if args.results is not None:
         write_text_atomic(args.results, "".join(json_text(results[t]) + "\n" for t in trials))
@@ -278,8 +295,10 @@ def run(args: argparse.Namespace) -> int:
             report["opponent_params"] = str(args.opponent_params)
         if args.table is not None:
             report["table"] = str(args.table)
+        if interrupted:
+            report["interrupted"] = True
         print(json_text(report))
     else:
         on_table = f"\n  on the simulated table of {args.table}" if args.table is not None else ""
-        print(table(summary, seconds) + on_table)
-    return 0
+        print(table(summary, seconds) + on_table + ("\n  interrupted: the trials finished before it" if interrupted
+                                                    else ""))
