@@ -116,6 +116,8 @@ AGENT_PARAMS = TABLE_PARAMS + (
               0.0, 1.5),
     ParamSpec("reach_time_margin", float, "[-] multiple of the shortest reach time given to a reach", 1.0, 10.0),
     ParamSpec("stale_estimate", float, "[s] no estimate for this long: puck unseen", 0.01, 60.0),
+    ParamSpec("unseen_after_own_contact", bool, "an estimate with no frame fused since the robot's last played "
+              "contact counts as unseen (it describes the puck before the contact)"),
     ParamSpec("settle_time", float, "[s] time after a hit before re-deciding", 0.0, 5.0),
     ParamSpec("keep_checks_outcome", bool, "a hit or cut under way is kept (its re-plan refused) only while its "
               "contact, on the current prediction, does not send the puck into the own goal"),

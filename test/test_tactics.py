@@ -444,6 +444,48 @@ def test_static_puck_in_the_smash_area_is_smashed_at_the_goal(selector, model, s
     np.testing.assert_allclose(c.point + direction * settings.contact_distance, [-0.5, 0.1], atol=1e-6)
 
 
+@pytest.mark.parametrize("on", [True, False])
+def test_an_estimate_from_before_the_robots_own_hit_counts_as_unseen(model, settings, on):
+    """A Smash accepted and played at its time, then no new estimate (a mocap dropout over the hit): after the
+    follow-through the estimate from before the hit (the puck at rest where it was) no longer counts (Ready
+    waits as for an unseen puck) instead of a Smash planned again at where the puck had lain (as without
+    ``unseen_after_own_contact``); an estimate after the hit counts again."""
+    selector = selector_with(model, settings, unseen_after_own_contact=on)
+    before = situation(model, [-0.5, 0.1, 0, 0, 0, 0])
+    d = selector.step(0.0, RUNNING, before)
+    assert d.tactic == SMASH and d.command is not None
+    selector.on_status(0.0, ACCEPTED, 3.0, 0.01)
+    hit = d.command.time
+    assert selector.step(hit - 0.05, RUNNING, before).tactic == SMASH  # before its time: the hit under way
+    after = hit + settings.settle_time + 0.01
+    d = selector.step(after, RUNNING, before)
+    if not on:
+        assert d.tactic == SMASH  # at the puck as it was (here the command under way again: nothing sent)
+        return
+    assert d.tactic == READY and d.reason == "waiting at the ready point", d.reason
+    d = selector.step(after + 0.01, RUNNING, situation(model, [-0.5, 0.1, 0, 0, 0, 0], t0=hit + 0.01))
+    assert d.tactic == SMASH and d.command is not None  # seen after the hit (missed): smashed again
+
+
+def test_an_estimate_carried_past_the_robots_own_hit_on_rejected_frames_counts_as_unseen(selector, model,
+                                                                                           settings):
+    """As above, with the tracker's fused frames told (observe_puck): frames after the hit that the gate
+    rejected carry the pre-hit estimate on to their stamps, so the estimate's time is no proof of a sighting;
+    the last fused frame is. A frame fused after the hit counts again."""
+    start = [-0.5, 0.1, 0, 0, 0, 0]
+    selector.observe_puck(0.0, np.array(start, float))
+    d = selector.step(0.0, RUNNING, situation(model, start))
+    selector.on_status(0.0, ACCEPTED, 3.0, 0.01)
+    hit = d.command.time
+    after = hit + settings.settle_time + 0.01
+    carried = situation(model, start, t0=after - 0.005)  # a rejected frame's stamp, after the hit
+    d = selector.step(after, RUNNING, carried)
+    assert d.tactic == READY and d.reason == "waiting at the ready point", d.reason
+    selector.observe_puck(after + 0.005, np.array(start, float))
+    d = selector.step(after + 0.01, RUNNING, situation(model, start, t0=after + 0.005))
+    assert d.tactic == SMASH and d.command is not None
+
+
 @pytest.mark.parametrize("puck", [(-0.25, 0.0), (-0.24, -0.2)])
 def test_a_static_puck_beyond_the_smash_area_is_smashed_from_where_it_lies(selector, model, settings, puck):
     """Between the smash area's far edge and the centre line the arm can only push the puck forward, so it

@@ -89,6 +89,7 @@ class TacticsSettings:
     cut_catch: tuple[float, ...]
     reach_time_margin: float
     stale_estimate: float
+    unseen_after_own_contact: bool
     settle_time: float
     keep_checks_outcome: bool
     contact_learning: bool
