@@ -237,12 +237,12 @@ class TacticsSelector:
     # --- bookkeeping -------------------------------------------------------------------------------
     def _since_own_contact(self, now: float, situation: Situation | None) -> Situation | None:
         """``situation``, or with ``unseen_after_own_contact`` None (the puck unseen) while no frame has been fused
-        since the last contact the robot played: the accepted command under way met the puck at its time, so an estimate from frames before it
-        describes the puck before the contact, also when the tracker carried it on to a later frame it
-        rejected. In mocap dropouts over the hit (up to 0.9 s in the lab's recordings) the tracker held the
-        pre-hit puck, and the Smash re-planned after the follow-through sent the mallet back to where the puck
-        had been while the shot crossed the table (thesis table, self-play seeds 513 and 521). The last fused
-        frame is :meth:`observe_puck`'s; not told, the estimate's own time."""
+        since the last contact the robot played: the accepted command under way met the puck at its time, so an
+        estimate from frames before it describes the puck before the contact, also when the tracker carried it
+        on to a later frame it rejected. In mocap dropouts over the hit (up to 0.9 s in the lab's recordings)
+        the tracker held the pre-hit puck, and the Smash re-planned after the follow-through sent the mallet
+        back to where the puck had been while the shot crossed the table (thesis table, self-play seeds 513 and
+        521). The last fused frame is :meth:`observe_puck`'s; not told, the estimate's own time."""
         sent = self.sent
         if sent is not None and sent.accepted and sent.proposal.puck is not None and sent.proposal.time <= now:
             self.contact_at = max(self.contact_at, sent.proposal.time)
