@@ -86,24 +86,33 @@ def test_sigterm_stops_in_process_games_and_their_workers_at_once():
     assert not [w for w in workers if os.path.exists(f"/proc/{w}")]
 
 
-@pytest.mark.slow  # in-process: no ROS node
-def test_ctrl_c_stops_a_run_of_games_on_one_worker():
-    """Ctrl-C during the first of several games on one worker ends that game and the run (exit 130); before, the
-    game ended and the next ones were played in full."""
-    proc = subprocess.Popen([str(BIN / "air-hockey"), "game", "--in-process", "--games", "3", "--workers", "1",
-                             "--duration", "60"], stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+def _ctrl_c_once(command: list[str], in_stderr: bool, ready) -> tuple[int, str, str]:
+    """Start an air-hockey tool, read its stderr (else its stdout, with stderr merged) until ``ready(line)``, send
+    SIGINT, and wait: its exit code, stdout and stderr. Killed if still running, whatever the outcome."""
+    proc = subprocess.Popen([str(BIN / "air-hockey"), *command], stdout=subprocess.PIPE,
+                            stderr=subprocess.PIPE if in_stderr else subprocess.STDOUT, text=True)
     try:
-        assert proc.stdout is not None
-        for line in proc.stdout:  # the first game's first progress line: it is being played
-            if line.startswith("[game] sim"):
+        stream = proc.stderr if in_stderr else proc.stdout
+        assert stream is not None
+        for line in stream:
+            if ready(line):
                 break
         proc.send_signal(signal.SIGINT)
-        out, _ = proc.communicate(timeout=60)
+        out, err = proc.communicate(timeout=60)
     finally:
         if proc.poll() is None:
             proc.kill()
             proc.wait()
-    assert proc.returncode == 130, out[-2000:]
+    return proc.returncode, out, err or ""
+
+
+@pytest.mark.slow  # in-process: no ROS node
+def test_ctrl_c_stops_a_run_of_games_on_one_worker():
+    """Ctrl-C during the first of several games on one worker ends that game and the run (exit 130); before, the
+    game ended and the next ones were played in full."""
+    code, out, _ = _ctrl_c_once(["game", "--in-process", "--games", "3", "--workers", "1", "--duration", "60"],
+                                False, lambda line: line.startswith("[game] sim"))  # the first game is being played
+    assert code == 130, out[-2000:]
     assert "interrupted: ending the game" in out and "game over" not in out and "Traceback" not in out, out[-2000:]
 
 
@@ -112,20 +121,10 @@ def test_an_interrupted_strategy_test_reports_the_trials_it_finished(tmp_path):
     """Ctrl-C during a long strategy test: the workers stop, the table and --results hold the trials finished
     so far, and the exit is 130 (before, everything was lost)."""
     out = tmp_path / "trials.jsonl"
-    proc = subprocess.Popen([str(BIN / "air-hockey"), "strategy-test", "--in-process", "--workers", "2", "--trials",
-                             "100", "--results", str(out)], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
-    try:
-        assert proc.stderr is not None
-        for line in proc.stderr:  # a progress line with some trials done
-            if "trials [" in line and not line.split("]")[1].strip().startswith("0/"):
-                break
-        proc.send_signal(signal.SIGINT)
-        table, err = proc.communicate(timeout=60)
-    finally:
-        if proc.poll() is None:
-            proc.kill()
-            proc.wait()
-    assert proc.returncode == 130, err[-2000:]
+    code, table, err = _ctrl_c_once(
+        ["strategy-test", "--in-process", "--workers", "2", "--trials", "100", "--results", str(out)], True,
+        lambda line: "trials [" in line and not line.split("]")[1].strip().startswith("0/"))  # some trials done
+    assert code == 130, err[-2000:]
     finished = int(err.split("interrupted: ")[1].split(" of 600")[0])
     assert 0 < finished < 600
     rows = [line.split() for line in table.splitlines()]
