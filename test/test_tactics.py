@@ -10,7 +10,8 @@ from air_hockey_agent.agent_params import load_agent_params, puck_model_for_tact
 from air_hockey_agent.paths import config_file
 from air_hockey_agent.tracker_params import SIM_TABLE_FILE
 from air_hockey_agent.core.game.arm_reach import ArmReach
-from air_hockey_agent.core.game.shots import ShotPredictor, puck_after_contact, puck_after_hit
+from air_hockey_agent.core.game.shots import ShotPredictor
+from air_hockey_agent.core.puck.mallet_impact import puck_after_contact, puck_after_hit
 from air_hockey_agent.core.game.situation import build_situation, own_frame_physics, to_own_frame
 from air_hockey_agent.core.game.speed_map import SpeedMap
 from air_hockey_agent.core.game.tactics.base import (CUT, HOME, INIT, PREPARE, READY, REPEL, SMASH, Proposal,
@@ -258,7 +259,7 @@ def test_a_contact_with_mallet_friction_is_rouths_impact_against_a_moving_wall()
     mallet's frame a sticking contact ends the slip of the puck's edge (Routh, beta = 0) and a sliding one
     takes mu times the normal impulse off the slip; the normal impulse is the same either way; the result
     does not depend on the frame (a mallet moving at u is a wall at rest for a puck moving at v - u)."""
-    from air_hockey_agent.core.game.shots import puck_after_contact
+    from air_hockey_agent.core.puck.mallet_impact import puck_after_contact
     r, e = 0.03165, 0.8
     n = np.array([math.cos(0.4), math.sin(0.4)])
     b = np.array([n[1], -n[0]])
@@ -511,7 +512,7 @@ def test_a_static_puck_outside_the_smash_area_is_pushed_to_stop_inside_it(select
     """In front of the goal, against a long rim, and behind the region's back edge: the pushed puck,
     predicted by the stepwise model (not the closed-form predictor Prepare searched with), stays on the
     own half and stops inside the smash area."""
-    from air_hockey_agent.core.game.shots import puck_after_hit
+    from air_hockey_agent.core.puck.mallet_impact import puck_after_hit
     d = selector.step(0.0, RUNNING, situation(model, [*puck, 0, 0, 0, 0]))
     assert d.tactic == PREPARE and d.command is not None, d.reason
     v = d.command.velocity
@@ -666,7 +667,7 @@ def test_an_approaching_puck_is_cut_to_stop_in_the_smash_area(selector, model, s
     """Banked or straight: the Cut meets the puck before the defend line, and the puck it leaves, predicted
     by the stepwise model from the commanded contact (normal from the mallet to the predicted puck; Routh's
     impact with the mallet's friction, spin included), stops inside the smash area without conceding."""
-    from air_hockey_agent.core.game.shots import puck_after_contact
+    from air_hockey_agent.core.puck.mallet_impact import puck_after_contact
     sit = situation(model, [*start, 0, 0])
     c = sit.crossing(settings.defend_x)
     assert c is not None
@@ -777,7 +778,7 @@ def test_reach_way_is_the_planners_reach(settings):
 def _turned_in(point, sit, selector, mallet, velocity, now=0.0):
     """Does the mallet's way from ``mallet`` to ``point`` meet the puck so that it goes into the own goal,
     by the step-by-step reference predictor from the contact (not the shot model's fast one)?"""
-    from air_hockey_agent.core.game.shots import puck_after_contact
+    from air_hockey_agent.core.puck.mallet_impact import puck_after_contact
     from air_hockey_agent.core.game.tactics.ready import way_meeting
     st, ctx = selector.s, _ctx(selector, mallet, now, velocity)
     meeting = way_meeting(np.asarray(point, float), sit.samples_from(now, np.inf), ctx, (st.contact_distance,))

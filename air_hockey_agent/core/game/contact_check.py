@@ -1,7 +1,7 @@
 """How well the tactics' contact law predicted the puck's exit at a robot's mallet contacts in a recorded game
 (ROS-free): `air-hockey game-check`'s contact report.
 
-The tactics aim every Cut, Prepare and Smash with :func:`~air_hockey_agent.core.game.shots.puck_after_contact`
+The tactics aim every Cut, Prepare and Smash with :func:`~air_hockey_agent.core.puck.mallet_impact.puck_after_contact`
 (Routh's impact with the mallet as a moving wall, ``mallet_restitution`` and ``mallet_friction`` of
 ``config/agent.yaml``, neither measured on a real table). Here each contact is measured from the puck's
 positions alone: a straight line fitted to the positions in a window before the contact and another after it
@@ -28,7 +28,7 @@ from typing import Callable
 import numpy as np
 from scipy.interpolate import CubicHermiteSpline
 
-from air_hockey_agent.core.game.shots import puck_after_contact
+from air_hockey_agent.core.puck.mallet_impact import puck_after_contact
 
 TOUCH_MARGIN = 0.005   # [m] the centres closer than the contact distance plus this and half the way the puck
 #                        moved against the mallet since the frame before or until the frame after count as

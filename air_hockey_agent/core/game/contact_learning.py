@@ -1,6 +1,6 @@
 """The mallet's contact law learned online from the robot's own contacts (ROS-free).
 
-The tactics aim every Cut, Prepare and Smash with :func:`~air_hockey_agent.core.game.shots.puck_after_contact`,
+The tactics aim every Cut, Prepare and Smash with :func:`~air_hockey_agent.core.puck.mallet_impact.puck_after_contact`,
 whose restitution and friction (``mallet_restitution`` 0.8, ``mallet_friction`` 0.1 in ``config/agent.yaml``)
 were never measured on a real mallet. Told 0.8 on a simulated table whose mallet returns 0.6, the Cut fell from
 91 to 68 % (README "Tactics and the game"). The tracker learns the rims' law from its impacts; here the robot

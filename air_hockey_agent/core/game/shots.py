@@ -23,6 +23,7 @@ import numpy as np
 
 from air_hockey_agent.core.game.tactics.settings import TacticsSettings
 from air_hockey_agent.core.motion.task_motion import stop_fraction
+from air_hockey_agent.core.puck.mallet_impact import puck_after_contact
 from air_hockey_agent.core.puck.model import PuckModel, PuckParams
 from air_hockey_agent.core.puck.prediction import predict_fast, prepare_prediction
 
@@ -34,41 +35,6 @@ HALVINGS = 2           # step halvings when a secant step leaves the shots that 
 LINE_INSET = 0.01      # [m] the goal line is sampled this far in front of the short rim (in free flight)
 NO_Q = np.zeros(6)
 RECONTACT_STEP = 0.02  # [s] sample spacing of the re-contact check (a meeting lasts >= 0.06 s below 2.7 m/s)
-
-
-def puck_after_hit(v_puck: np.ndarray, v_mallet: np.ndarray, normal: np.ndarray, restitution: float) -> np.ndarray:
-    """Puck velocity [m/s] after a collision with a (much heavier) mallet along the unit centre line
-    ``normal`` (from mallet to puck): the relative normal velocity is reversed and scaled by e."""
-    closing = float((v_puck - v_mallet) @ normal)
-    if closing >= 0.0:
-        return np.asarray(v_puck, float).copy()
-    return v_puck - (1.0 + restitution) * closing * normal
-
-
-def puck_after_contact(puck: np.ndarray, v_mallet: np.ndarray, normal: np.ndarray, restitution: float,
-                       friction: float, radius: float) -> np.ndarray:
-    """Puck state (6: x, y, vx, vy, theta, omega; own frame) right after a contact with a (much heavier)
-    mallet moving at ``v_mallet`` [m/s] along the unit centre line ``normal`` (mallet to puck): Routh's
-    impact (thesis eq. 3.2-3.4, :func:`~air_hockey_agent.core.puck.impact.rim_impact`) in the mallet's
-    frame, the mallet a wall that moves and does not turn. ``friction``: the mallet's Coulomb coefficient
-    [-] (0: :func:`puck_after_hit`, the spin kept); ``radius``: the puck's [m]. A glancing contact loses
-    tangential speed to the spin it gives: against pybullet's contact solver (29 Cut contacts, from the true
-    state before and the measured mallet) the frictionless law missed the velocity after by a median
-    0.124 m/s and 10 deg, this one by 0.066 m/s and 6 deg (README "Tactics and the game"); given pybullet's
-    states at 1 kHz (the mallet's velocity at the contact, the puck's spin) this one misses 93 contacts of
-    two games by a median 0.03 m/s (README "The game")."""
-    from air_hockey_agent.core.puck.impact import rim_impact
-    n = np.asarray(normal, float)
-    b = np.array([n[1], -n[0]])  # the rim frame's tangent: n = Rz(+90 deg) b
-    relative = np.asarray(puck[2:4], float) - v_mallet
-    vb, vn = float(relative @ b), float(relative @ n)
-    after = np.array(puck, float)
-    if vn >= 0.0:
-        return after
-    out = rim_impact(vb, vn, float(puck[5]), radius, restitution, friction)
-    after[2:4] = v_mallet + out.vb * b + out.vn * n
-    after[5] = out.omega
-    return after
 
 
 @dataclass(frozen=True)
