@@ -28,6 +28,10 @@ MOCAP_POSE_PARAM = ParamSpec("mocap_table_pose", list, "table pose in the mocap 
 # config/table.yaml, for the nodes that need them besides TABLE_PARAMS
 MALLET_RADIUS_PARAM = ParamSpec("mallet.radius", float, "[m] mallet radius", 0.005, 0.2)
 PUCK_HEIGHT_PARAM = ParamSpec("puck.height", float, "[m] puck thickness", 0.001, 0.1)
+ROBOTS = ("iiwa_front", "iiwa_back")  # the two robots, each with /<robot>/joint_states
+ROBOT_BASE_PARAMS = tuple(
+    ParamSpec(f"robot_base.{name}", list, f"{name} base in the table frame: x, y, z [m], yaw [rad]", -10.0, 10.0, 4)
+    for name in ROBOTS)
 TRACKER_PARAMS = (
     ParamSpec("frequency", float, "[Hz] model step rate (mocap frame rate)", 1.0, 2000.0),
     ParamSpec("friction_surface", float, "[m/s^2] surface friction deceleration mu_s", 0.0, 10.0),
@@ -160,6 +164,14 @@ TRACKER_PARAMS = (
               "learned)", 0.0, 100.0),
     ParamSpec("acceleration_adaptation.spin_gate", float, "squared distance (1 dof) beyond which a window's spin "
               "is left out", 0.1, 1e6),
+    ParamSpec("mallet_contact.enabled", bool, "the robots' mallets (from their joint states) hit the estimate"),
+    ParamSpec("mallet_contact.restitution", float, "[-] normal restitution of a mallet contact", 0.0, 1.0),
+    ParamSpec("mallet_contact.friction", float, "[-] Coulomb friction of a mallet contact", 0.0, 2.0),
+    ParamSpec("mallet_contact.velocity_noise", float, "[-] std of the velocity and spin after a mallet contact, "
+              "as a fraction of their change", 0.0, 10.0),
+    ParamSpec("mallet_contact.max_age", float, "[s] a mallet position older than this is not used", 0.001, 1.0),
+    ParamSpec("mallet_contact.coast_after", float, "[s] with no frame for this long the estimate is predicted "
+              "on the mallets' clock (a dropout)", 0.001, 10.0),
     ParamSpec("max_consecutive_rejections", int, "rejected frames in a row before re-initialising", 1, 1000),
     ParamSpec("outside_table_margin", float, "[m] drop measurements this far beyond the rims", 0.0, 10.0),
     ParamSpec("max_prediction_gap", float, "[s] gap after which the filter re-initialises", 0.01, 60.0),
@@ -172,7 +184,7 @@ TRACKER_PARAMS = (
     ParamSpec("defend_line_offset", float, "[m] defend line distance from each short rim", 0.0, 1.0),
     MOCAP_POSE_PARAM,
 )
-TRACKER_NODE_PARAMS = TABLE_PARAMS + TRACKER_PARAMS
+TRACKER_NODE_PARAMS = TABLE_PARAMS + (MALLET_RADIUS_PARAM,) + TRACKER_PARAMS + ROBOT_BASE_PARAMS
 
 
 def without_learning(params: dict[str, Any]) -> dict[str, Any]:

@@ -84,6 +84,58 @@ def test_stream_gives_state_and_prediction_and_survives_bad_frames(tracker, rclp
     assert tracker.returncode is None, "tracker died on a malformed frame"
 
 
+def test_a_mallet_hits_the_unseen_puck_in_the_node(tracker, rclpy_node):
+    """With the mallets (``mallet_contact.enabled``, the default): 0.5 s of poses of a resting puck, then none
+    (a dropout) while ``/iiwa_front/joint_states`` (100 Hz; one message lacking joints first) turn the arm's
+    first joint at 2 rad/s so its mallet sweeps through the puck: the node publishes the coasted estimate
+    (FLAG_PREDICTED) with the hit's velocity, across the arc, and survives the bad message."""
+    from air_hockey_msgs.msg import PuckState
+    from geometry_msgs.msg import PoseStamped
+    from sensor_msgs.msg import JointState
+    from air_hockey_agent.core.motion.kinematics import ArmKinematics
+    from air_hockey_agent.paths import model_path
+    kin = ArmKinematics(model_path("iiwa14_striker.urdf"))
+    base = np.array([-1.504, 0.0])  # config/table.yaml robot_base.iiwa_front (yaw 0)
+    home = np.zeros(len(kin.joint_names))
+    home[:7] = [0.0, 0.1943, 0.0, -1.3341, 0.0, 1.2999, 0.0]  # config/sim.yaml home_joint_positions
+    puck = np.array(kin.tip_in_table(home, [*base, -0.07, 0.0]))
+    radius, w = float(np.hypot(*(puck - base))), 2.0
+    start = -(0.03165 + 0.04815 + 0.05) / radius  # [rad] the mallet 5 cm clear of the puck on its arc
+    states = []
+    poses = rclpy_node.create_publisher(PoseStamped, "/optitrack/puck", 10)
+    joints = rclpy_node.create_publisher(JointState, "/iiwa_front/joint_states", 10)
+    rclpy_node.create_subscription(PuckState, "/puck/state", states.append, 200)
+    assert spin_until(rclpy_node, lambda: poses.get_subscription_count() > 0 and joints.get_subscription_count() > 0,
+                      30.0), "tracker not discovered"
+    step = [0]
+
+    def joint_state(t, names, q):
+        msg = JointState(name=list(names), position=[float(v) for v in q])
+        msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(round((t - int(t)) * 1e9))
+        return msg
+
+    def feed() -> bool:
+        k = step[0]
+        step[0] += 1
+        if k < 60:
+            poses.publish(pose(1.0 + k * DT, *puck))
+        elif k == 60:
+            joints.publish(joint_state(1.5, kin.joint_names[:3], home[:3]))
+        else:
+            t = 1.5 + (k - 61) * 0.01
+            q = home.copy()
+            q[0] = start + w * (t - 1.5)
+            joints.publish(joint_state(t, kin.joint_names, q))
+        return any(s.flags & PuckState.FLAG_PREDICTED and math.hypot(s.vx, s.vy) > 1.0 for s in states) or k > 120
+
+    assert spin_until(rclpy_node, feed, 60.0)
+    hit = [s for s in states if s.flags & PuckState.FLAG_PREDICTED and math.hypot(s.vx, s.vy) > 1.0]
+    assert hit, f"no coasted estimate with the hit in {len(states)} states"
+    tangent = np.array([-(puck - base)[1], (puck - base)[0]]) / radius  # the mallet's direction of travel
+    assert np.array([hit[0].vx, hit[0].vy]) @ tangent > 0.9 * w * radius  # at least the mallet's speed
+    assert tracker.returncode is None, "tracker died on a joint state without its joints"
+
+
 def test_services_answer_and_refuse_bad_requests(tracker, rclpy_node):
     from air_hockey_msgs.msg import PuckPhysics
     from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, SetPhysicalParams

@@ -1,6 +1,9 @@
 """``puck_tracker`` node: EKF puck state and prediction from the mocap stream (thesis sec. 4.1.1, 4.2).
 
-Subscribes ``/optitrack/puck`` (geometry_msgs/PoseStamped, mocap frame); publishes ``puck/state``
+Subscribes ``/optitrack/puck`` (geometry_msgs/PoseStamped, mocap frame) and, with
+``mallet_contact.enabled``, ``/<robot>/joint_states`` of both robots (their mallets, by forward kinematics:
+a mallet the estimate meets hits it; in a mocap dropout the estimate coasts on these messages' stamps and
+is published once it holds such a contact); publishes ``puck/state``
 (PuckState, table frame) at every frame, ``puck/prediction`` (PuckPrediction) and ``puck/physics``
 (PuckPhysics, latched: the physics it predicts with, at start and on every change: what it learns online
 of the table, or new parameters; the tactics aim their shots with it). Services (thesis
@@ -16,15 +19,19 @@ import numpy as np
 from air_hockey_msgs.msg import LineCrossing, PuckPhysics, PuckPrediction, PuckState, WallImpact
 from air_hockey_msgs.srv import KalmanStep, ResetFilter, SetNoiseCovariance, SetPhysicalParams
 from geometry_msgs.msg import PoseStamped
+from sensor_msgs.msg import JointState
 from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
-from air_hockey_agent.core.estimation.ekf import ACQUISITION_FRAMES, PuckEKF, check_covariance
+from air_hockey_agent.core.estimation.ekf import ACQUISITION_FRAMES, FLAG_PREDICTED, PuckEKF, check_covariance
 from air_hockey_agent.core.estimation.table_learning import describe_learning
+from air_hockey_agent.core.motion.kinematics import ArmKinematics
 from air_hockey_agent.core.puck.prediction import prepare_prediction
-from air_hockey_agent.nodes.messages import physics_msg, pose_measurement, state_msg, to_seconds, to_stamp
+from air_hockey_agent.nodes.messages import (joint_vector, physics_msg, pose_measurement, state_msg, to_seconds,
+                                             to_stamp)
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
-from air_hockey_agent.tracker_params import PARAM_FILES, TRACKER_NODE_PARAMS
+from air_hockey_agent.paths import model_path
+from air_hockey_agent.tracker_params import PARAM_FILES, ROBOTS, TRACKER_NODE_PARAMS
 
 
 class PuckTrackerNode(AirHockeyNode):
@@ -45,6 +52,11 @@ class PuckTrackerNode(AirHockeyNode):
         self.physics_learned = None  # the tracker's learning counts at the last puck/physics (None: none yet)
         self.publish_physics(0.0)
         self.create_subscription(PoseStamped, "/optitrack/puck", self.on_pose, 10)
+        if self.ekf.mallets is not None:
+            self.kinematics = ArmKinematics(model_path("iiwa14_striker.urdf"))
+            for robot in ROBOTS:
+                self.create_subscription(JointState, f"/{robot}/joint_states",
+                                         lambda msg, r=robot: self.on_joint_state(r, msg), 10)
         self.create_service(SetPhysicalParams, "set_physical_params", self.on_set_physical_params)
         self.create_service(SetNoiseCovariance, "set_noise_covariance", self.on_set_noise)
         self.create_service(KalmanStep, "kalman_step", self.on_kalman_step)
@@ -75,6 +87,24 @@ class PuckTrackerNode(AirHockeyNode):
             if not self.context.ok():
                 return  # shut down while publishing: not the frame's fault
             self.get_logger().error(f"/optitrack/puck: frame dropped ({type(exc).__name__}: {exc})",
+                                    throttle_duration_sec=1.0)
+
+    def on_joint_state(self, robot: str, msg: JointState) -> None:
+        """A robot's joints: its mallet for the filter (table frame, at the message's stamp); in a dropout the
+        estimate coasts to that stamp, published once it met a mallet (:meth:`PuckEKF.coast`)."""
+        try:
+            q = joint_vector(self.kinematics, robot, msg, self.get_logger())
+            if q is None:
+                return
+            t = to_seconds(msg.header.stamp)
+            self.ekf.observe_mallet(robot, t, self.kinematics.tip_in_table(q, self.params[f"robot_base.{robot}"]))
+            if self.ekf.coast(t):
+                self.state_pub.publish(state_msg(self.ekf.x, self.ekf.P, self.ekf.stamp, FLAG_PREDICTED))
+                self.publish_prediction(FLAG_PREDICTED)
+        except Exception as exc:  # a malformed message must never stop the tracker
+            if not self.context.ok():
+                return
+            self.get_logger().error(f"/{robot}/joint_states: message ignored ({type(exc).__name__}: {exc})",
                                     throttle_duration_sec=1.0)
 
     def log_learning(self) -> None:

@@ -3,7 +3,8 @@ nodes, called in a fixed order on the simulated clock, so a seed repeats a game 
 
 ``air-hockey game --in-process`` runs it. Per physics step (1 kHz, ``config/sim.yaml``): the world
 steps; the mallet contacts are counted; on a joint-state tick each robot's arm bookkeeping, tactics and
-the referee get the joints (as ``/<robot>/joint_states``); on a mocap tick the OptiTrack stand-in's
+the referee get the joints and the tracker the mallets (as ``/<robot>/joint_states``; in a mocap dropout
+the tracker coasts on them, :meth:`PuckEKF.coast`); on a mocap tick the OptiTrack stand-in's
 pose goes to the referee and to the tracker, whose prediction becomes each robot's situation (as
 ``puck/prediction``); on its tick the referee applies the rules and puts puck and robots back (as
 through ``table_sim``'s services); on their tick the tactics decide, and a command is planned and
@@ -28,7 +29,7 @@ from typing import Callable
 import numpy as np
 
 from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
-from air_hockey_agent.core.estimation.ekf import FLAG_MEASUREMENT_USED, PuckEKF
+from air_hockey_agent.core.estimation.ekf import FLAG_MEASUREMENT_USED, FLAG_PREDICTED, PuckEKF
 from air_hockey_agent.core.estimation.synthetic import MocapImperfections
 from air_hockey_agent.core.frames import pose_to_measurement, quaternion_from_yaw
 from air_hockey_agent.core.game.referee import RUNNING, Decision, Referee, RefereeSettings
@@ -268,10 +269,11 @@ class InProcessGame:
                 self.players[robot].on_joints(t, values, velocities)
             if self.recorder is not None:
                 self.recorder.on_joints(t, robot, values, velocities)
-            if self.referee is None:
-                continue
             arm = in_order(JOINT_NAMES, values, self.referee_kin.joint_names)
             self.mallets[robot] = self.referee_kin.tip_in_table(arm, self.config.referee[f"robot_base.{robot}"])
+            self.ekf.observe_mallet(robot, t, self.mallets[robot])  # as the tracker node's joint_states
+        if self.ekf.coast(t):  # a dropout, and the estimate met a mallet in it: as the tracker node publishes
+            self._estimate(t, FLAG_PREDICTED)
 
     def _frame(self, stamp: float, pose: tuple) -> None:
         """A mocap frame: (x, y, z) [m] and yaw [rad] in the mocap frame at ``stamp`` [s]."""
@@ -284,8 +286,12 @@ class InProcessGame:
         self._share_physics()
         if self.recorder is not None:
             self.recorder.on_mocap(measurement)
-        if not self.ekf.initialised:
-            return
+        if self.ekf.initialised:
+            self._estimate(stamp, flags)
+
+    def _estimate(self, stamp: float, flags: int) -> None:
+        """The tracker's estimate and prediction after a frame at ``stamp`` [s] (or a coast, :meth:`PuckEKF.coast`)
+        with ``flags`` (``FLAG_*``): each robot's situation (as ``puck/prediction``)."""
         p = self.config.tracker
         prediction = predict_for_agents(self.ekf, p["prediction_horizon"], p["prediction_sample_period"],
                                         p["defend_line_offset"])

@@ -6,15 +6,12 @@ from typing import Any, Iterable
 
 from air_hockey_agent.core.estimation.synthetic import MOCAP_BOUNDS, MOCAP_FIELDS
 from air_hockey_agent.params import ParamSpec, load_node_params
-from air_hockey_agent.tracker_params import MOCAP_POSE_PARAM, PUCK_HEIGHT_PARAM, TABLE_PARAMS
+from air_hockey_agent.tracker_params import (MOCAP_POSE_PARAM, PUCK_HEIGHT_PARAM, ROBOT_BASE_PARAMS, ROBOTS,
+                                             TABLE_PARAMS)
 
 NODE_NAME = "/table_sim"
 PARAM_FILES = ("table.yaml", "sim.yaml")
-ROBOTS = ("iiwa_front", "iiwa_back")
-
-ROBOT_BASE_PARAMS = tuple(  # config/table.yaml
-    ParamSpec(f"robot_base.{name}", list, f"{name} base in the table frame: x, y, z [m], yaw [rad]", -10.0, 10.0, 4)
-    for name in ROBOTS)
+# ROBOTS and ROBOT_BASE_PARAMS (config/table.yaml) are the tracker's too: imported from tracker_params
 
 SIM_PARAMS = TABLE_PARAMS + (
     PUCK_HEIGHT_PARAM,

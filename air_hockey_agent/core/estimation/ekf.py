@@ -18,6 +18,9 @@
   second within ``hand.window``, starts the hand regime (:mod:`.hand_regime`), which follows the puck
   with a hand's accelerations as process noise instead of restarting every few frames, until the motion
   is the model's again.
+* the robots' mallets (``mallet_contact.*``, :mod:`.mallet_contacts`): given their positions
+  (:meth:`PuckEKF.observe_mallet`, from the robots' joint states), a mallet the estimate meets between two
+  frames hits the puck there, seen or not (a puck smashed during a mocap dropout flies on in the estimate).
 * (re)initialisation: a least-squares constant-velocity fit over the collected frames (the first
   ``ACQUISITION_FRAMES`` of a track whose fit agrees with the measurement noise, the rejected run after
   an event; seed 003's batch estimate), with the fit's covariance.
@@ -39,6 +42,8 @@ from typing import Any, Mapping, Sequence
 import numpy as np
 
 from air_hockey_agent.core.estimation.hand_regime import HandRegime, HandSettings
+from air_hockey_agent.core.estimation.mallet_contacts import (MalletContactSettings, MalletTracks, apply_contact,
+                                                              first_contact)
 from air_hockey_agent.core.estimation.marker_offset import centre_of
 from air_hockey_agent.core.estimation.noise_adaptation import MarkerNoiseAdaptation
 from air_hockey_agent.core.estimation.process_noise_adaptation import ProcessNoiseAdaptation
@@ -95,6 +100,7 @@ class FilterSettings:
     imm_contact_spin: float = 10.0        # [rad/s] ... and of its spin change
     marker_offset: tuple[float, float] = (0.0, 0.0)  # [m] mocap pivot off the centre, puck frame (.marker_offset)
     hand: HandSettings = field(default_factory=HandSettings)  # a hand moving the puck (:class:`HandSettings`)
+    mallet: MalletContactSettings = field(default_factory=MalletContactSettings)  # (:mod:`.mallet_contacts`)
 
     @classmethod
     def from_params(cls, params: Mapping[str, Any]) -> "FilterSettings":
@@ -114,7 +120,7 @@ class FilterSettings:
                    imm_contact_spin=params["imm.contact_spin"], q_rest=np.diag(params["process_noise_rest"]),
                    rest_speed=params["regime_rest_speed"],
                    marker_offset=(float(params["marker_offset"][0]), float(params["marker_offset"][1])),
-                   hand=HandSettings.from_params(params))
+                   hand=HandSettings.from_params(params), mallet=MalletContactSettings.from_params(params))
 
     def process_noise(self, state: Sequence[float]) -> np.ndarray:
         """Q per model step for a step from ``state``: ``q_rest`` for a puck slower than ``rest_speed``
@@ -145,6 +151,7 @@ class FilterStats:
     repeated_frames: int = 0
     hand_frames: int = 0         # frames handled in the hand regime (.hand_regime)
     hand_regimes: int = 0        # times the hand regime started
+    mallet_contacts: int = 0     # contacts with a mallet the estimate met (.mallet_contacts)
 
 
 @dataclass
@@ -191,12 +198,20 @@ class PuckEKF:
     _frames_since_impact: int = 1 << 30                # gated frames since the model last put a rim impact
     hand: HandRegime | None = None                     # a hand moving the puck (:mod:`.hand_regime`; None: built
                                                        # from settings.hand after __init__)
+    mallets: MalletTracks | None = None                # the robots' mallets (:mod:`.mallet_contacts`; None: not
+                                                       # used; built after __init__ when settings.mallet.enabled)
+    mallet_met: str | None = None                      # the mallet the estimate met in the last frame or coast
+    _frames_since_mallet: int = 1 << 30                # gated frames since the estimate last met a mallet
+    _coasted_from: float | None = None                 # [s] the stamp before coasting since the last frame
+    _unseen_contact: bool = False                      # a mallet met while coasting since the last frame
 
     def __post_init__(self) -> None:
         """The hand regime from the settings; a subclass with state of its own sets it up too (the generated
         ``__init__`` calls this)."""
         if self.hand is None:
             self.hand = HandRegime(self.settings.hand)
+        if self.mallets is None and self.settings.mallet.enabled:
+            self.mallets = MalletTracks(self.settings.mallet.max_age)
 
     @property
     def in_hand(self) -> bool:
@@ -390,7 +405,8 @@ class PuckEKF:
             return self._process(t, z)
         x, p, stamp, initialised = self.x, self.P, self.stamp, self.initialised  # steps replace, not change, x and P
         flags = self._process(t, z)
-        if not (initialised and self.initialised and stamp is not None) or flags & FLAG_REINITIALISED:
+        if not (initialised and self.initialised and stamp is not None) or flags & FLAG_REINITIALISED \
+                or self.mallet_met is not None:  # the learning's windows hold the table's motion alone
             self.learning.forget()
             return flags
         learned = self.learning.after_frame(self.model, t, z if flags & FLAG_MEASUREMENT_USED else None, x, p, stamp)
@@ -413,6 +429,8 @@ class PuckEKF:
     def _process(self, t: float, z: Sequence[float] | None) -> int:
         self.stats.frames += 1
         self.last_nis = None
+        self.mallet_met = None
+        last, self._coasted_from, self._unseen_contact = self._coasted_from, None, False
         flags = 0
         if z is not None:
             z = np.asarray(z, float)
@@ -429,9 +447,11 @@ class PuckEKF:
         elif t <= self.stamp:
             self.stats.repeated_frames += 1
             return flags
-        if t - self.stamp > self.settings.max_prediction_gap:
+        if t - (self.stamp if last is None else last) > self.settings.max_prediction_gap:
             self.reset()
             return flags | self._collect_for_initialisation(t, z)
+        if self.mallets is not None:
+            self._meet_mallets(t)
         self.predict_to(t)
         if self.in_hand:
             self.stats.hand_frames += 1
@@ -439,6 +459,57 @@ class PuckEKF:
             self.stats.lost_frames += 1
             return flags | FLAG_PREDICTED
         return flags | self._gate_and_update(t, z)
+
+    def observe_mallet(self, name: str, t: float, position: Sequence[float]) -> None:
+        """Mallet ``name``'s centre (x, y) [m, table frame] at ``t`` [s] (:class:`.MalletTracks`); ignored
+        unless ``mallet_contact.enabled``."""
+        if self.mallets is not None:
+            self.mallets.observe(name, t, position)
+
+    def coast(self, t: float) -> bool:
+        """No frame has come for ``mallet_contact.coast_after`` [s] or more before ``t`` [s] (a mocap dropout):
+        predict to ``t`` meeting the mallets (:meth:`_meet_mallets`). Returns whether the estimate holds a
+        mallet contact since the last frame (then it says more than the last frame's prediction, and is
+        worth publishing). Not a frame: no statistics, no learning (a contact ends the learning's windows);
+        ``max_prediction_gap`` still counts from the last frame, and a frame stamped before the coasted
+        stamp comes too late (dropped as repeated). Only with ``mallet_contact.enabled``."""
+        if self.mallets is None or not self.initialised or self.stamp is None or t <= self.stamp:
+            return False
+        since = t - (self.stamp if self._coasted_from is None else self._coasted_from)
+        if since < self.settings.mallet.coast_after or since > self.settings.max_prediction_gap:
+            return False  # a frame may still come; or the next frame restarts the track
+        if self._coasted_from is None:
+            self._coasted_from = self.stamp
+        self.mallet_met = None
+        self._meet_mallets(t)
+        self.predict_to(t)
+        if self.mallet_met is not None:
+            self._unseen_contact = True
+            if self.learning is not None:
+                self.learning.forget()
+        return self._unseen_contact
+
+    def _meet_mallets(self, t: float) -> None:
+        """Before predicting to ``t`` [s]: the first mallet the estimate meets on the way (each in a straight
+        line from ``stamp``), if any, hits the puck there (:func:`.apply_contact`); one contact a frame."""
+        horizon, reach = t - self.stamp, self.model.table.puck_radius + self.settings.mallet.radius
+        met = None
+        for name, position, velocity in self.mallets.at(self.stamp):
+            s = first_contact(self.x[:2], self.x[2:4], position, velocity, reach, horizon)
+            if s is not None and (met is None or s < met[0]):
+                met = (s, name, position + velocity * s, velocity)
+        if met is None:
+            return
+        s, name, position, velocity = met
+        self.predict_to(self.stamp + s)
+        self.x, self.P = apply_contact(self.x, self.P, position, velocity, self.settings.mallet,
+                                       self.model.table.puck_radius)
+        self._state_replaced()
+        self.mallet_met, self._frames_since_mallet = name, 0
+        self.stats.mallet_contacts += 1
+
+    def _state_replaced(self) -> None:
+        """The mean and covariance were set anew (a mallet contact): a filter with state of its own follows."""
 
     def _is_frozen(self, z: np.ndarray) -> bool:
         frozen = self._last_z is not None and math.hypot(*(z[:2] - self._last_z[:2])) < self.settings.frozen_threshold
@@ -493,6 +564,9 @@ class PuckEKF:
         when a block completes."""
         learning = self.process_noise_learning
         since, self._frames_since_impact = self._frames_since_impact, self._frames_since_impact + 1
+        after_mallet, self._frames_since_mallet = self._frames_since_mallet, self._frames_since_mallet + 1
+        if after_mallet < learning.settings.impact_frames:
+            return  # a mallet contact's frames are none of the table's regimes
         x, y, vx, vy = self.x[:4].tolist()
         if since < learning.settings.impact_frames:
             regime = "impact"

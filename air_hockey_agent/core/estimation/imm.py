@@ -62,6 +62,9 @@ class PuckIMM(PuckEKF):
 
     def _restart_angle(self, angle: float) -> None:
         super()._restart_angle(angle)
+        self._state_replaced()
+
+    def _state_replaced(self) -> None:
         probabilities = self.mode_probabilities  # the modes restart from the mixture, their weights stay
         self._restart_modes()
         self.mode_probabilities = probabilities
