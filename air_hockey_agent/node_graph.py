@@ -51,8 +51,8 @@ def agent_nodes(robot: str, use_sim_time: bool, sim_table: bool, variant_file: s
     tracker and the tactics take the simulated table's puck physics (``config/tracker_sim_table.yaml``;
     the tracker's defaults are a real table's), or with ``table_file`` (another simulated table,
     :mod:`air_hockey_agent.sim.table_file`) the tracker's defaults and that file's ``puck_tracker`` section.
-    ``use_sim_time``: on the simulation's /clock. ``variant_file``: a parameter YAML the tactics and the
-    trajectory generator read after their defaults (``air-hockey game --versus``)."""
+    ``use_sim_time``: on the simulation's /clock. ``variant_file``: a parameter YAML the tactics, the
+    trajectory generator and the tracker read after their defaults (``air-hockey game --versus``)."""
     from air_hockey_agent.param_registry import node_parameters
     from air_hockey_agent.tracker_params import SIM_TABLE_FILE
     if robot not in ROBOTS:
@@ -64,7 +64,7 @@ def agent_nodes(robot: str, use_sim_time: bool, sim_table: bool, variant_file: s
         parameters: list[tuple[str, Any]] = [("use_sim_time", True)] if use_sim_time else []
         parameters += [("robot", robot)] if "robot" in declared[node] else []
         files = (physics,) if sim_table and node == "puck_tracker" else ()
-        files += (variant_file,) if variant_file and node != "puck_tracker" else ()
+        files += (variant_file,) if variant_file else ()
         parameters += [("puck_params_file", physics)] if sim_table and node == "tactics" else []
         nodes.append(NodeRun(node, f"/{robot}", files, tuple(parameters)))
     return nodes

@@ -51,7 +51,7 @@ def test_the_sign_test_is_the_exact_binomial_one():
                                           "standard_deviations"}
 
 
-def test_a_variant_sets_tactics_and_trajectory_generator_parameters_only(tmp_path):
+def test_a_variant_sets_tactics_trajectory_generator_and_tracker_parameters_only(tmp_path):
     from air_hockey_agent.agent_params import load_agent_variant, load_agent_params
     from air_hockey_agent.motion_params import load_motion_params
     good = write(tmp_path / "good.yaml", "/**:\n  ros__parameters:\n    hit_speed_fraction: 0.8\n"
@@ -62,8 +62,8 @@ def test_a_variant_sets_tactics_and_trajectory_generator_parameters_only(tmp_pat
     assert {k for k in agent if agent[k] != defaults_agent[k]} == {"hit_speed_fraction"}
     assert {k for k in motion if motion[k] != defaults_motion[k]} == {"planning_delay"}
     for text, words in [
-        ("/**/puck_tracker:\n  ros__parameters:\n    damping: 0.1\n", ["section '/**/puck_tracker'", "sets only"]),
-        ("/**:\n  ros__parameters:\n    damping: 0.1\n", ["'damping' is not a parameter of tactics or"]),
+        ("/**/table_sim:\n  ros__parameters:\n    mocap_rate: 100.0\n", ["section '/**/table_sim'", "sets only"]),
+        ("/**:\n  ros__parameters:\n    mocap_rate: 100.0\n", ["'mocap_rate' is not a parameter of tactics or"]),
         ("/**:\n  ros__parameters:\n    ready_gard_depth: 0.0\n", ["did you mean 'ready_guard_depth'"]),
         ("/**/tactics:\n  ros__parameters:\n    ready_gard_depth: 0.0\n", ["'ready_gard_depth'"]),
         ("/iiwa_front/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.0\n", ["for any namespace"]),
@@ -74,12 +74,12 @@ def test_a_variant_sets_tactics_and_trajectory_generator_parameters_only(tmp_pat
         assert str(bad) in str(err.value) and all(w in str(err.value) for w in words), err.value
 
 
-def test_the_node_graph_gives_the_file_to_one_robots_tactics_and_trajectory_generator():
+def test_the_node_graph_gives_the_file_to_one_robots_agent_nodes():
     from air_hockey_agent.node_graph import game_nodes
     plain = game_nodes(False, 0.0, 4)
     nodes = game_nodes(False, 0.0, 4, versus=("iiwa_back", "/v.yaml"))
     with_file = {n.label for n in nodes if "/v.yaml" in n.params_files}
-    assert with_file == {"iiwa_back/tactics", "iiwa_back/trajectory_generator"}
+    assert with_file == {"iiwa_back/tactics", "iiwa_back/trajectory_generator", "iiwa_back/puck_tracker"}
     for node, before in zip(nodes, plain):  # the file comes after the node's own files; nothing else changes
         assert node.params_files[:len(before.params_files)] == before.params_files
         assert node.parameters == before.parameters
@@ -99,6 +99,20 @@ def test_in_process_the_variant_reaches_one_robot_only_and_defaults_change_nothi
         assert back.selector.s.ready_guard_depth == 0.0 and front.selector.s.ready_guard_depth > 0.0
         assert back.arm.planning_delay == 0.02 and front.arm.planning_delay != 0.02
         assert back.agent["puck_params_file"] == front.agent["puck_params_file"]  # the sim table's physics
+    finally:
+        game.close()
+    assert len(game.trackers) == 1  # no puck_tracker parameter: one tracker for both, as before
+    tracked = write(tmp_path / "t.yaml", "/**/puck_tracker:\n  ros__parameters:\n    mallet_contact:\n"
+                                         "      enabled: false\n")
+    game = InProcessGame(3, versus=("iiwa_back", str(tracked)))
+    try:  # the variant's tracker is that robot's alone, as each robot's puck_tracker node in the node graph
+        (shared, own) = game.trackers
+        assert shared.robots == ("iiwa_front",) and own.robots == ("iiwa_back",) and shared.ekf is game.ekf
+        assert own.ekf.mallets is None and shared.ekf.mallets is not None
+        game.run(4.0)
+        assert own.ekf.stats.frames == shared.ekf.stats.frames > 400  # both see every frame
+        assert own.ekf.stats.mallet_contacts == 0 < shared.ekf.stats.mallet_contacts
+        assert game.players["iiwa_back"].situation.t == own.ekf.stamp
     finally:
         game.close()
     same = write(tmp_path / "same.yaml", "/**/tactics:\n  ros__parameters:\n    ready_guard_depth: 0.24\n")
@@ -150,11 +164,11 @@ def test_a_bad_variant_file_is_a_one_line_error(tmp_path, text, words):
     assert str(path) in out.stderr and all(w in out.stderr for w in words), out.stderr
 
 
-def test_the_strategy_tests_workers_give_the_file_to_the_agents_two_nodes():
+def test_the_strategy_tests_workers_give_the_file_to_the_agents_nodes():
     from air_hockey_agent.tools.strategy_test import worker_processes
     specs = {spec.label: spec.command for spec in worker_processes([("guard", 0)], 3, "/v.yaml")}
     with_file = {label for label, command in specs.items() if "/v.yaml" in command}
-    assert with_file == {"tactics", "trajectory_generator"}
+    assert with_file == {"tactics", "trajectory_generator", "puck_tracker"}
     assert not any("/v.yaml" in c for c in (s.command for s in worker_processes([("guard", 0)], 3))), \
         "no variant: no file"
 

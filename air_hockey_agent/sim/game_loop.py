@@ -52,7 +52,8 @@ class GameConfig:
     """The parameters of every part, as the node graph loads them (``air-hockey game`` passes the same
     overrides: seed, the referee's unattended restart, the simulated table's puck physics). ``variants``:
     robot -> its own (agent, motion) parameters (``--versus``); the other robots play with ``agent`` and
-    ``motion``."""
+    ``motion``. ``trackers``: robot -> its own tracker parameters, when its variant file sets any (in the
+    node graph each robot has its tracker); the other robots share one tracker with ``tracker``."""
 
     sim: dict
     tracker: dict
@@ -60,13 +61,15 @@ class GameConfig:
     motion: dict
     referee: dict
     variants: dict = field(default_factory=dict)
+    trackers: dict = field(default_factory=dict)
 
     @classmethod
     def load(cls, seed: int, versus: tuple[str, str] | dict[str, str] | None = None,
              table: str = "") -> "GameConfig":
         """The defaults; with ``versus`` (robot, parameter YAML), or a dict of such robot -> file, that robot's
         agent reads the file's tactics and trajectory_generator parameters too
-        (:func:`~air_hockey_agent.agent_params.load_agent_variant`); with ``table`` (a table file,
+        (:func:`~air_hockey_agent.agent_params.load_agent_variant`), and its tracker the file's puck_tracker
+        parameters; with ``table`` (a table file,
         :mod:`air_hockey_agent.sim.table_file`) on that simulated table."""
         from air_hockey_agent.agent_params import load_agent_params, load_agent_variant
         from air_hockey_agent.motion_params import load_motion_params
@@ -81,15 +84,28 @@ class GameConfig:
                                       referee_params.REFEREE_PARAMS),
                    "seed": seed, "restart_after_fault": True, "sim": True}
         agent = {**load_agent_params(), "puck_params_file": str(physics)}
-        variants = {}
+        variants, trackers, tracker = {}, {}, load_tracker_params([physics])
         for robot, path in (versus.items() if isinstance(versus, dict) else [versus] if versus else []):
             variant_agent, variant_motion = load_agent_variant(Path(path))
             variants[robot] = ({**variant_agent, "puck_params_file": str(physics)}, variant_motion)
-        return cls(sim, load_tracker_params([physics]), agent, load_motion_params(), referee, variants)
+            variant_tracker = load_tracker_params([physics, Path(path)])
+            if variant_tracker != tracker:
+                trackers[robot] = variant_tracker
+        return cls(sim, tracker, agent, load_motion_params(), referee, variants, trackers)
 
     def agent_for(self, robot: str) -> tuple[dict, dict]:
         """``robot``'s (agent, motion) parameters."""
         return self.variants.get(robot, (self.agent, self.motion))
+
+
+@dataclass
+class Tracker:
+    """One tracker of the game (as a ``puck_tracker`` node), its parameters and the robots that read it."""
+
+    ekf: PuckEKF
+    params: dict
+    robots: tuple[str, ...]
+    learned: tuple[int, int] | None = None  # the learning's counts at the last share of its physics
 
 
 class Player:
@@ -163,7 +179,10 @@ class InProcessGame:
         self.runner = SimRunner(self.world, c.sim["mocap_rate"], MocapImperfections.from_params(c.sim),
                                 np.random.default_rng(seed), c.sim["clock_rate"], c.sim["joint_state_rate"],
                                 c.sim["mocap_table_pose"])
-        self.ekf = PuckEKF.from_params(c.tracker)
+        self.ekf = PuckEKF.from_params(c.tracker)  # the robots' shared tracker (and the recorder's)
+        self.trackers = [Tracker(self.ekf, c.tracker, tuple(r for r in robots if r not in c.trackers))]
+        self.trackers += [Tracker(PuckEKF.from_params(c.trackers[r]), c.trackers[r], (r,)) for r in robots
+                          if r in c.trackers]
         self.players = {robot: Player(robot, c, log) for robot in robots}
         self.referee = Referee(RefereeSettings.from_params(c.referee), np.random.default_rng(seed)) if refereed else None
         self.referee_tick = Every(c.referee["rate"])
@@ -171,18 +190,19 @@ class InProcessGame:
         self.mallets: dict[str, tuple[float, float]] = {}
         self.board = Scoreboard(ROBOTS)
         self.recorder = None  # a GameRecorder (sim/game_record.py) to record the game
-        self._learned: tuple[int, int] | None = None
         self._share_physics()
 
     def _share_physics(self) -> None:
         """As the node graph's ``puck/physics``: each robot's tactics aim with the tracker's physics
         (``physics_from_tracker``), at the start and whenever the tracker has learned more of the table."""
-        if self.ekf.learned == self._learned:
-            return
-        self._learned = self.ekf.learned
-        for robot, player in self.players.items():
-            if player.agent["physics_from_tracker"]:
-                player.selector.shots.use_physics(own_frame_physics(self.ekf.model.params, robot))
+        for tracker in self.trackers:
+            if tracker.ekf.learned == tracker.learned:
+                continue
+            tracker.learned = tracker.ekf.learned
+            for robot in tracker.robots:
+                if self.players[robot].agent["physics_from_tracker"]:
+                    self.players[robot].selector.shots.use_physics(own_frame_physics(tracker.ekf.model.params,
+                                                                                      robot))
 
     def close(self) -> None:
         self.world.close()
@@ -271,9 +291,11 @@ class InProcessGame:
                 self.recorder.on_joints(t, robot, values, velocities)
             arm = in_order(JOINT_NAMES, values, self.referee_kin.joint_names)
             self.mallets[robot] = self.referee_kin.tip_in_table(arm, self.config.referee[f"robot_base.{robot}"])
-            self.ekf.observe_mallet(robot, t, self.mallets[robot])  # as the tracker node's joint_states
-        if self.ekf.coast(t):  # a dropout, and the estimate met a mallet in it: as the tracker node publishes
-            self._estimate(t, FLAG_PREDICTED)
+            for tracker in self.trackers:  # as the tracker nodes' joint_states
+                tracker.ekf.observe_mallet(robot, t, self.mallets[robot])
+        for tracker in self.trackers:
+            if tracker.ekf.coast(t):  # a dropout, and the estimate met a mallet in it: as the node publishes
+                self._estimate(tracker, t, FLAG_PREDICTED)
 
     def _frame(self, stamp: float, pose: tuple) -> None:
         """A mocap frame: (x, y, z) [m] and yaw [rad] in the mocap frame at ``stamp`` [s]."""
@@ -282,25 +304,27 @@ class InProcessGame:
                                           "optitrack")
         if measurement is not None and self.referee is not None:
             self.referee.observe_puck(stamp, measurement[0], measurement[1])
-        flags = self.ekf.process(stamp, measurement)
+        flags = [tracker.ekf.process(stamp, measurement) for tracker in self.trackers]
         self._share_physics()
         if self.recorder is not None:
             self.recorder.on_mocap(measurement)
-        if self.ekf.initialised:
-            self._estimate(stamp, flags)
+        for tracker, tracker_flags in zip(self.trackers, flags):
+            if tracker.ekf.initialised:
+                self._estimate(tracker, stamp, tracker_flags)
 
-    def _estimate(self, stamp: float, flags: int) -> None:
-        """The tracker's estimate and prediction after a frame at ``stamp`` [s] (or a coast, :meth:`PuckEKF.coast`)
-        with ``flags`` (``FLAG_*``): each robot's situation (as ``puck/prediction``)."""
-        p = self.config.tracker
-        prediction = predict_for_agents(self.ekf, p["prediction_horizon"], p["prediction_sample_period"],
+    def _estimate(self, tracker: Tracker, stamp: float, flags: int) -> None:
+        """A tracker's estimate and prediction after a frame at ``stamp`` [s] (or a coast, :meth:`PuckEKF.coast`)
+        with ``flags`` (``FLAG_*``): its robots' situations (as ``puck/prediction``)."""
+        ekf, p = tracker.ekf, tracker.params
+        prediction = predict_for_agents(ekf, p["prediction_horizon"], p["prediction_sample_period"],
                                         p["defend_line_offset"])
-        if self.recorder is not None:
-            self.recorder.on_estimate(self.ekf, flags, prediction)
-        for robot, player in self.players.items():
-            player.situation = situation_from_prediction(robot, self.ekf.x, prediction, self.ekf.P)
+        if self.recorder is not None and ekf is self.ekf:
+            self.recorder.on_estimate(ekf, flags, prediction)
+        for robot in tracker.robots:
+            player = self.players[robot]
+            player.situation = situation_from_prediction(robot, ekf.x, prediction, ekf.P)
             if flags & FLAG_MEASUREMENT_USED:
-                player.selector.observe_puck(stamp, to_own_frame(self.ekf.x, robot))
+                player.selector.observe_puck(stamp, to_own_frame(ekf.x, robot))
 
     def _act(self, decision: Decision) -> None:
         """What table_sim does for the referee: robots home, the puck put down at rest."""

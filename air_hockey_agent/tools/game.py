@@ -14,8 +14,8 @@ the same agent, simulation, tracker and referee code called in a fixed order), s
 game exactly, and faster; nothing is published, and ``--record`` writes the same topics as the node graph's
 (:mod:`air_hockey_agent.sim.game_record`).
 
-``--versus FILE`` plays head to head: one robot's tactics and trajectory generator also read FILE (a ROS 2
-parameter YAML), the other robot plays the defaults; with ``--in-process --games N`` each seed is played
+``--versus FILE`` plays head to head: one robot's tactics, trajectory generator and tracker also read FILE (a
+ROS 2 parameter YAML), the other robot plays the defaults; with ``--in-process --games N`` each seed is played
 twice, the variant once on each side, and the summary adds the goals, hits and games won of each agent and
 a sign test of the goals (:mod:`air_hockey_agent.core.game.versus`).
 
@@ -105,10 +105,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                              "records it; with --games, OUT is a directory of one bag per game, seed_<SEED>; "
                              "no --markers, --log or --domain-id)")
     parser.add_argument("--versus", type=Path, default=None, metavar="FILE",
-                        help="head to head: one robot's tactics and trajectory_generator also read this ROS 2 "
-                             "parameter YAML (only their parameters), the other plays the defaults; the variant "
-                             f"plays {ROBOTS[0]}; with --games (even) each seed is played twice, the variant once "
-                             "on each side; the summary adds each agent's goals, hits and games won and a sign test "
+                        help="head to head: one robot's tactics, trajectory_generator and puck_tracker also read "
+                             "this ROS 2 parameter YAML (only their parameters), the other plays the defaults; the "
+                             f"variant plays {ROBOTS[0]}; with --games (even) each seed is played twice, the variant "
+                             "once on each side; the summary adds each agent's goals, hits and games won and a sign test "
                              "of the goals")
     add_table_option(parser, "both agents' trackers and tactics")
     parser.set_defaults(run=run)

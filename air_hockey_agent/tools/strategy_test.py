@@ -72,14 +72,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="play the trials without ROS (the same agent code; repeats exactly; no --log or "
                              "--domain-id)")
     parser.add_argument("--params-file", type=Path, default=None, metavar="FILE",
-                        help="the agent's tactics and trajectory_generator also read this ROS 2 parameter YAML "
-                             "(only their parameters; the trials stay the defaults': a variant meets the same pucks)")
+                        help="the agent's tactics, trajectory_generator and puck_tracker also read this ROS 2 "
+                             "parameter YAML (only their parameters; the trials stay the defaults': a variant meets "
+                             "the same pucks)")
     parser.add_argument("--defended", action="store_true",
                         help=f"{OPPONENT} runs the agent (the defaults): it waits at its ready point until the tested "
                              "robot's hit, then defends (default: it holds its home pose, as in the thesis)")
     parser.add_argument("--opponent-params", type=Path, default=None, metavar="FILE",
-                        help="with --defended: the opponent's tactics and trajectory_generator also read this ROS 2 "
-                             "parameter YAML (as --params-file for the tested robot)")
+                        help="with --defended: the opponent's tactics, trajectory_generator and puck_tracker also "
+                             "read this ROS 2 parameter YAML (as --params-file for the tested robot)")
     add_table_option(parser, "the agent's tracker and tactics", "; the strategy test FILE's strategy_test section")
     parser.set_defaults(run=run)
 
