@@ -143,8 +143,9 @@ VARIANT_NODES = ("tactics", "trajectory_generator", "puck_tracker")
 def load_agent_variant(path: Path, flag: str = "--versus") -> tuple[dict[str, Any], dict[str, Any]]:
     """One robot's agent variant (``air-hockey game --versus``, ``strategy-test --params-file``: ``flag``): the
     tactics' and the trajectory generator's parameters with the ROS 2 parameter YAML ``path`` over their
-    defaults (its puck_tracker parameters, also allowed, are the game's: each robot's tracker reads them). Raises :class:`~air_hockey_agent.params.ParameterFileError` (a parameter of another node, a
-    misspelled one) or ``ParameterValueError`` naming the file and the parameter."""
+    defaults (its puck_tracker parameters, also allowed, are the game's: each robot's tracker reads them).
+    Raises :class:`~air_hockey_agent.params.ParameterFileError` (a parameter of another node, a misspelled
+    one) or ``ParameterValueError`` naming the file and the parameter."""
     from air_hockey_agent.motion_params import load_motion_params
     from air_hockey_agent.params import check_only_nodes
     check_only_nodes(path, VARIANT_NODES, flag)

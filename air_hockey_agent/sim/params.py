@@ -9,6 +9,8 @@ from air_hockey_agent.params import ParamSpec, load_node_params
 from air_hockey_agent.tracker_params import (MOCAP_POSE_PARAM, PUCK_HEIGHT_PARAM, ROBOT_BASE_PARAMS, ROBOTS,
                                              TABLE_PARAMS)
 
+__all__ = ["NODE_NAME", "PARAM_FILES", "ROBOTS", "ROBOT_BASE_PARAMS", "SIM_PARAMS", "load_sim_params"]
+
 NODE_NAME = "/table_sim"
 PARAM_FILES = ("table.yaml", "sim.yaml")
 # ROBOTS and ROBOT_BASE_PARAMS (config/table.yaml) are the tracker's too: imported from tracker_params

@@ -108,8 +108,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         help="head to head: one robot's tactics, trajectory_generator and puck_tracker also read "
                              "this ROS 2 parameter YAML (only their parameters), the other plays the defaults; the "
                              f"variant plays {ROBOTS[0]}; with --games (even) each seed is played twice, the variant "
-                             "once on each side; the summary adds each agent's goals, hits and games won and a sign test "
-                             "of the goals")
+                             "once on each side; the summary adds each agent's goals, hits and games won and a sign "
+                             "test of the goals")
     add_table_option(parser, "both agents' trackers and tactics")
     parser.set_defaults(run=run)
 

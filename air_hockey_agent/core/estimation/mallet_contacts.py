@@ -19,7 +19,7 @@ moment the estimate meets a mallet: seed 004's mallet-contact mode with the mall
   (the frictionless law's, ``I - (1 + e) n n^T``) plus ``velocity_noise`` of the velocity and spin change
   as std: the contact time, the mallet's finite-difference velocity and the law are all approximate.
 
-The earlier stack (REFERENCE_FACTS "S: mallet collision") used the opponent's mallet alone, ignored the
+The earlier stack (REFERENCE_FACTS 1.3, "S: mallet collision") used the opponent's mallet alone, ignored the
 mallet's motion in the time of impact and left the covariance as it was.
 """
 from __future__ import annotations
