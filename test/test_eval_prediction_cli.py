@@ -204,6 +204,17 @@ def test_no_usable_bag_prints_its_errors_and_no_report(bags):
                 for line in out.stderr.strip().splitlines()] == [True, True], out.stderr
 
 
+def test_a_plot_directory_made_for_nothing_is_removed(bags, tmp_path):
+    """--plot makes its directory before any bag is read (to fail fast); with no bag read (or an interrupt)
+    the empty directory it made goes again, while one that was there stays."""
+    made, there = tmp_path / "new" / "plots", tmp_path / "there"
+    there.mkdir()
+    for plots in (made, there):
+        out = cli("eval-prediction", bags / "a", "--topic", "/nothing", "--plot", plots)
+        assert out.returncode == 2 and out.stdout == ""
+    assert not made.parent.exists() and there.is_dir()
+
+
 def test_params_file_changes_the_model_and_the_error(bags, tmp_path):
     wrong = tmp_path / "wrong.yaml"
     wrong.write_text("/**/puck_tracker:\n  ros__parameters:\n    restitution: 0.6\n")

@@ -95,6 +95,17 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    made = [] if args.plot is None else [d for d in (args.plot, *args.plot.parents) if not d.exists()]
+    try:
+        return _run(args)
+    finally:
+        for directory in made:  # made for --plot: no bag read, or interrupted, leaves no empty directory behind
+            if not directory.is_dir() or any(directory.iterdir()):
+                break
+            directory.rmdir()
+
+
+def _run(args: argparse.Namespace) -> int:
     loaded = _load_parameters(args)
     if loaded is None:
         return 2
