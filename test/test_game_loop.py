@@ -241,11 +241,12 @@ def test_a_goal_names_the_mallet_that_last_touched_the_puck_and_its_tactic_then(
     first goal of the first of a few seeds that score within 20 s (goals are rare in self-play; at a2ac083
     seed 36 scored after 5.3 s, the only one of seeds 0-17, 21 and 36 within 20 s but seed 0 at 19.8 s;
     seed 14 did at ff23a29; since hits move with the puck, 2b77fc6, of seeds 0-62 and 174 only 30 at 2.1 s,
-    18 at 10.0 s, 47 at 14.8 s and 58 at 16.5 s; since the tracker knows the mallets, of seeds 0-59 2 at
-    2.1 s, 8 at 4.0 s, 32 at 4.7 s and 40 at 11.3 s) is attributed to the last contact before it."""
+    18 at 10.0 s, 47 at 14.8 s and 58 at 16.5 s; since the tracker knows the mallets, of seeds 0-59 16 at
+    2.1 s, 54 at 3.8 s, 36 at 6.2 s, 55 at 6.8 s, 6, 28 and 58 later) is attributed to the last contact
+    before it."""
     from air_hockey_agent.core.game.tactics.base import NAMES
     from air_hockey_agent.sim.game_loop import InProcessGame
-    for seed in (2, 8, 32, 40):
+    for seed in (16, 54, 36, 55):
         game = InProcessGame(seed)
         contacts, tactics, step = [], [], game.step
 

@@ -84,6 +84,9 @@ def test_the_tracks_difference_the_mallets_and_forget_stale_ones():
     assert np.allclose(tracks.at(0.5)[0][1], [0.3, 0.3])
     tracks.observe("a", 0.51, (np.nan, 0.0))  # not finite: ignored
     assert np.allclose(tracks.at(0.51)[0][1], [0.3, 0.3])
+    tracks.observe("a", 0.52, (0.3, 0.3), velocity=(-1.0, 0.5))  # from the joint velocities: taken as given
+    ((_, p, v),) = tracks.at(0.53)
+    assert np.allclose(v, [-1.0, 0.5]) and np.allclose(p, [0.29, 0.305])
 
 
 def _unseen_hit(settings: FilterSettings, rng_seed: int = 0):

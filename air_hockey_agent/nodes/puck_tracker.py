@@ -25,10 +25,9 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 from air_hockey_agent.core.estimation.agent_prediction import predict_for_agents
 from air_hockey_agent.core.estimation.ekf import ACQUISITION_FRAMES, FLAG_PREDICTED, PuckEKF, check_covariance
 from air_hockey_agent.core.estimation.table_learning import describe_learning
-from air_hockey_agent.core.motion.kinematics import ArmKinematics
+from air_hockey_agent.core.motion.kinematics import TableMallets
 from air_hockey_agent.core.puck.prediction import prepare_prediction
-from air_hockey_agent.nodes.messages import (joint_vector, physics_msg, pose_measurement, state_msg, to_seconds,
-                                             to_stamp)
+from air_hockey_agent.nodes.messages import physics_msg, pose_measurement, state_msg, to_seconds, to_stamp
 from air_hockey_agent.nodes.runtime import AirHockeyNode, run
 from air_hockey_agent.paths import model_path
 from air_hockey_agent.tracker_params import PARAM_FILES, ROBOTS, TRACKER_NODE_PARAMS
@@ -53,7 +52,8 @@ class PuckTrackerNode(AirHockeyNode):
         self.publish_physics(0.0)
         self.create_subscription(PoseStamped, "/optitrack/puck", self.on_pose, 10)
         if self.ekf.mallets is not None:
-            self.kinematics = ArmKinematics(model_path("iiwa14_striker.urdf"))
+            self.mallets = TableMallets(model_path("iiwa14_striker.urdf"),
+                                        {r: self.params[f"robot_base.{r}"] for r in ROBOTS})
             for robot in ROBOTS:
                 self.create_subscription(JointState, f"/{robot}/joint_states",
                                          lambda msg, r=robot: self.on_joint_state(r, msg), 10)
@@ -90,14 +90,17 @@ class PuckTrackerNode(AirHockeyNode):
                                     throttle_duration_sec=1.0)
 
     def on_joint_state(self, robot: str, msg: JointState) -> None:
-        """A robot's joints: its mallet for the filter (table frame, at the message's stamp); in a dropout the
-        estimate coasts to that stamp, published once it met a mallet (:meth:`PuckEKF.coast`)."""
+        """A robot's joints: its mallet for the filter (table frame, at the message's stamp; its velocity from
+        the joint velocities when the message has them); in a dropout the estimate coasts to that stamp,
+        published once it met a mallet (:meth:`PuckEKF.coast`)."""
         try:
-            q = joint_vector(self.kinematics, robot, msg, self.get_logger())
-            if q is None:
+            motion = self.mallets.motion(robot, msg.name, msg.position, msg.velocity)
+            if motion is None:
+                self.get_logger().warn(f"/{robot}/joint_states: missing joints of "
+                                       f"{self.mallets.kinematics[robot].joint_names}", throttle_duration_sec=5.0)
                 return
             t = to_seconds(msg.header.stamp)
-            self.ekf.observe_mallet(robot, t, self.kinematics.tip_in_table(q, self.params[f"robot_base.{robot}"]))
+            self.ekf.observe_mallet(robot, t, *motion)
             if self.ekf.coast(t):
                 self.state_pub.publish(state_msg(self.ekf.x, self.ekf.P, self.ekf.stamp, FLAG_PREDICTED))
                 self.publish_prediction(FLAG_PREDICTED)

@@ -38,7 +38,7 @@ from air_hockey_agent.core.game.situation import (Situation, own_frame_physics, 
                                                   to_own_frame)
 from air_hockey_agent.core.game.tactics.base import NAMES
 from air_hockey_agent.core.motion.arm_commander import ArmCommander
-from air_hockey_agent.core.motion.kinematics import ArmKinematics, in_order
+from air_hockey_agent.core.motion.kinematics import ArmKinematics, TableMallets, in_order
 from air_hockey_agent.core.motion.planner import Command
 from air_hockey_agent.sim.params import ROBOTS
 from air_hockey_agent.sim.runner import Every, SimRunner
@@ -187,6 +187,8 @@ class InProcessGame:
         self.referee = Referee(RefereeSettings.from_params(c.referee), np.random.default_rng(seed)) if refereed else None
         self.referee_tick = Every(c.referee["rate"])
         self.referee_kin = ArmKinematics(model_path("iiwa14_striker.urdf"))
+        self.tracker_mallets = TableMallets(model_path("iiwa14_striker.urdf"),
+                                            {r: c.tracker[f"robot_base.{r}"] for r in ROBOTS})
         self.mallets: dict[str, tuple[float, float]] = {}
         self.board = Scoreboard(ROBOTS)
         self.recorder = None  # a GameRecorder (sim/game_record.py) to record the game
@@ -291,8 +293,9 @@ class InProcessGame:
                 self.recorder.on_joints(t, robot, values, velocities)
             arm = in_order(JOINT_NAMES, values, self.referee_kin.joint_names)
             self.mallets[robot] = self.referee_kin.tip_in_table(arm, self.config.referee[f"robot_base.{robot}"])
+            position, velocity = self.tracker_mallets.motion(robot, JOINT_NAMES, values, velocities)
             for tracker in self.trackers:  # as the tracker nodes' joint_states
-                tracker.ekf.observe_mallet(robot, t, self.mallets[robot])
+                tracker.ekf.observe_mallet(robot, t, position, velocity)
         for tracker in self.trackers:
             if tracker.ekf.coast(t):  # a dropout, and the estimate met a mallet in it: as the node publishes
                 self._estimate(tracker, t, FLAG_PREDICTED)

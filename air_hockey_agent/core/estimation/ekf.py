@@ -460,11 +460,12 @@ class PuckEKF:
             return flags | FLAG_PREDICTED
         return flags | self._gate_and_update(t, z)
 
-    def observe_mallet(self, name: str, t: float, position: Sequence[float]) -> None:
-        """Mallet ``name``'s centre (x, y) [m, table frame] at ``t`` [s] (:class:`.MalletTracks`); ignored
-        unless ``mallet_contact.enabled``."""
+    def observe_mallet(self, name: str, t: float, position: Sequence[float],
+                       velocity: Sequence[float] | None = None) -> None:
+        """Mallet ``name``'s centre (x, y) [m, table frame] at ``t`` [s] and its velocity [m/s] if known
+        (:class:`.MalletTracks`); ignored unless ``mallet_contact.enabled``."""
         if self.mallets is not None:
-            self.mallets.observe(name, t, position)
+            self.mallets.observe(name, t, position, velocity)
 
     def coast(self, t: float) -> bool:
         """No frame has come for ``mallet_contact.coast_after`` [s] or more before ``t`` [s] (a mocap dropout):

@@ -9,8 +9,9 @@ the traced goals of a shot that crossed unseen). The mallets' positions are know
 from the robots' joint states (forward kinematics, table frame), so the tracker can apply the contact the
 moment the estimate meets a mallet: seed 004's mallet-contact mode with the mallet's state known.
 
-* each mallet: its last position and a velocity by finite difference from the sample before
-  (:class:`MalletTracks`), extrapolated in a straight line; a sample older than ``max_age`` is not used.
+* each mallet: its last position and velocity (from the joint velocities, or else by finite difference
+  from the sample before; :class:`MalletTracks`), extrapolated in a straight line; a sample older than
+  ``max_age`` is not used.
 * the first contact within a frame (:func:`first_contact`): puck and mallet each in a straight line over
   the frame, their centres at the sum of the radii and closing.
 * the contact (:func:`apply_contact`): the law the tactics aim with
@@ -62,21 +63,22 @@ class MalletTracks:
         self.max_age = max_age
         self._last: dict[str, tuple[float, np.ndarray, np.ndarray]] = {}
 
-    def observe(self, name: str, t: float, position: Sequence[float]) -> None:
-        """Mallet ``name``'s centre (x, y) [m] at ``t`` [s]; its velocity is the difference from the sample
-        before when that one is at most ``max_age`` older (else 0: a first sample, or after a pause). A
-        sample older than the last one is ignored unless time jumped back (a simulation restart)."""
+    def observe(self, name: str, t: float, position: Sequence[float],
+                velocity: Sequence[float] | None = None) -> None:
+        """Mallet ``name``'s centre (x, y) [m] at ``t`` [s] and its ``velocity`` [m/s] (from the joint
+        velocities); without one (a joint state without velocities), the difference from the sample before
+        when that one is at most ``max_age`` older (else 0: a first sample, or after a pause). A sample older
+        than the last one is ignored unless time jumped back (a simulation restart)."""
         p = np.array(position[:2], float)
-        if not np.all(np.isfinite(p)):
+        v = None if velocity is None else np.array(velocity[:2], float)
+        if not np.all(np.isfinite(p)) or (v is not None and not np.all(np.isfinite(v))):
             return
         last = self._last.get(name)
-        v = np.zeros(2)
-        if last is not None:
-            dt = t - last[0]
-            if dt <= 0.0 and dt > -self.max_age:
-                return
-            if 0.0 < dt <= self.max_age:
-                v = (p - last[1]) / dt
+        if last is not None and -self.max_age < t - last[0] <= 0.0:
+            return
+        if v is None:
+            dt = np.inf if last is None else t - last[0]
+            v = (p - last[1]) / dt if 0.0 < dt <= self.max_age else np.zeros(2)
         self._last[name] = (t, p, v)
 
     def at(self, t: float) -> list[tuple[str, np.ndarray, np.ndarray]]:

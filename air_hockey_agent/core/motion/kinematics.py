@@ -110,3 +110,23 @@ class MalletKinematics:
         ``q`` [rad] and velocities ``dq`` [rad/s]."""
         p, jac = self.position_and_jacobian(q)
         return p[:2].copy(), (jac @ dq)[:2]
+
+
+class TableMallets:
+    """The robots' mallets as the tracker sees them: each one's centre (x, y) [m] and velocity [m/s] in the
+    table frame from its joint states (:class:`MalletKinematics` at ``bases``: robot -> base pose x, y, z [m],
+    yaw [rad] in the table frame, ``robot_base`` of config/table.yaml)."""
+
+    def __init__(self, urdf_path: str, bases: Mapping[str, Sequence[float]]) -> None:
+        self.kinematics = {robot: MalletKinematics(urdf_path, base) for robot, base in bases.items()}
+
+    def motion(self, robot: str, names: Sequence[str], positions: Sequence[float],
+               velocities: Sequence[float]) -> tuple[np.ndarray, np.ndarray | None] | None:
+        """``robot``'s mallet (position, velocity) from a joint state (names, positions, velocities): the
+        velocity None when the state has none for an arm joint; None when it lacks an arm joint's position."""
+        kin = self.kinematics[robot]
+        q = in_order(names, positions, kin.joint_names)
+        if q is None:
+            return None
+        dq = in_order(names, velocities, kin.joint_names)
+        return (kin.position(q)[:2], None) if dq is None else kin.planar_motion(q, dq)
