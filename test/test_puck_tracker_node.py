@@ -109,8 +109,8 @@ def test_a_mallet_hits_the_unseen_puck_in_the_node(tracker, rclpy_node):
                       30.0), "tracker not discovered"
     step = [0]
 
-    def joint_state(t, names, q):
-        msg = JointState(name=list(names), position=[float(v) for v in q])
+    def joint_state(t, names, q, dq=()):
+        msg = JointState(name=list(names), position=[float(v) for v in q], velocity=[float(v) for v in dq])
         msg.header.stamp.sec, msg.header.stamp.nanosec = int(t), int(round((t - int(t)) * 1e9))
         return msg
 
@@ -123,9 +123,9 @@ def test_a_mallet_hits_the_unseen_puck_in_the_node(tracker, rclpy_node):
             joints.publish(joint_state(1.5, kin.joint_names[:3], home[:3]))
         else:
             t = 1.5 + (k - 61) * 0.01
-            q = home.copy()
-            q[0] = start + w * (t - 1.5)
-            joints.publish(joint_state(t, kin.joint_names, q))
+            q, dq = home.copy(), np.zeros(len(home))
+            q[0], dq[0] = start + w * (t - 1.5), w  # with the joint velocities (the mallet's velocity from them)
+            joints.publish(joint_state(t, kin.joint_names, q, dq))
         return any(s.flags & PuckState.FLAG_PREDICTED and math.hypot(s.vx, s.vy) > 1.0 for s in states) or k > 120
 
     assert spin_until(rclpy_node, feed, 60.0)
