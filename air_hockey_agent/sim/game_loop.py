@@ -291,11 +291,13 @@ class InProcessGame:
                 self.players[robot].on_joints(t, values, velocities)
             if self.recorder is not None:
                 self.recorder.on_joints(t, robot, values, velocities)
-            arm = in_order(JOINT_NAMES, values, self.referee_kin.joint_names)
-            self.mallets[robot] = self.referee_kin.tip_in_table(arm, self.config.referee[f"robot_base.{robot}"])
-            position, velocity = self.tracker_mallets.motion(robot, JOINT_NAMES, values, velocities)
-            for tracker in self.trackers:  # as the tracker nodes' joint_states
-                tracker.ekf.observe_mallet(robot, t, position, velocity)
+            if self.referee is not None:
+                arm = in_order(JOINT_NAMES, values, self.referee_kin.joint_names)
+                self.mallets[robot] = self.referee_kin.tip_in_table(arm, self.config.referee[f"robot_base.{robot}"])
+            if any(tracker.ekf.mallets is not None for tracker in self.trackers):  # as the nodes' joint_states
+                position, velocity = self.tracker_mallets.motion(robot, JOINT_NAMES, values, velocities)
+                for tracker in self.trackers:
+                    tracker.ekf.observe_mallet(robot, t, position, velocity)
         for tracker in self.trackers:
             if tracker.ekf.coast(t):  # a dropout, and the estimate met a mallet in it: as the node publishes
                 self._estimate(tracker, t, FLAG_PREDICTED)
